@@ -1,0 +1,1 @@
+"""Thin rclpy nodes: parameters in, messages converted, core called, results published."""

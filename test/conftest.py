@@ -1,0 +1,34 @@
+"""Shared test fixtures and helpers."""
+
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+SHARED_MAPS = REPO.parent / "shared" / "maps"
+WORLDS = REPO / "config" / "worlds"
+
+# Every DDS process started by a test stays on this machine.
+os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+
+if str(REPO) not in sys.path:
+    sys.path.insert(0, str(REPO))
+
+
+def shared_map(name: str) -> Path:
+    """Path of one of the real ROS maps in ../shared/maps (skips if the folder is absent)."""
+    path = SHARED_MAPS / f"{name}.yaml"
+    if not path.exists():
+        pytest.skip(f"{path} not found (the shared maps live beside the repository)")
+    return path
+
+
+@pytest.fixture
+def rng():
+    import numpy as np
+
+    return np.random.default_rng(12345)

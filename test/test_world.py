@@ -1,0 +1,131 @@
+"""World YAML parsing, validation and rasterisation; start placement."""
+
+from __future__ import annotations
+
+import math
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import yaml
+from conftest import REPO, WORLDS, shared_map
+
+from coverage_ros.core.world import (
+    TB3_RADIUS,
+    cluster_starts,
+    load_world,
+    parse_world,
+)
+from coverage_ros.errors import WorldError
+
+
+def test_core_imports_no_ros_pymunk_or_rerun():
+    code = ("import sys, coverage_ros.core.world, coverage_ros.core.maps, coverage_ros.core.graph,"
+            " coverage_ros.core.density;"
+            " bad = [m for m in ('rclpy', 'pymunk', 'rerun') if m in sys.modules];"
+            " print(bad); sys.exit(1 if bad else 0)")
+    out = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True)
+    assert out.returncode == 0, out.stdout + out.stderr
+
+
+@pytest.mark.parametrize("path", sorted(WORLDS.glob("*.yaml")), ids=lambda p: p.stem)
+def test_shipped_worlds_load(path):
+    world = load_world(path)
+    grid = world.grid
+    free = grid.free_mask()
+    assert 0.5 < free.mean() < 0.99
+    # The arena is walled: the outer ring of cells is occupied.
+    assert not free[0].any() and not free[-1].any()
+    assert not free[:, 0].any() and not free[:, -1].any()
+
+
+def test_raster_marks_obstacles_where_they_are():
+    world = parse_world({"bounds": [0, 0, 4, 3], "resolution": 0.1, "obstacles": [
+        {"type": "circle", "center": [1, 1], "radius": 0.5},
+        {"type": "box", "center": [3, 2], "size": [0.6, 0.4]},
+    ]})
+    grid = world.grid
+    occ = grid.occupied_mask()
+
+    def at(x, y):
+        r, c = grid.world_to_cell(np.array([x, y]))
+        return bool(occ[r, c])
+
+    assert at(1.0, 1.0) and at(1.4, 1.0) and not at(1.6, 1.0)
+    assert at(3.0, 2.0) and at(3.25, 2.15) and not at(3.4, 2.0)
+    assert not at(2.0, 1.5)
+    # Area of the circle in cells is close to pi r^2 (rasterised with a half-cell margin).
+    X, Y = grid.all_cell_centers()
+    near_circle = (np.hypot(X - 1, Y - 1) < 0.9)
+    circle_cells = (occ & near_circle).sum() * 0.01
+    assert math.pi * 0.5 ** 2 < circle_cells < math.pi * 0.6 ** 2
+
+
+def test_world_on_top_of_a_map_server_map():
+    base = shared_map("depot")
+    world = parse_world({"map": str(base), "obstacles": [
+        {"type": "box", "center": [10, 7], "size": [1, 1]}]})
+    assert world.grid.shape == world.base_map.shape
+    r, c = world.grid.world_to_cell(np.array([10.0, 7.0]))
+    assert world.grid.occupancy[r, c] == 100
+
+
+@pytest.mark.parametrize("data, where", [
+    ({"bounds": [0, 0, 5, 5], "colour": "red"}, "colour: unknown key"),
+    ({"bounds": [0, 0, -5, 5]}, "bounds: need xmin < xmax"),
+    ({}, "bounds: required when no 'map'"),
+    ({"bounds": [0, 0, 5, 5], "obstacles": [{"type": "blob"}]}, r"obstacles\[0\].type: unknown"),
+    ({"bounds": [0, 0, 5, 5], "obstacles": [{"type": "circle", "center": [1, 1],
+                                             "radius": -1}]}, r"obstacles\[0\].radius: must be > 0"),
+    ({"bounds": [0, 0, 5, 5], "obstacles": [{"type": "box", "center": [1, 1], "size": [1, 1],
+                                             "height": 2}]}, r"obstacles\[0\].height: unknown key"),
+    ({"bounds": [0, 0, 5, 5], "robots": [{"pose": [1, 1, 0], "radius": 0}]},
+     r"robots\[0\].radius: must be > 0"),
+    ({"bounds": [0, 0, 5, 5], "robots": [[9, 1, 0]]}, r"robots\[0\]: start is outside the map"),
+    ({"bounds": [0, 0, 5, 5], "robots": [[1, 1, 0]],
+      "obstacles": [{"type": "circle", "center": [1, 1], "radius": 0.3}]},
+     r"robots\[0\]: start \(1, 1\) is inside an obstacle"),
+    ({"bounds": [0, 0, 5, 5], "robots": [[1, 1, 0], [1.1, 1, 0]]}, r"robots\[1\]: .* overlaps"),
+    ({"bounds": [0, 0, 5, 5], "robots": [[0.05, 1, 0]]}, r"robots\[0\]: .*inside an obstacle or wall"),
+    ({"bounds": [0, 0, 5, 5], "density": {"type": "gaussian_mixture", "components": [
+        {"mean": [1, 1], "sigma": -2}]}}, r"density.components\[0\].sigma: must be a number > 0"),
+    ({"bounds": [0, 0, 5, 5], "lidar": {"beams": 0}}, "lidar.beams: must be an integer >= 1"),
+])
+def test_bad_world_is_named(tmp_path, data, where):
+    path = tmp_path / "w.yaml"
+    path.write_text(yaml.safe_dump(data))
+    with pytest.raises(WorldError, match=where) as info:
+        load_world(path)
+    assert str(path) in str(info.value)
+    assert "\n" not in str(info.value)
+
+
+def test_heterogeneous_robots_and_defaults():
+    world = parse_world({"bounds": [0, 0, 5, 5], "robot": {"v_max": 0.3},
+                         "robots": [[1, 1, 0], {"pose": [2, 2, 1.0], "radius": 0.2,
+                                                "lidar": {"beams": 90}}]})
+    assert world.robot_spec(0).radius == TB3_RADIUS and world.robot_spec(0).v_max == 0.3
+    assert world.robot_spec(1).radius == 0.2 and world.robot_spec(1).lidar.beams == 90
+    assert world.robot_spec(5).v_max == 0.3  # beyond the listed starts: world default
+
+
+def test_cluster_is_compact_free_and_seeded():
+    world = load_world(WORLDS / "office.yaml")
+    grid = world.grid
+    a = cluster_starts(grid, 6, TB3_RADIUS, np.random.default_rng(3))
+    b = cluster_starts(grid, 6, TB3_RADIUS, np.random.default_rng(3))
+    c = cluster_starts(grid, 6, TB3_RADIUS, np.random.default_rng(4))
+    assert np.array_equal(a, b) and not np.array_equal(a, c)
+    for x, y, _ in a:
+        assert world.start_clearance(x, y) >= TB3_RADIUS
+    d = np.hypot(*(a[:, None, :2] - a[None, :, :2]).transpose(2, 0, 1))
+    assert d[np.triu_indices(6, 1)].min() >= 2 * TB3_RADIUS
+    assert d.max() < 1.5  # compact: all within 1.5 m of each other
+
+
+def test_cluster_on_real_map():
+    world = load_world(shared_map("tb3_sandbox"))
+    starts = cluster_starts(world.grid, 10, TB3_RADIUS, np.random.default_rng(0))
+    for x, y, _ in starts:
+        assert world.start_clearance(x, y) >= TB3_RADIUS

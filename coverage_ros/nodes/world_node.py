@@ -1,2 +1,316 @@
-def main(args=None):
-    print("temporary")
+"""world_node: the pymunk world simulator as a ROS 2 node (topics and parameters: README).
+
+It owns the simulation clock: it steps :class:`~coverage_ros.sim.world.World` at a fixed physics
+rate, paced against *wall* time by ``real_time_factor`` (0: as fast as possible), and publishes
+``/clock`` so that every other node runs with ``use_sim_time``. Per robot ``<id>`` in namespace
+``/robot_<id>`` it subscribes ``cmd_vel`` and publishes ``odom``, ``ground_truth`` and ``scan``.
+Robots are added and removed at run time through ``/world/spawn`` and ``/world/remove``.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+from dataclasses import dataclass, field
+
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import Twist, TwistStamped
+from nav_msgs.msg import OccupancyGrid, Odometry
+from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.exceptions import ParameterException
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.qos import (
+    DurabilityPolicy,
+    QoSProfile,
+    ReliabilityPolicy,
+    qos_profile_sensor_data,
+)
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import LaserScan
+from std_msgs.msg import Int32, String
+
+from coverage_ros.core.world import load_world
+from coverage_ros.errors import ConfigError, CoverageError
+from coverage_ros.nodes import conversions as conv
+from coverage_ros.sim.world import Scan, SimConfig, World
+from coverage_ros.sim.worlds import resolve_world_path
+
+DEFAULT_NUM_ROBOTS = 4  # robots when the world lists no start poses
+WARN_PERIOD = 2.0  # [s] wall time between repeats of a throttled warning
+TICK_BUDGET = 0.05  # [s] wall time one pacing tick may step before serving callbacks again
+MAX_LAG = 0.25  # [s] sim time behind schedule before the pacer gives up catching up
+MAP_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                     durability=DurabilityPolicy.TRANSIENT_LOCAL)  # latched, like map_server
+
+
+@dataclass(frozen=True)
+class WorldNodeConfig:
+    """The node's parameters, validated (see README for meanings)."""
+
+    world: str = "office"
+    num_robots: int = -1  # -1: the world's start poses, else DEFAULT_NUM_ROBOTS
+    real_time_factor: float = 1.0
+    use_stamped_cmd_vel: bool = False
+    odom_rate_hz: float = 20.0  # [Hz] sim time
+    clock_rate_hz: float = 0.0  # [Hz] sim time; 0: every physics step
+    status_rate_hz: float = 1.0  # [Hz] wall time
+    robot_prefix: str = "robot_"
+    sim: SimConfig = field(default_factory=SimConfig)
+
+    def __post_init__(self) -> None:
+        if self.num_robots < -1:
+            raise ConfigError.at("num_robots", "must be >= 0 (or -1: the world's robots)",
+                                 self.num_robots)
+        if not (math.isfinite(self.real_time_factor) and self.real_time_factor >= 0):
+            raise ConfigError.at("real_time_factor", "must be >= 0 (0: as fast as possible)",
+                                 self.real_time_factor)
+        for name in ("odom_rate_hz", "status_rate_hz"):
+            if not getattr(self, name) > 0:
+                raise ConfigError.at(name, "must be > 0", getattr(self, name))
+        if not self.clock_rate_hz >= 0:
+            raise ConfigError.at("clock_rate_hz", "must be >= 0 (0: every physics step)",
+                                 self.clock_rate_hz)
+        if not self.robot_prefix or not self.robot_prefix.replace("_", "a").isalnum():
+            raise ConfigError.at("robot_prefix", "must be letters, digits and '_'",
+                                 self.robot_prefix)
+
+
+_PARAMETERS = {  # name: (default, description)
+    "world": ("office", "shipped world name (config/worlds/<name>.yaml) or path to a package "
+              "world YAML or a map_server YAML"),
+    "num_robots": (-1, "robots at start-up; -1: one per start pose of the world, else 4"),
+    "seed": (0, "seed of placement, odometry noise and lidar noise (same seed, same run)"),
+    "real_time_factor": (1.0, "sim seconds per wall second; 0: as fast as possible"),
+    "physics_rate_hz": (50.0, "[Hz] fixed physics steps per simulated second"),
+    "cmd_timeout": (0.5, "[s] sim time without cmd_vel after which a robot brakes to a stop"),
+    "use_stamped_cmd_vel": (False, "subscribe geometry_msgs/TwistStamped instead of Twist"),
+    "odom_noise_trans": (0.0, "[m/sqrt(m)] odometry translation random walk per metre driven"),
+    "odom_noise_rot": (0.0, "[rad/sqrt(rad)] odometry heading random walk per radian turned"),
+    "scan_noise_std": (-1.0, "[m] lidar range noise std; < 0: the world's lidar.noise_std"),
+    "odom_rate_hz": (20.0, "[Hz] sim time rate of odom and ground_truth"),
+    "clock_rate_hz": (0.0, "[Hz] sim time rate of /clock; 0: every physics step"),
+    "status_rate_hz": (1.0, "[Hz] wall time rate of /world/robots"),
+    "robot_prefix": ("robot_", "robot namespaces and frame prefixes are <prefix><id>"),
+}
+
+
+@dataclass
+class RobotIO:
+    """One robot's ROS endpoints."""
+
+    frames: conv.RobotFrames
+    cmd_sub: object
+    odom_pub: object
+    truth_pub: object
+    scan_pub: object
+
+
+class WorldNode(Node):
+    """The world simulator node (see module docstring)."""
+
+    def __init__(self) -> None:
+        super().__init__("world")
+        for name, (default, text) in _PARAMETERS.items():
+            self.declare_parameter(name, default, ParameterDescriptor(description=text))
+        p = {name: self.get_parameter(name).value for name in _PARAMETERS}
+        scan_noise = p.pop("scan_noise_std")
+        sim = SimConfig(seed=p.pop("seed"), physics_rate_hz=p.pop("physics_rate_hz"),
+                        cmd_timeout=p.pop("cmd_timeout"),
+                        odom_noise_trans=p.pop("odom_noise_trans"),
+                        odom_noise_rot=p.pop("odom_noise_rot"),
+                        scan_noise_std=scan_noise if scan_noise >= 0 else None)
+        self.config = WorldNodeConfig(sim=sim, **p)
+        self.spec = load_world(resolve_world_path(self.config.world))
+        self.sim = World(self.spec, self.config.sim)
+        count = self.config.num_robots
+        if count < 0:
+            count = len(self.spec.starts) or DEFAULT_NUM_ROBOTS
+        self.io: dict[int, RobotIO] = {}
+        self._last_warn: dict[str, float] = {}
+        self.clock_pub = self.create_publisher(Clock, "/clock", 10)
+        self.map_pub = self.create_publisher(OccupancyGrid, "/map", MAP_QOS)
+        self.status_pub = self.create_publisher(DiagnosticArray, "/world/robots", 10)
+        self.create_subscription(String, "/world/spawn", self._on_spawn, 10)
+        self.create_subscription(Int32, "/world/remove", self._on_remove, 10)
+        for robot_id in self.sim.populate(count):
+            self._open_io(robot_id)
+        self.map_pub.publish(conv.grid_to_occupancy_grid(self.spec.grid, conv.to_time_msg(0.0)))
+        self._publish_clock()
+        dt = self.config.sim.dt
+        self._next_odom = 0.0
+        self._next_clock = 0.0
+        rtf = self.config.real_time_factor
+        self._anchor = (time.monotonic(), self.sim.time)  # (wall, sim) pacing reference
+        self._rate_ref = self._anchor
+        period = min(max(dt / rtf, 0.001), 0.02) if rtf > 0 else 0.0005
+        self.create_timer(period, self._on_tick)
+        self.create_timer(1.0 / self.config.status_rate_hz, self._publish_status)
+        self.get_logger().info(
+            f"world '{self.spec.name}' ({self.config.world}) with {len(self.sim.robots)} robots, "
+            f"physics {self.config.sim.physics_rate_hz:g} Hz, real_time_factor {rtf:g}")
+
+    # ------------------------------------------------------------------ helpers
+    def _warn(self, key: str, text: str) -> None:
+        """Log a warning at most once per WARN_PERIOD per key (wall time)."""
+        now = time.monotonic()
+        if now - self._last_warn.get(key, -math.inf) >= WARN_PERIOD:
+            self._last_warn[key] = now
+            self.get_logger().warning(text)
+
+    def _open_io(self, robot_id: int) -> None:
+        frames = conv.RobotFrames.of(self.config.robot_prefix, robot_id)
+        if self.config.use_stamped_cmd_vel:
+            sub = self.create_subscription(
+                TwistStamped, frames.topic("cmd_vel"),
+                lambda msg, rid=robot_id: self._on_cmd_vel(rid, msg.twist), 10)
+        else:
+            sub = self.create_subscription(
+                Twist, frames.topic("cmd_vel"),
+                lambda msg, rid=robot_id: self._on_cmd_vel(rid, msg), 10)
+        self.io[robot_id] = RobotIO(
+            frames, sub,
+            self.create_publisher(Odometry, frames.topic("odom"), 10),
+            self.create_publisher(Odometry, frames.topic("ground_truth"), 10),
+            self.create_publisher(LaserScan, frames.topic("scan"), qos_profile_sensor_data))
+
+    def _close_io(self, robot_id: int) -> None:
+        io = self.io.pop(robot_id)
+        self.destroy_subscription(io.cmd_sub)
+        for pub in (io.odom_pub, io.truth_pub, io.scan_pub):
+            self.destroy_publisher(pub)
+
+    # ------------------------------------------------------------------ callbacks
+    def _on_cmd_vel(self, robot_id: int, twist: Twist) -> None:
+        try:
+            v, w = conv.twist_to_command(twist)
+            self.sim.set_command(robot_id, v, w)
+        except ValueError as exc:
+            self._warn(f"cmd{robot_id}", f"robot {robot_id}: dropped cmd_vel: {exc}")
+        except KeyError:
+            pass  # removed while the message was in flight
+
+    def _on_spawn(self, msg: String) -> None:
+        try:
+            req = conv.parse_spawn_request(msg.data, self.spec.robot)
+            robot_id = self.sim.free_id() if req.robot_id is None else req.robot_id
+            robot = self.sim.add_robot(robot_id, req.pose, req.robot)
+        except CoverageError as exc:
+            self._warn("spawn", f"dropped /world/spawn {msg.data!r}: {exc}")
+            return
+        self._open_io(robot_id)
+        x, y, yaw = robot.pose()
+        self.get_logger().info(f"spawned robot {robot_id} at ({x:.2f}, {y:.2f}, {yaw:.2f})")
+        self._publish_status()
+
+    def _on_remove(self, msg: Int32) -> None:
+        try:
+            self.sim.remove_robot(msg.data)
+        except CoverageError as exc:
+            self._warn("remove", f"dropped /world/remove {msg.data}: {exc}")
+            return
+        self._close_io(msg.data)
+        self.get_logger().info(f"removed robot {msg.data}")
+        self._publish_status()
+
+    # ------------------------------------------------------------------ stepping
+    def _on_tick(self) -> None:
+        """Step the physics as far as the pacing allows, for at most TICK_BUDGET wall time."""
+        now = time.monotonic()
+        dt = self.config.sim.dt
+        rtf = self.config.real_time_factor
+        deadline = now + TICK_BUDGET
+        if rtf > 0:
+            wall0, sim0 = self._anchor
+            target = sim0 + (now - wall0) * rtf
+            if target - self.sim.time > MAX_LAG:
+                self._warn("lag", f"cannot keep real_time_factor {rtf:g}: running slower")
+                self._anchor = (now, self.sim.time)
+                target = self.sim.time + dt
+            while self.sim.time + 0.5 * dt <= target and time.monotonic() < deadline:
+                self._step()
+        else:
+            while time.monotonic() < deadline:
+                self._step()
+
+    def _step(self) -> None:
+        scans = self.sim.step()
+        t = self.sim.time
+        if t + 1e-9 >= self._next_clock:
+            self._publish_clock()
+            if self.config.clock_rate_hz > 0:
+                self._next_clock = max(self._next_clock + 1.0 / self.config.clock_rate_hz, t)
+        if t + 1e-9 >= self._next_odom:
+            self._publish_odometry()
+            self._next_odom = max(self._next_odom + 1.0 / self.config.odom_rate_hz, t)
+        for scan in scans:
+            self._publish_scan(scan)
+
+    # ------------------------------------------------------------------ publishing
+    def _publish_clock(self) -> None:
+        self.clock_pub.publish(conv.clock_msg(self.sim.time))
+
+    def _publish_odometry(self) -> None:
+        stamp = conv.to_time_msg(self.sim.time)
+        for robot_id, robot in self.sim.robots.items():
+            io = self.io[robot_id]
+            twist = robot.body_twist()
+            odom = robot.odom
+            io.odom_pub.publish(conv.odometry_msg(
+                stamp, io.frames.odom, io.frames.base_link, (odom.x, odom.y, odom.yaw), twist,
+                (odom.var_xy, odom.var_yaw)))
+            io.truth_pub.publish(conv.odometry_msg(
+                stamp, conv.MAP_FRAME, io.frames.base_link, robot.pose(), twist))
+
+    def _publish_scan(self, scan: Scan) -> None:
+        io = self.io.get(scan.robot_id)
+        robot = self.sim.robots.get(scan.robot_id)
+        if io is not None and robot is not None:
+            io.scan_pub.publish(conv.laser_scan_msg(
+                scan.ranges, robot.spec.lidar, conv.to_time_msg(scan.stamp), io.frames.base_scan))
+
+    def _publish_status(self) -> None:
+        now = time.monotonic()
+        wall0, sim0 = self._rate_ref
+        rtf = (self.sim.time - sim0) / (now - wall0) if now > wall0 else 0.0
+        self._rate_ref = (now, self.sim.time)
+        msg = DiagnosticArray()
+        msg.header.stamp = conv.to_time_msg(self.sim.time)
+        msg.status.append(conv.diagnostic_status("world", self.spec.name, {
+            "sim_time": self.sim.time, "real_time_factor": rtf, "robots": len(self.sim.robots),
+            "steps": self.sim.steps}))
+        for robot_id, robot in self.sim.robots.items():
+            x, y, yaw = robot.pose()
+            stalled = self.sim.time - robot.last_cmd_time > self.config.sim.cmd_timeout
+            msg.status.append(conv.diagnostic_status(
+                f"{self.config.robot_prefix}{robot_id}", "idle" if stalled else "driving", {
+                    "id": robot_id, "x": x, "y": y, "yaw": yaw,
+                    "collisions": robot.collisions, "robot_collisions": robot.robot_collisions,
+                    "wall_collisions": robot.wall_collisions, "path_length": robot.path_length,
+                    "scans": robot.scans, "spawn_time": robot.spawn_time},
+                hardware_id=str(robot_id)))
+        self.status_pub.publish(msg)
+
+
+def main(args=None) -> int:
+    rclpy.init(args=args)
+    try:
+        node = WorldNode()
+    except (CoverageError, ParameterException) as exc:
+        print(f"world_node: error: {exc}", file=sys.stderr)
+        rclpy.try_shutdown()
+        return 2
+    try:
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,96 @@
+"""Message <-> numpy conversions (no DDS needed, only the message packages)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+pytest.importorskip("nav_msgs")
+from geometry_msgs.msg import Twist
+
+from coverage_ros.core.grid import GridMap
+from coverage_ros.core.world import LidarSpec, RobotSpec
+from coverage_ros.errors import ConfigError
+from coverage_ros.nodes import conversions as conv
+
+
+@pytest.mark.parametrize("yaw", [0.0, 0.5, -2.0, math.pi - 1e-6])
+def test_yaw_quaternion_round_trip(yaw):
+    assert conv.quaternion_to_yaw(conv.yaw_to_quaternion(yaw)) == pytest.approx(yaw)
+
+
+def test_time_round_trip():
+    msg = conv.to_time_msg(12.345678901)
+    assert (msg.sec, msg.nanosec) == (12, 345678901)
+    assert conv.from_time_msg(msg) == pytest.approx(12.345678901)
+
+
+def test_grid_round_trip_keeps_cells_and_origin(rng):
+    occ = rng.choice(np.array([-1, 0, 100], dtype=np.int8), size=(30, 40))
+    grid = GridMap(occ, 0.05, (-1.0, 2.0, 0.3))
+    msg = conv.grid_to_occupancy_grid(grid, conv.to_time_msg(1.0))
+    assert (msg.info.width, msg.info.height) == (40, 30)
+    back = conv.occupancy_grid_to_grid(msg)
+    np.testing.assert_array_equal(back.occupancy, occ)
+    assert back.origin == pytest.approx(grid.origin)
+
+
+def test_laser_scan_keeps_rep117_values():
+    lidar = LidarSpec(beams=4)
+    ranges = np.array([1.0, np.inf, -np.inf, 3.25], dtype=np.float32)
+    msg = conv.laser_scan_msg(ranges, lidar, conv.to_time_msg(0.2), "robot_0/base_scan")
+    assert msg.angle_min == pytest.approx(-math.pi)
+    assert msg.angle_max == pytest.approx(-math.pi + 3 * math.pi / 2)
+    angles, back = conv.laser_scan_to_ranges(msg)
+    np.testing.assert_array_equal(back, ranges)
+    assert angles[2] == pytest.approx(0.0)
+
+
+def test_odometry_message_fields():
+    msg = conv.odometry_msg(conv.to_time_msg(1.0), "robot_1/odom", "robot_1/base_link",
+                            (1.0, 2.0, 0.5), (0.2, 0.0, 0.1), (0.01, 0.002))
+    assert conv.odometry_to_pose(msg) == pytest.approx((1.0, 2.0, 0.5))
+    assert msg.pose.covariance[0] == msg.pose.covariance[7] == pytest.approx(0.01)
+    assert msg.pose.covariance[35] == pytest.approx(0.002)
+
+
+def test_twist_command_must_be_finite():
+    assert conv.twist_to_command(conv.command_to_twist(0.2, -0.4)) == (0.2, -0.4)
+    bad = Twist()
+    bad.angular.z = math.nan
+    with pytest.raises(ValueError, match="finite"):
+        conv.twist_to_command(bad)
+
+
+def test_frames():
+    f = conv.RobotFrames.of("robot_", 3)
+    assert f.topic("cmd_vel") == "/robot_3/cmd_vel"
+    assert (f.odom, f.base_link, f.base_scan) == ("robot_3/odom", "robot_3/base_link",
+                                                  "robot_3/base_scan")
+
+
+def test_spawn_requests():
+    base = RobotSpec()
+    req = conv.parse_spawn_request("{id: 7, pose: [1, 2, 0.5], radius: 0.2}", base)
+    assert req.robot_id == 7 and req.pose == (1.0, 2.0, 0.5) and req.robot.radius == 0.2
+    req = conv.parse_spawn_request("", base)
+    assert req.robot_id is None and req.pose is None and req.robot == base
+    assert conv.parse_spawn_request("pose: [1, 2]", base).pose == (1.0, 2.0, 0.0)
+
+
+@pytest.mark.parametrize("text, match", [
+    ("{id: 7", "malformed YAML"),
+    ("[1, 2]", "must be a YAML mapping"),
+    ("{id: -1}", "spawn.id"),
+    ("{id: 1.5}", "spawn.id"),
+    ("{pose: [1, .nan]}", "spawn.pose"),
+    ("{pose: oops}", "spawn.pose"),
+    ("{colour: red}", "spawn.colour: unknown key"),
+    ("{radius: -1}", "robot.radius"),
+    ("{v_max: abc}", "spawn.v_max"),
+])
+def test_bad_spawn_requests_name_the_field(text, match):
+    with pytest.raises(ConfigError, match=match):
+        conv.parse_spawn_request(text, RobotSpec())

@@ -76,10 +76,12 @@ def test_world_on_top_of_a_map_server_map():
     ({"bounds": [0, 0, -5, 5]}, "bounds: need xmin < xmax"),
     ({}, "bounds: required when no 'map'"),
     ({"bounds": [0, 0, 5, 5], "obstacles": [{"type": "blob"}]}, r"obstacles\[0\].type: unknown"),
-    ({"bounds": [0, 0, 5, 5], "obstacles": [{"type": "circle", "center": [1, 1],
-                                             "radius": -1}]}, r"obstacles\[0\].radius: must be > 0"),
-    ({"bounds": [0, 0, 5, 5], "obstacles": [{"type": "box", "center": [1, 1], "size": [1, 1],
-                                             "height": 2}]}, r"obstacles\[0\].height: unknown key"),
+    ({"bounds": [0, 0, 5, 5], "obstacles": [
+        {"type": "circle", "center": [1, 1], "radius": -1}]},
+     r"obstacles\[0\].radius: must be > 0"),
+    ({"bounds": [0, 0, 5, 5], "obstacles": [
+        {"type": "box", "center": [1, 1], "size": [1, 1], "height": 2}]},
+     r"obstacles\[0\].height: unknown key"),
     ({"bounds": [0, 0, 5, 5], "robots": [{"pose": [1, 1, 0], "radius": 0}]},
      r"robots\[0\].radius: must be > 0"),
     ({"bounds": [0, 0, 5, 5], "robots": [[9, 1, 0]]}, r"robots\[0\]: start is outside the map"),
@@ -87,7 +89,8 @@ def test_world_on_top_of_a_map_server_map():
       "obstacles": [{"type": "circle", "center": [1, 1], "radius": 0.3}]},
      r"robots\[0\]: start \(1, 1\) is inside an obstacle"),
     ({"bounds": [0, 0, 5, 5], "robots": [[1, 1, 0], [1.1, 1, 0]]}, r"robots\[1\]: .* overlaps"),
-    ({"bounds": [0, 0, 5, 5], "robots": [[0.05, 1, 0]]}, r"robots\[0\]: .*inside an obstacle or wall"),
+    ({"bounds": [0, 0, 5, 5], "robots": [[0.05, 1, 0]]},
+     r"robots\[0\]: .*inside an obstacle or wall"),
     ({"bounds": [0, 0, 5, 5], "density": {"type": "gaussian_mixture", "components": [
         {"mean": [1, 1], "sigma": -2}]}}, r"density.components\[0\].sigma: must be a number > 0"),
     ({"bounds": [0, 0, 5, 5], "lidar": {"beams": 0}}, "lidar.beams: must be an integer >= 1"),

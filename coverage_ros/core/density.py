@@ -182,7 +182,8 @@ def parse_density(data: Any, where: str = "density") -> Density:
         raise ConfigError.at(where, "must be a mapping with a 'type'", data)
     kind = data.get("type")
     if kind not in _KEYS:
-        raise ConfigError.at(f"{where}.type", "unknown density type", kind, f"one of {list(_KEYS)}")
+        raise ConfigError.at(f"{where}.type", "unknown density type", kind,
+                             f"one of {list(_KEYS)}")
     unknown = sorted(set(data) - _KEYS[kind])
     if unknown:
         raise ConfigError.at(f"{where}.{unknown[0]}", f"unknown key for a {kind} density",

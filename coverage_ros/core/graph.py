@@ -125,6 +125,45 @@ class GridGraph:
         return self._cache[key]
 
     @cached_property
+    def edge_table(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(nb, cost)``, each ``(N + 1, K)``: neighbour node of every node along each offset
+        (``N``, a sentinel, where there is no edge) and the edge cost (inf there). Row ``N`` is
+        the sentinel's own row. Local searches gather rows of these tables."""
+        N, K = self.num_nodes, len(self.offsets)
+        nb = np.full((N + 1, K), N, dtype=np.int32 if N < 2**31 - 1 else np.int64)
+        cost = np.full((N + 1, K), np.inf)
+        for k in range(K):
+            c = self.cost[..., k].ravel()
+            ok = np.isfinite(c)
+            nb[:N, k] = np.where(ok, self.neighbour_index(k).ravel(), N)
+            cost[:N, k] = c
+        return nb, cost
+
+    @cached_property
+    def edge_bits(self) -> np.ndarray:
+        """``(N + 1,)`` bit k set when a node has an edge along offset k (uint8 for 8
+        neighbours, uint16 for 16); the sentinel N has none."""
+        K = len(self.offsets)
+        bits = np.zeros(self.num_nodes + 1, dtype=np.uint8 if K <= 8 else np.uint16)
+        for k in range(K):
+            ok = np.isfinite(self.cost[..., k].ravel())
+            bits[:-1] |= (ok.astype(bits.dtype) << k)
+        return bits
+
+    @cached_property
+    def offset_steps(self) -> np.ndarray:
+        """``(K,)`` node-id difference of each offset (without wrap-around)."""
+        return (self.offsets[:, 0] * self.shape[1] + self.offsets[:, 1]).astype(np.int64)
+
+    @cached_property
+    def uniform_costs(self) -> np.ndarray | None:
+        """``(K,)`` edge length per offset when every edge along an offset has the same cost
+        (Euclidean metric), else None."""
+        if not self.euclidean:
+            return None
+        return np.hypot(self.offsets[:, 0], self.offsets[:, 1]) * self.resolution
+
+    @cached_property
     def csr(self) -> csr_matrix:
         """The whole graph as a ``(N, N)`` CSR matrix of edge costs (directed both ways)."""
         rows, cols, data = [], [], []

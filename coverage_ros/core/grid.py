@@ -155,6 +155,6 @@ class GridMap:
     def with_occupancy(self, occupancy: np.ndarray) -> GridMap:
         """A grid with the same geometry and new cell values."""
         if np.shape(occupancy) != self.shape:
-            raise ConfigError.at("grid.occupancy", "shape must match the grid", np.shape(occupancy),
-                                 str(self.shape))
+            raise ConfigError.at("grid.occupancy", "shape must match the grid",
+                                 np.shape(occupancy), str(self.shape))
         return GridMap(occupancy, self.resolution, self.origin)

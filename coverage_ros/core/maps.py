@@ -108,7 +108,8 @@ def grid_from_map_yaml(path: Path, data: dict[str, Any]) -> GridMap:
         raise MapError.at(f"{path}: mode", "unknown map mode", mode, f"one of {MAP_MODES}")
     image_path = Path(image) if Path(image).is_absolute() else path.parent / image
     pixels, alpha = read_map_image(image_path, where=f"{path}: image")
-    occupancy = pixels_to_occupancy(pixels, alpha, bool(negate), occupied_thresh, free_thresh, mode)
+    occupancy = pixels_to_occupancy(pixels, alpha, bool(negate), occupied_thresh, free_thresh,
+                                    mode)
     return GridMap(np.flipud(occupancy), resolution, tuple(float(v) for v in origin))
 
 

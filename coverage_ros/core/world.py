@@ -359,7 +359,8 @@ def _parse_obstacle(where: str, data: Any) -> Obstacle:
 
 
 def _shoelace(p: np.ndarray) -> float:
-    return 0.5 * float(np.dot(p[:, 0], np.roll(p[:, 1], -1)) - np.dot(p[:, 1], np.roll(p[:, 0], -1)))
+    x, y = p[:, 0], p[:, 1]
+    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)))
 
 
 def _parse_start(where: str, data: Any, base: RobotSpec) -> StartPose:
@@ -393,7 +394,9 @@ def load_world(path: str | Path) -> WorldSpec:
 def parse_world(data: dict[str, Any], source: str = "", base_dir: Path | None = None,
                 default_name: str = "world") -> WorldSpec:
     """Validate a parsed world mapping (see module docstring) and build the spec."""
-    w = (lambda key: _where(source, key))
+    def w(key: str) -> str:
+        return _where(source, key)
+
     _check_keys(f"{source}: " if source else "", data, _WORLD_KEYS)
     name = data.get("name", default_name)
     if not isinstance(name, str) or not name:
@@ -427,13 +430,16 @@ def parse_world(data: dict[str, Any], source: str = "", base_dir: Path | None = 
     elif base_map is None:
         raise WorldError.at(w("bounds"), "required when no 'map' is given",
                             expected="[xmin, ymin, xmax, ymax]")
-    robot = _parse_robot(w("robot"), data["robot"], RobotSpec()) if "robot" in data else RobotSpec()
+    robot = RobotSpec()
+    if "robot" in data:
+        robot = _parse_robot(w("robot"), data["robot"], robot)
     if "lidar" in data:
         robot = replace(robot, lidar=_parse_lidar(w("lidar"), data["lidar"], robot.lidar))
     obstacles_data = data.get("obstacles", []) or []
     if not isinstance(obstacles_data, list):
         raise WorldError.at(w("obstacles"), "must be a list", obstacles_data)
-    obstacles = tuple(_parse_obstacle(w(f"obstacles[{i}]"), o) for i, o in enumerate(obstacles_data))
+    obstacles = tuple(_parse_obstacle(w(f"obstacles[{i}]"), o)
+                      for i, o in enumerate(obstacles_data))
     robots_data = data.get("robots", []) or []
     if not isinstance(robots_data, list):
         raise WorldError.at(w("robots"), "must be a list of start poses", robots_data)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import os
+import signal
 import subprocess
 import sys
 
@@ -58,6 +59,9 @@ def world(room):
         finally:
             client.close()
         assert proc.alive(), proc.output()
+        proc.signal(signal.SIGTERM)  # a clean shutdown on SIGTERM, exit code 0
+        assert proc.proc.wait(timeout=10) == 0, proc.output()
+        assert "Traceback" not in proc.output()
 
 
 def statuses(msg: DiagnosticArray) -> dict[str, dict[str, str]]:
@@ -213,5 +217,5 @@ def test_ros2_run_layout_finds_and_runs_the_node():
             client.wait_for("/robot_2/odom", Odometry, timeout=5.0)
         finally:
             client.close()
-        proc.signal(2)  # SIGINT: clean shutdown, exit code 0
+        proc.signal(signal.SIGINT)  # clean shutdown, exit code 0
         assert proc.proc.wait(timeout=10) == 0, proc.output()

@@ -229,10 +229,11 @@ class WorldNode(Node):
                 self._warn("lag", f"cannot keep real_time_factor {rtf:g}: running slower")
                 self._anchor = (now, self.sim.time)
                 target = self.sim.time + dt
-            while self.sim.time + 0.5 * dt <= target and time.monotonic() < deadline:
+            while (self.sim.time + 0.5 * dt <= target and time.monotonic() < deadline
+                   and self.context.ok()):
                 self._step()
         else:
-            while time.monotonic() < deadline:
+            while time.monotonic() < deadline and self.context.ok():
                 self._step()
 
     def _step(self) -> None:
@@ -306,6 +307,11 @@ def main(args=None) -> int:
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    except Exception:
+        # SIGINT/SIGTERM invalidate the context, possibly while a tick is publishing: that
+        # is a shutdown, not a crash.
+        if node.context.ok():
+            raise
     finally:
         node.destroy_node()
         rclpy.try_shutdown()

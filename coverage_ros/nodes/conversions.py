@@ -125,22 +125,23 @@ def occupancy_grid_to_grid(msg: OccupancyGrid) -> GridMap:
 # ---------------------------------------------------------------------------- odometry
 def odometry_msg(stamp: Time, frame_id: str, child_frame_id: str,
                  pose: tuple[float, float, float], twist: tuple[float, float, float],
-                 variance: tuple[float, float] = (0.0, 0.0)) -> Odometry:
+                 variance: tuple[float, float] = (0.0, 0.0),
+                 out: Odometry | None = None) -> Odometry:
     """``nav_msgs/Odometry`` of a planar pose ``(x, y, yaw)`` in ``frame_id`` and a body-frame
     twist ``(vx, vy, w)`` in ``child_frame_id``; ``variance`` = ``(var_xy [m^2], var_yaw
-    [rad^2])`` goes on the pose covariance diagonal."""
-    msg = Odometry()
+    [rad^2])`` goes on the pose covariance diagonal. Pass ``out`` to refill a message instead of
+    building one (an ``Odometry()`` costs ~60 us; publishing serializes it right away)."""
+    msg = Odometry() if out is None else out
     msg.header.stamp = stamp
     msg.header.frame_id = frame_id
     msg.child_frame_id = child_frame_id
     msg.pose.pose.position.x = float(pose[0])
     msg.pose.pose.position.y = float(pose[1])
     msg.pose.pose.orientation = yaw_to_quaternion(pose[2])
-    if variance[0] or variance[1]:
-        cov = [0.0] * 36
+    if variance[0] or variance[1] or out is not None:
+        cov = msg.pose.covariance
         cov[0] = cov[7] = float(variance[0])
         cov[35] = float(variance[1])
-        msg.pose.covariance = cov
     msg.twist.twist.linear.x = float(twist[0])
     msg.twist.twist.linear.y = float(twist[1])
     msg.twist.twist.angular.z = float(twist[2])

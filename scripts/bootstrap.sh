@@ -38,7 +38,9 @@ _stamp_ok() { [ -f "$STAMPS/$1" ] && [ "$(cat "$STAMPS/$1")" = "$2" ]; }
 _stamp_set() { mkdir -p "$STAMPS" && printf '%s' "$2" > "$STAMPS/$1"; }
 
 bootstrap_venv() {
-    local extra_reqs=("$@")
+    # Runtime and test/lint tools together: one requirement set, so no script ever reinstalls
+    # another's (the dev tools are small).
+    local extra_reqs=("$COVERAGE_ROS_ROOT/requirements-dev.txt")
     if [ ! -x "$VENV/bin/python" ]; then
         local py
         if ! py="$(_find_python)"; then
@@ -118,7 +120,7 @@ bootstrap_env() {
 }
 
 bootstrap_all() {
-    bootstrap_venv "$@"
+    bootstrap_venv
     bootstrap_colcon
     bootstrap_env
 }

@@ -28,6 +28,7 @@ from scipy import ndimage
 from coverage_ros.core.density import Density, UniformDensity, density_on_grid
 from coverage_ros.core.graph import GridGraph, build_grid_graph
 from coverage_ros.core.grid import GridMap
+from coverage_ros.core.tangents import polar_depth, visible_from
 from coverage_ros.errors import ConfigError
 
 
@@ -227,6 +228,66 @@ class CoverageDomain:
             costs = np.hypot(*(centers - g[i]).T) * self.resolution
             out.append((nodes_arr, costs, g[i]))
         return out
+
+    # ------------------------------------------------------------------ line of sight
+    @property
+    def sees_straight(self) -> bool:
+        """Whether straight chart segments are geodesics (Euclidean metric, no wrap), so that
+        sources may be joined to every cell in line of sight."""
+        return self.graph.euclidean and not any(self.graph.wrap)
+
+    @property
+    def occluders(self) -> np.ndarray:
+        """``(H, W) bool``: blocked cells next to a free one (the only ones that can block a
+        line of sight between free cells)."""
+        key = "occluders"
+        if key not in self._cache:
+            blocked = ~self.free
+            near_free = ndimage.binary_dilation(self.free, structure=np.ones((3, 3), bool))
+            self._cache[key] = blocked & near_free
+        return self._cache[key]
+
+    @property
+    def depth_bins(self) -> int:
+        """Angular bins of every line-of-sight depth map on this domain (fixed per domain, so
+        that every computation of "visible" agrees): enough to resolve one cell at the far
+        side of the grid."""
+        H, W = self.shape
+        return int(np.clip(2 ** math.ceil(math.log2(2.0 * math.pi * math.hypot(H, W))),
+                           1024, 16384))
+
+    def visible_mask(self, origin: np.ndarray, points: np.ndarray, radius: float) -> np.ndarray:
+        """``(N,) bool``: grid points (within ``radius`` cells of the grid point ``origin``)
+        in line of sight of it; blocked cells are discs of half a cell diagonal."""
+        H, W = self.shape
+        R = radius + 2.0
+        c0, c1 = max(int(origin[0] - R), 0), min(int(origin[0] + R) + 1, W)
+        r0, r1 = max(int(origin[1] - R), 0), min(int(origin[1] + R) + 1, H)
+        rr, cc = np.nonzero(self.occluders[r0:r1, c0:c1])
+        if len(rr) == 0:
+            return np.ones(len(points), dtype=bool)
+        occ = np.stack([cc + (c0 + 0.5), rr + (r0 + 0.5)], axis=-1)
+        return visible_from(origin, points, polar_depth(origin, occ, self.depth_bins))
+
+    def seeds(self, point_map: np.ndarray, nodes: np.ndarray, centers: np.ndarray,
+              radius: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Virtual-source edges of a point: its :meth:`snap` connections, plus (when
+        :attr:`sees_straight`) every cell among ``nodes`` (grid centres ``centers``) within
+        ``radius`` chart units and in line of sight, at its straight-line distance.
+
+        Returns ``(nodes, costs, grid_xy)`` like :meth:`snap`.
+        """
+        snap_nodes, snap_costs, g = self.snap(point_map)
+        if not self.sees_straight or len(nodes) == 0:
+            return snap_nodes, snap_costs, g
+        r_cells = radius / self.resolution
+        d2 = (centers[:, 0] - g[0]) ** 2 + (centers[:, 1] - g[1]) ** 2
+        near = np.flatnonzero(d2 <= r_cells * r_cells)
+        reach = math.sqrt(float(d2[near].max())) if len(near) else 0.0
+        vis = near[self.visible_mask(g, centers[near], reach)]
+        all_nodes = np.concatenate([snap_nodes, nodes[vis]])
+        all_costs = np.concatenate([snap_costs, np.sqrt(d2[vis]) * self.resolution])
+        return all_nodes, all_costs, g
 
     def _offset_index(self, dr: int, dc: int) -> int | None:
         key = ("offset", dr, dc)

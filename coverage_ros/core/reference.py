@@ -6,8 +6,8 @@
   the first-edge tangent, and the early exit once no unexpanded vertex of the own cell is left.
   This is the baseline of ``scripts/bench_core``.
 * :func:`obvious_cell` - the definition, evaluated the obvious way: one full heapq Dijkstra per
-  generator, labels by the smallest power distance, tangents by walking each cell's parent
-  chain in Python with a direct line-of-sight test. The parity tests compare
+  generator (sources as in the fast code), labels by the smallest power distance, tangents by
+  walking each cell's parent chain in Python. The parity tests compare
   :func:`coverage_ros.core.tessellation.geodesic_cell` against it.
 
 Both accept the same inputs as the fast code (a :class:`CoverageDomain` and generators) and
@@ -24,8 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from coverage_ros.core.domain import CoverageDomain
-from coverage_ros.core.tangents import CELL_HALF_DIAGONAL
-from coverage_ros.core.tessellation import Generator
+from coverage_ros.core.tessellation import LOOKAHEAD_CELLS, Generator, resolve_method
 
 
 @dataclass(frozen=True)
@@ -78,10 +77,10 @@ def paper_cell(domain: CoverageDomain, own: Generator, others: Sequence[Generato
     done = [False] * N
     heap: list[tuple[float, int]] = []
     own_open = set()
-    M = domain.metric_at(domain.to_grid(own.position))[0]
-    m00, m01, m10, m11 = float(M[0, 0]), float(M[0, 1]), float(M[1, 0]), float(M[1, 1])
-    sqrt_det = math.sqrt(m00 * m11 - m01 * m10)
-    px, py = (float(v) for v in domain.to_grid(own.position)[0])
+    # Per generator: its chart position P(p_l) and metric tensor eta(P(p_l)) (line 21).
+    P = [tuple(float(v) for v in domain.to_grid(gen.position)[0]) for gen in gens]
+    Ms = [tuple(float(v) for v in domain.metric_at(np.array([p]))[0].ravel()) for p in P]
+    I = [[0.0, 0.0] for _ in gens]  # line 9
     # Generators are virtual vertices joined to the cells around them (lines 5-11).
     for k, gen in enumerate(gens):
         nodes, costs, _ = domain.snap(gen.position)
@@ -95,7 +94,6 @@ def paper_cell(domain: CoverageDomain, own: Generator, others: Sequence[Generato
                     own_open.add(v)
                 else:
                     own_open.discard(v)
-    I0 = I1 = 0.0
     expanded = 0
     while heap:  # line 13
         p, q = heapq.heappop(heap)
@@ -109,14 +107,16 @@ def paper_cell(domain: CoverageDomain, own: Generator, others: Sequence[Generato
         s = nu[q]
         if lab == 0:
             own_open.discard(q)
-            # line 21: I += g(q) * M z / sqrt(z' M z) * w(q) * sqrt(det M)
-            zx, zy = (xs[s] - px) * res, (ys[s] - py) * res
-            mzx, mzy = m00 * zx + m01 * zy, m10 * zx + m11 * zy
-            norm = math.sqrt(zx * mzx + zy * mzy)
-            if norm > 0:
-                f = g[q] * wdA[q] / norm
-                I0 += f * mzx
-                I1 += f * mzy
+        # lines 20-21: I_l += g(q) * M z / sqrt(z' M z) * w(q) * sqrt(det M), z = P(s) - P(p_l)
+        px, py = P[lab]
+        m00, m01, m10, m11 = Ms[lab]
+        zx, zy = (xs[s] - px) * res, (ys[s] - py) * res
+        mzx, mzy = m00 * zx + m01 * zy, m10 * zx + m11 * zy
+        norm = math.sqrt(zx * mzx + zy * mzy)
+        if norm > 0:
+            f = g[q] * wdA[q] / norm  # wdA already holds w(q) * sqrt(det eta(q)) * cell area
+            I[lab][0] += f * mzx
+            I[lab][1] += f * mzy
         r2 = gens[lab].weight ** 2
         gq = g[q]
         for w, c in adj[q]:  # lines 22-30
@@ -131,11 +131,11 @@ def paper_cell(domain: CoverageDomain, own: Generator, others: Sequence[Generato
                     own_open.add(w)
                 else:
                     own_open.discard(w)
+    I0, I1 = I[0]
     nodes = np.array(sorted(v for v in range(N) if done[v] and tau[v] == 0), dtype=np.int64)
     dist = np.array([g[v] for v in nodes])
     w_arr = domain.mass_element.ravel()[nodes]
-    covector = np.array([I0, I1]) * 1.0
-    del sqrt_det  # the area element is already in wdA (sqrt(det eta(q)) * res^2)
+    covector = np.array([I0, I1])
     return ReferenceCell(nodes, dist, float(w_arr.sum()),
                          float(((dist ** 2 - own.weight ** 2) * w_arr).sum()), covector,
                          _best_neighbour(domain, own, covector), expanded)
@@ -176,36 +176,21 @@ def _dijkstra(adj, sources: list[tuple[int, float]], n: int) -> tuple[list[float
     return dist, parent
 
 
-def _line_of_sight(domain: CoverageDomain, a: tuple[float, float], b: tuple[float, float]) -> bool:
-    """No blocked cell (a disc of radius CELL_HALF_DIAGONAL around its centre) comes closer
-    to the segment a-b than its radius; checked against every blocked cell near the segment."""
-    ax, ay = a
-    bx, by = b
-    lo_c, hi_c = int(math.floor(min(ax, bx))) - 1, int(math.floor(max(ax, bx))) + 1
-    lo_r, hi_r = int(math.floor(min(ay, by))) - 1, int(math.floor(max(ay, by))) + 1
-    H, W = domain.shape
-    dx, dy = bx - ax, by - ay
-    seg2 = dx * dx + dy * dy
-    for r in range(max(lo_r, 0), min(hi_r, H - 1) + 1):
-        for c in range(max(lo_c, 0), min(hi_c, W - 1) + 1):
-            if domain.free[r, c]:
-                continue
-            cx, cy = c + 0.5, r + 0.5
-            t = 0.0 if seg2 == 0 else max(0.0, min(1.0, ((cx - ax) * dx + (cy - ay) * dy) / seg2))
-            if math.hypot(ax + t * dx - cx, ay + t * dy - cy) < CELL_HALF_DIAGONAL:
-                return False
-    return True
-
-
 def obvious_cell(domain: CoverageDomain, own: Generator, others: Sequence[Generator],
-                 tangent: str = "auto") -> ReferenceCell:
+                 method: str = "auto") -> ReferenceCell:
     """The cell and control by the definition (see module docstring)."""
+    method = resolve_method(domain, method)
     adj = adjacency(domain)
     N = domain.graph.num_nodes
     gens = [own, *others]
+    free_nodes = np.flatnonzero(domain.free.ravel())
+    centers = domain.node_centers(free_nodes)
     fields = []
     for gen in gens:
-        nodes, costs, _ = domain.snap(gen.position)
+        if method == "visibility":
+            nodes, costs, _ = domain.seeds(gen.position, free_nodes, centers, math.inf)
+        else:
+            nodes, costs, _ = domain.snap(gen.position)
         fields.append(_dijkstra(adj, list(zip(nodes.tolist(), costs.tolist(), strict=True)), N))
     own_dist, own_parent = fields[0]
     cell = []
@@ -219,33 +204,18 @@ def obvious_cell(domain: CoverageDomain, own: Generator, others: Sequence[Genera
     nodes = np.array(cell, dtype=np.int64)
     dist = np.array([own_dist[v] for v in cell])
     w_arr = domain.mass_element.ravel()[nodes]
-    p = tuple(float(v) for v in domain.to_grid(own.position)[0])
-    if tangent == "auto":
-        tangent = "visibility" if domain.graph.euclidean else "lookahead"
-    look = 3.0 * domain.graph.max_edge_cost
-    M = domain.metric_at(np.array([p]))[0]
+    p = domain.to_grid(own.position)[0]
+    look = LOOKAHEAD_CELLS * domain.graph.max_edge_cost
+    M = domain.metric_at(p[None])[0]
     cov = np.zeros(2)
     W = domain.shape[1]
-    in_cell = set(cell)
     for v, gv, wv in zip(cell, dist.tolist(), w_arr.tolist(), strict=True):
-        centre = (v % W + 0.5, v // W + 0.5)
-        # Walk from v toward the robot until the tangent criterion holds.
+        # Walk from v toward the robot: to the first vertex after the source, or (lookahead)
+        # to the last vertex within the look-ahead distance.
         a = v
-        while True:
-            ac = (a % W + 0.5, a // W + 0.5)
-            par = own_parent[a]
-            if tangent == "visibility" and _line_of_sight(domain, p, ac):
-                break
-            if tangent == "lookahead" and own_dist[a] <= look:
-                break
-            if tangent == "first_edge" and par == -1:
-                break
-            if par < 0 or par not in in_cell:
-                break
-            a = par
-        anchor = (a % W + 0.5, a // W + 0.5)
-        del centre
-        z = domain.chart_displacement(np.array(p), np.array(anchor))
+        while own_parent[a] >= 0 and not (method == "lookahead" and own_dist[a] <= look):
+            a = own_parent[a]
+        z = domain.chart_displacement(p, np.array([a % W + 0.5, a // W + 0.5]))
         mz = M @ z
         norm = math.sqrt(float(z @ mz))
         if norm > 1e-12:

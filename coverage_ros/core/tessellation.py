@@ -35,13 +35,7 @@ from scipy.sparse.csgraph import dijkstra
 
 from coverage_ros.core.domain import CoverageDomain
 from coverage_ros.core.local_search import LocalGraph, SearchCache, local_graph_for
-from coverage_ros.core.tangents import (
-    ancestor_table,
-    depth_bins,
-    first_ancestor_where,
-    polar_depth,
-    visible_from,
-)
+from coverage_ros.core.tangents import ancestor_table, first_ancestor_where
 
 __all__ = ["CellResult", "Generator", "SearchCache", "Tessellation", "geodesic_cell",
            "tessellate"]
@@ -51,6 +45,8 @@ GROWTH = 1.6
 #: Slack on a warm-start search radius: the last cell's radius plus this many longest edges
 #: (robots move a few centimetres between updates; a cell that outgrew it costs a second pass).
 WARM_SLACK_EDGES = 2.0
+#: [cells] granularity of warm-start search radii.
+RADIUS_STEP_CELLS = 2.0
 #: [cells] look-ahead of tangent chords on non-Euclidean metrics.
 LOOKAHEAD_CELLS = 3.0
 
@@ -105,16 +101,19 @@ class Tessellation:
 
 
 # ---------------------------------------------------------------------------- decentralized
+METHODS = ("auto", "visibility", "paper", "lookahead")
+
+
 def geodesic_cell(domain: CoverageDomain, own: Generator, others: Sequence[Generator],
-                  cache: SearchCache | None = None, tangent: str = "auto") -> CellResult:
+                  cache: SearchCache | None = None, method: str = "auto") -> CellResult:
     """The decentralized update of one robot (see module docstring).
 
     ``others`` are the neighbours this robot knows about (any number; far ones are ignored).
     ``cache`` (one per robot) keeps the search graph and the last cell radius between updates,
     which makes successive updates of a slowly moving robot much cheaper.
-    ``tangent`` is ``"visibility"`` (Euclidean default), ``"lookahead"`` (other metrics
-    default) or ``"first_edge"`` (the paper's pseudo-code).
+    ``method`` picks the sources and tangents (see :func:`resolve_method`).
     """
+    method = resolve_method(domain, method)
     res = domain.resolution
     lam = domain.metric_lower_bound
     others = [o for o in others if np.all(np.isfinite(o.position))]
@@ -128,7 +127,10 @@ def geodesic_cell(domain: CoverageDomain, own: Generator, others: Sequence[Gener
     if len(others) == 0:
         L = math.inf
     elif hint is not None and hint > 0:
-        L = hint + WARM_SLACK_EDGES * max_edge
+        # Rounded up to whole steps so the small changes of the cell radius between updates
+        # keep the search region (and its cache) the same.
+        step = RADIUS_STEP_CELLS * res
+        L = math.ceil((hint + WARM_SLACK_EDGES * max_edge) / step) * step
     else:
         far = lam * res * np.hypot(*(centers[1:] - centers[0]).T).max()
         L = max(0.75 * far, 4.0 * max_edge)
@@ -146,7 +148,8 @@ def geodesic_cell(domain: CoverageDomain, own: Generator, others: Sequence[Gener
             relevant = np.arange(1, len(gens))
         idx = np.concatenate([[0], relevant]).astype(np.int64)
         local = local_graph_for(domain, cache, centers[idx], radii[idx], L)
-        csr = local.with_sources([snaps[k][:2] for k in idx])
+        csr = local.with_sources([source_row(domain, local, snaps[k], radii[k], method)
+                                  for k in idx])
         found = _search(local, csr, weights[idx], radii[idx], L, power,
                         force=local.covers_all)
         if found is not None:
@@ -155,10 +158,46 @@ def geodesic_cell(domain: CoverageDomain, own: Generator, others: Sequence[Gener
     own_local, g, pred, touching = found
     result = _finish(domain, local, int(snaps[0][0][0]), centers[0], weights[0], own_local, g,
                      pred,
-                     [int(idx[t]) - 1 for t in touching], L, passes, tangent)
+                     [int(idx[t]) - 1 for t in touching], L, passes, method)
     if cache is not None:
         cache.cell_radius = result.cell_radius
     return result
+
+
+def resolve_method(domain: CoverageDomain, method: str) -> str:
+    """``visibility``: sources joined to every cell in line of sight at its straight-line
+    distance, tangents toward the first vertex after the source (the last visible point of the
+    path) - exact Euclidean geodesics up to the first corner; the default on maps.
+    ``paper``: sources joined to the cells around them and first-edge tangents - seed 000's
+    pseudo-code. ``lookahead``: like ``paper`` but with look-ahead tangent chords; the default
+    on curved charts, where straight lines are not geodesics."""
+    if method not in METHODS:
+        raise ValueError(f"method: unknown {method!r}, expected one of {METHODS}")
+    if method == "auto":
+        return "visibility" if domain.sees_straight else "lookahead"
+    if method == "visibility" and not domain.sees_straight:
+        raise ValueError("method: 'visibility' needs a Euclidean, non-wrapping domain")
+    return method
+
+
+def source_row(domain: CoverageDomain, local: LocalGraph, snap: tuple, radius: float,
+                method: str) -> tuple[np.ndarray, np.ndarray]:
+    """Local ids and costs of one virtual source's edges (see :func:`resolve_method`)."""
+    nodes, costs, g = snap
+    lid = local.local_of(nodes)
+    keep = lid > 0
+    if method != "visibility":
+        return lid[keep], costs[keep]
+    r_cells = radius / domain.resolution if math.isfinite(radius) else math.inf
+    band = local.rows_slice(g[1] - r_cells, g[1] + r_cells) if math.isfinite(r_cells) \
+        else slice(0, local.n)
+    c = local.centers[band]
+    d2 = (c[:, 0] - g[0]) ** 2 + (c[:, 1] - g[1]) ** 2
+    near = np.flatnonzero((d2 <= r_cells * r_cells) & local.seedable[band])
+    reach = math.sqrt(float(d2[near].max())) if len(near) else 0.0
+    vis = near[domain.visible_mask(g, c[near], reach)]
+    return (np.concatenate([lid[keep], vis + band.start + 1]),
+            np.concatenate([costs[keep], np.sqrt(d2[vis]) * domain.resolution]))
 
 
 def _search(local: LocalGraph, csr: csr_matrix, weights: np.ndarray, radii: np.ndarray,
@@ -208,7 +247,7 @@ def _search(local: LocalGraph, csr: csr_matrix, weights: np.ndarray, radii: np.n
 
 def _finish(domain: CoverageDomain, local: LocalGraph, base_node: int, own_grid: np.ndarray,
             own_weight: float, own_local: np.ndarray, g: np.ndarray, pred: np.ndarray,
-            touching: list[int], L: float, passes: int, tangent: str) -> CellResult:
+            touching: list[int], L: float, passes: int, method: str) -> CellResult:
     nodes = local.global_nodes[own_local - 1]
     n_own = len(own_local)
     wdA = domain.mass_element.ravel()[nodes]
@@ -217,7 +256,7 @@ def _finish(domain: CoverageDomain, local: LocalGraph, base_node: int, own_grid:
     pts = domain.node_centers(nodes)
     covector = np.zeros(2)
     if n_own:
-        anchors = _tangent_anchors(domain, own_grid, own_local, g, pred, pts, tangent)
+        anchors = _tangent_anchors(domain, own_local, g, pred, pts, method)
         z = domain.chart_displacement(own_grid[None], anchors)
         M = domain.metric_at(own_grid[None])[0]
         Mz = z @ M.T
@@ -238,53 +277,26 @@ def _finish(domain: CoverageDomain, local: LocalGraph, base_node: int, own_grid:
         searched_nodes=local.n, passes=passes)
 
 
-def _tangent_anchors(domain: CoverageDomain, own_grid: np.ndarray, own_local: np.ndarray,
-                     g: np.ndarray, pred: np.ndarray, pts: np.ndarray, tangent: str,
-                     ) -> np.ndarray:
-    """Grid coordinates of the point each cell's tangent chord aims at (see tangents.py)."""
+def _tangent_anchors(domain: CoverageDomain, own_local: np.ndarray, g: np.ndarray,
+                     pred: np.ndarray, pts: np.ndarray, method: str) -> np.ndarray:
+    """Grid coordinates of the point each cell's tangent chord aims at: the first vertex
+    after the source on its shortest path (``visibility``, ``paper``), or the last vertex
+    within the look-ahead distance (``lookahead``)."""
     n_own = len(own_local)
-    if tangent == "auto":
-        tangent = "visibility" if domain.graph.euclidean else "lookahead"
-    if tangent == "visibility":
-        flag = _visible(domain, own_grid, pts)
-    elif tangent == "lookahead":
-        flag = g <= LOOKAHEAD_CELLS * domain.graph.max_edge_cost
-    elif tangent != "first_edge":
-        raise ValueError(f"tangent: unknown estimate {tangent!r}")
     pos = np.full(len(pred), -1, dtype=np.int64)
     pos[own_local] = np.arange(n_own)
     parent = pos[np.maximum(pred[own_local], 0)]
     parent[(pred[own_local] < 0) | (parent < 0)] = n_own  # virtual source (root)
-    if tangent == "first_edge":
-        flag = parent == n_own  # the first vertex after the source
+    if method == "lookahead":
+        flag = g <= LOOKAHEAD_CELLS * domain.graph.max_edge_cost
+    else:
+        flag = parent == n_own
     if flag.all():
-        return pts  # every cell sees the robot: the chord is the tangent
+        return pts  # every cell is joined to the source directly: the chord is the tangent
     up = ancestor_table(np.append(parent, n_own))
     anchor = first_ancestor_where(up, np.arange(n_own), np.append(flag, True))
     anchor = np.where(anchor == n_own, np.arange(n_own), anchor)
     return pts[anchor]
-
-
-def _visible(domain: CoverageDomain, origin: np.ndarray, pts: np.ndarray) -> np.ndarray:
-    """Line of sight from ``origin`` to cell centres ``pts`` through the free space."""
-    lo = np.floor(np.minimum(pts.min(axis=0), origin) - 1).astype(int)
-    hi = np.ceil(np.maximum(pts.max(axis=0), origin) + 1).astype(int)
-    H, W = domain.shape
-    c0, r0 = max(lo[0], 0), max(lo[1], 0)
-    c1, r1 = min(hi[0] + 1, W), min(hi[1] + 1, H)
-    blocked = ~domain.free[r0:r1, c0:c1]
-    if not blocked.any():
-        return np.ones(len(pts), dtype=bool)
-    # Only blocked cells bordering free ones can occlude.
-    edge = blocked.copy()
-    interior = blocked[1:-1, 1:-1] & blocked[:-2, 1:-1] & blocked[2:, 1:-1] \
-        & blocked[1:-1, :-2] & blocked[1:-1, 2:]
-    edge[1:-1, 1:-1] &= ~interior
-    rr, cc = np.nonzero(edge)
-    blocked_xy = np.stack([cc + c0 + 0.5, rr + r0 + 0.5], axis=-1).astype(np.float64)
-    radius = float(np.hypot(*(pts - origin).T).max()) if len(pts) else 1.0
-    depth = polar_depth(origin, blocked_xy, depth_bins(radius))
-    return visible_from(origin, pts, depth)
 
 
 def _clip_reachable(domain: CoverageDomain, start: np.ndarray, goal: np.ndarray) -> np.ndarray:
@@ -328,13 +340,19 @@ def _next_vertex(domain: CoverageDomain, base: int, covector: np.ndarray) -> np.
 
 
 # ---------------------------------------------------------------------------- centralized
-def _full_with_sources(domain: CoverageDomain, gens: Sequence[Generator]) -> tuple[csr_matrix,
-                                                                                   int]:
+def _full_with_sources(domain: CoverageDomain, gens: Sequence[Generator],
+                       method: str = "auto") -> tuple[csr_matrix, int]:
+    method = resolve_method(domain, method)
     base = domain.graph.csr
     N = base.shape[0]
     indices, data, counts = [base.indices], [base.data], []
+    free_nodes = np.flatnonzero(domain.free.ravel())
+    centers = domain.node_centers(free_nodes)
     for gen in gens:
-        nodes, costs, _ = domain.snap(gen.position)
+        if method == "visibility":
+            nodes, costs, _ = domain.seeds(gen.position, free_nodes, centers, math.inf)
+        else:
+            nodes, costs, _ = domain.snap(gen.position)
         indices.append(nodes.astype(np.int32))
         data.append(np.maximum(costs, 1e-12))
         counts.append(len(nodes))
@@ -345,9 +363,10 @@ def _full_with_sources(domain: CoverageDomain, gens: Sequence[Generator]) -> tup
                       shape=(total, total)), N
 
 
-def tessellate(domain: CoverageDomain, gens: Sequence[Generator]) -> Tessellation:
+def tessellate(domain: CoverageDomain, gens: Sequence[Generator],
+               method: str = "auto") -> Tessellation:
     """Centralized geodesic power Voronoi tessellation of the whole domain."""
-    csr, N = _full_with_sources(domain, gens)
+    csr, N = _full_with_sources(domain, gens, method)
     sources = np.arange(N, N + len(gens))
     weights = np.array([g.weight for g in gens], dtype=np.float64)
     if np.ptp(weights) == 0:
@@ -369,6 +388,6 @@ def tessellate(domain: CoverageDomain, gens: Sequence[Generator]) -> Tessellatio
     lab = np.maximum(labels, 0)
     valid = labels >= 0
     masses = np.bincount(lab[valid], weights=wdA[valid], minlength=n)
-    f = g * g - weights[lab] ** 2
-    costs = np.bincount(lab[valid], weights=(f * wdA)[valid], minlength=n)
+    f = g[valid] ** 2 - weights[lab[valid]] ** 2
+    costs = np.bincount(lab[valid], weights=f * wdA[valid], minlength=n)
     return Tessellation(labels.reshape(domain.shape), g.reshape(domain.shape), masses, costs)

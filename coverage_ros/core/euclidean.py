@@ -72,7 +72,6 @@ def power_cell_polygon(domain: CoverageDomain, own: Generator,
 def euclidean_cell(domain: CoverageDomain, own: Generator,
                    others: Sequence[Generator]) -> EuclideanCell:
     """Decentralized Euclidean power cell, its mass, cost and (projected) centroid."""
-    geom = domain.geometry
     poly = power_cell_polygon(domain, own, others)
     H, W = domain.shape
     if len(poly) == 0:

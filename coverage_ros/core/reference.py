@@ -80,7 +80,7 @@ def paper_cell(domain: CoverageDomain, own: Generator, others: Sequence[Generato
     # Per generator: its chart position P(p_l) and metric tensor eta(P(p_l)) (line 21).
     P = [tuple(float(v) for v in domain.to_grid(gen.position)[0]) for gen in gens]
     Ms = [tuple(float(v) for v in domain.metric_at(np.array([p]))[0].ravel()) for p in P]
-    I = [[0.0, 0.0] for _ in gens]  # line 9
+    covectors = [[0.0, 0.0] for _ in gens]  # line 9: I_l
     # Generators are virtual vertices joined to the cells around them (lines 5-11).
     for k, gen in enumerate(gens):
         nodes, costs, _ = domain.snap(gen.position)
@@ -115,8 +115,8 @@ def paper_cell(domain: CoverageDomain, own: Generator, others: Sequence[Generato
         norm = math.sqrt(zx * mzx + zy * mzy)
         if norm > 0:
             f = g[q] * wdA[q] / norm  # wdA already holds w(q) * sqrt(det eta(q)) * cell area
-            I[lab][0] += f * mzx
-            I[lab][1] += f * mzy
+            covectors[lab][0] += f * mzx
+            covectors[lab][1] += f * mzy
         r2 = gens[lab].weight ** 2
         gq = g[q]
         for w, c in adj[q]:  # lines 22-30
@@ -131,7 +131,7 @@ def paper_cell(domain: CoverageDomain, own: Generator, others: Sequence[Generato
                     own_open.add(w)
                 else:
                     own_open.discard(w)
-    I0, I1 = I[0]
+    I0, I1 = covectors[0]
     nodes = np.array(sorted(v for v in range(N) if done[v] and tau[v] == 0), dtype=np.int64)
     dist = np.array([g[v] for v in nodes])
     w_arr = domain.mass_element.ravel()[nodes]

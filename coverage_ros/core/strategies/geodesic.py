@@ -45,6 +45,7 @@ class GeodesicStrategy(Strategy):
                                mass=cell.mass),
             converged=step < self.context.convergence_tolerance, cost=cell.cost,
             mass=cell.mass,
-            info={"update_s": elapsed, "method": self.method, "passes": cell.passes, "searched": cell.searched_nodes,
+            info={"update_s": elapsed, "method": self.method, "passes": cell.passes,
+                  "searched": cell.searched_nodes,
                   "neighbours": [neighbours[k].robot_id for k in cell.neighbours],
                   "cell_radius": cell.cell_radius, "next_vertex": cell.next_vertex})

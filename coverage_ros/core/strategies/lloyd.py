@@ -9,7 +9,13 @@ from typing import ClassVar
 import numpy as np
 
 from coverage_ros.core.euclidean import euclidean_cell
-from coverage_ros.core.strategies.base import Decision, Neighbour, Observation, SharedState, Strategy
+from coverage_ros.core.strategies.base import (
+    Decision,
+    Neighbour,
+    Observation,
+    SharedState,
+    Strategy,
+)
 from coverage_ros.core.tessellation import Generator
 
 

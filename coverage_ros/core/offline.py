@@ -8,7 +8,8 @@ is the best partition for them, the team's coverage cost H can then never increa
 classic Lloyd argument, which holds exactly only if the cells really are Voronoi cells.
 
 Strategies that steer themselves (a velocity instead of a goal) are integrated as unicycles for
-``dt`` per iteration.
+``dt`` per iteration. Strategies that need a lidar get a scan simulated on the occupancy grid
+(:mod:`coverage_ros.core.rangesim`), in which the other robots show up as discs.
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ from scipy.sparse.csgraph import dijkstra
 from coverage_ros.core.charts import wrap_chart_position
 from coverage_ros.core.domain import CoverageDomain
 from coverage_ros.core.local_search import local_graph_for
+from coverage_ros.core.rangesim import simulate_scan
 from coverage_ros.core.strategies import (
     Decision,
     Neighbour,
@@ -104,6 +106,8 @@ def run_offline(domain: CoverageDomain, strategy: str, starts: np.ndarray,
     pos = starts[:, :2].copy()
     yaw = starts[:, 2].copy() if starts.shape[1] > 2 else np.zeros(n)
     positions, yaws, costs, times = [pos.copy()], [yaw.copy()], [], []
+    radii = np.array([c.robot.radius for c in contexts])
+    blocked = domain.geometry.occupied_mask()
     settled = 0
     decisions: list[Decision] = []
     it = 0
@@ -111,7 +115,13 @@ def run_offline(domain: CoverageDomain, strategy: str, starts: np.ndarray,
         shared = [SharedState(position=pos[i].copy(), weight=contexts[i].weight) for i in range(n)]
         decisions = []
         for i, robot in enumerate(robots):
-            obs = Observation(i, np.array([pos[i, 0], pos[i, 1], yaw[i]]), it * config.dt)
+            pose = np.array([pos[i, 0], pos[i, 1], yaw[i]])
+            scan = None
+            if robot.needs_scan:
+                rest = np.delete(np.arange(n), i)
+                scan = simulate_scan(domain.geometry, pose, contexts[i].robot.lidar,
+                                     pos[rest], radii[rest], blocked)
+            obs = Observation(i, pose, it * config.dt, scan)
             nbrs = [Neighbour(j, shared[j]) for j in range(n) if j != i]
             t0 = time.perf_counter()
             decisions.append(robot.update(obs, nbrs))

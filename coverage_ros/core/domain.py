@@ -165,8 +165,9 @@ class CoverageDomain:
     def snap(self, point_map: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Virtual-source connections of one map-frame point.
 
-        Returns ``(nodes, costs, grid_xy)``: the free nodes the point connects to, the metric
-        lengths of those connections, and the point in grid coordinates. A point on a free cell
+        Returns ``(nodes, costs, grid_xy)``: the free nodes the point connects to (the cell
+        containing it first), the metric lengths of those connections, and the point in grid
+        coordinates. A point on a free cell
         connects to that cell and to those of the 2x2 surrounding cell centres that share a
         graph edge with it; a point on a blocked cell connects to the nearest free cell.
         """
@@ -185,7 +186,7 @@ class CoverageDomain:
                 k = self._offset_index(odr, odc)
                 if k is not None and np.isfinite(self.graph.cost[r, c, k]):
                     nodes.append(int(self.graph.neighbour_index(k)[r, c]))
-            nodes_arr = np.array(sorted(set(nodes)), dtype=np.int64)
+            nodes_arr = np.array(list(dict.fromkeys(nodes)), dtype=np.int64)  # own cell first
         else:
             idx = self.nearest_free_index
             rr, cc = int(idx[0, r, c]), int(idx[1, r, c])

@@ -193,13 +193,20 @@ def obvious_cell(domain: CoverageDomain, own: Generator, others: Sequence[Genera
             nodes, costs, _ = domain.snap(gen.position)
         fields.append(_dijkstra(adj, list(zip(nodes.tolist(), costs.tolist(), strict=True)), N))
     own_dist, own_parent = fields[0]
+
+    def wins(v: int) -> bool:
+        mine = own_dist[v] ** 2 - own.weight ** 2
+        return all(not (d[v] ** 2 - gen.weight ** 2 < mine)
+                   for (d, _), gen in zip(fields[1:], others, strict=True))
+
     cell = []
     for v in range(N):
-        if not domain.graph.free.flat[v] or own_dist[v] == math.inf:
+        if not domain.graph.free.flat[v] or own_dist[v] == math.inf or not wins(v):
             continue
-        mine = own_dist[v] ** 2 - own.weight ** 2
-        if all(not (d[v] ** 2 - gen.weight ** 2 < mine)
-               for (d, _), gen in zip(fields[1:], others, strict=True)):
+        a = own_parent[v]  # the whole shortest path must lie in the cell (star-shaped)
+        while a >= 0 and wins(a):
+            a = own_parent[a]
+        if a < 0:
             cell.append(v)
     nodes = np.array(cell, dtype=np.int64)
     dist = np.array([own_dist[v] for v in cell])

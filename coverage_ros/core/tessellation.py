@@ -5,7 +5,13 @@ Cell of generator k (Eq. 2 with f_k(x) = x^2 - R_k^2)::
     V_k = { q : g_k(q)^2 - R_k^2 <= g_j(q)^2 - R_j^2 for all j }
 
 with g_k the shortest-path distance on the domain's metric graph from generator k's position
-(a virtual source joined to the cells around it). The control covector of Eq. 8 is integrated
+(a virtual source joined to the cells around it, see :func:`resolve_method`). With unequal power
+weights, a geodesic power cell need not be star-shaped: behind obstacles it can reappear beyond
+a band where a neighbour wins. Such islands are what the paper's wavefront search (labels spread
+only through a generator's own cells) never produces and what no local search can be sure to
+find, so a cell keeps only the q whose shortest path from its generator stays in the cell;
+islands belong to nobody (:attr:`Tessellation.unassigned`). With equal weights cells are always
+star-shaped and nothing is dropped. The control covector of Eq. 8 is integrated
 over the own cell::
 
     I_k = sum_{q in V_k} g_k(q) * M z / sqrt(z' M z) * w(q) dA(q),    M = eta(p_k)
@@ -94,6 +100,7 @@ class Tessellation:
     distances: np.ndarray  # (H, W) g to the own generator (inf where unlabeled)
     masses: np.ndarray  # (n,) sum w dA per cell
     costs: np.ndarray  # (n,) sum (g^2 - R^2) w dA per cell
+    unassigned: float = 0.0  # mass of power-cell islands no generator keeps (see module doc)
 
     @property
     def cost(self) -> float:
@@ -150,10 +157,14 @@ def geodesic_cell(domain: CoverageDomain, own: Generator, others: Sequence[Gener
         local = local_graph_for(domain, cache, centers[idx], radii[idx], L)
         csr = local.with_sources([source_row(domain, local, snaps[k], radii[k], method)
                                   for k in idx])
-        found = _search(local, csr, weights[idx], radii[idx], L, power,
-                        force=local.covers_all)
+        found = _search(local, csr, weights[idx], radii[idx], L, power)
         if found is not None:
             break
+        if local.covers_all and math.isfinite(L):
+            L = math.inf  # the region is everything already: drop the limit instead
+            continue
+        if not math.isfinite(L):  # unreachable: the unlimited search has no frontier
+            raise AssertionError("unlimited search reported an incomplete cell")
         L *= GROWTH
     own_local, g, pred, touching = found
     result = _finish(domain, local, int(snaps[0][0][0]), centers[0], weights[0], own_local, g,
@@ -231,6 +242,10 @@ def _search(local: LocalGraph, csr: csr_matrix, weights: np.ndarray, radii: np.n
         label = np.argmin(pw, axis=0)
         label[~np.isfinite(pw.min(axis=0))] = -1
         own_dist = all_d[0]
+        label[0] = -1
+        # Keep only the star-shaped part of the own power cell (see module docstring).
+        drop = (label == 0) & ~star_shaped(label == 0, pred, first)
+        label[drop] = -2  # nobody's, but known: not a reason to grow the search
     label[0] = -1  # the sink belongs to nobody
     own = np.flatnonzero(label[1:first] == 0) + 1
     nb = local.nb[own - 1]
@@ -243,6 +258,24 @@ def _search(local: LocalGraph, csr: csr_matrix, weights: np.ndarray, radii: np.n
         return None
     touching = np.unique(nb_label[edge & (nb_label > 0)])
     return own, own_dist[own], pred, touching
+
+
+def star_shaped(mask: np.ndarray, pred: np.ndarray, first_source: int) -> np.ndarray:
+    """``(N,) bool``: nodes of ``mask`` whose every ancestor in the shortest-path tree ``pred``
+    (predecessors; sources are the ids >= ``first_source``; -9999 for none) is in ``mask``."""
+    n = len(mask)
+    ok = mask.copy()
+    up = np.where(pred >= 0, pred, np.arange(n))
+    is_root = (np.arange(n) >= first_source) | (pred < 0)
+    ok[is_root] = True
+    up[is_root] = np.flatnonzero(is_root)
+    while True:
+        nxt = ok & ok[up]
+        up2 = up[up]
+        if np.array_equal(nxt, ok) and np.array_equal(up2, up):
+            break
+        ok, up = nxt, up2
+    return ok & mask
 
 
 def _finish(domain: CoverageDomain, local: LocalGraph, base_node: int, own_grid: np.ndarray,
@@ -375,13 +408,17 @@ def tessellate(domain: CoverageDomain, gens: Sequence[Generator],
         labels = np.where(src[:N] >= 0, src[:N] - N, -1)
         g = dist[:N]
     else:
-        all_d = dijkstra(csr, directed=True, indices=sources)[:, :N]
-        pw = all_d ** 2 - (weights ** 2)[:, None]
+        all_d, preds = dijkstra(csr, directed=True, indices=sources, return_predecessors=True)
+        pw = all_d[:, :N] ** 2 - (weights ** 2)[:, None]
         labels = np.argmin(pw, axis=0)
-        best = pw.min(axis=0)
-        labels[~np.isfinite(best)] = -1
-        g = np.take_along_axis(all_d, np.maximum(labels, 0)[None], axis=0)[0]
-    labels = np.where(domain.free.ravel(), labels, -1)
+        labels[~np.isfinite(pw.min(axis=0))] = -1
+        for k in range(len(gens)):  # drop the islands (see module docstring)
+            mask = np.append(labels == k, np.zeros(len(gens), bool))
+            keep = star_shaped(mask, preds[k], N)[:N]
+            labels[(labels == k) & ~keep] = -2
+        g = np.take_along_axis(all_d[:, :N], np.maximum(labels, 0)[None], axis=0)[0]
+    unassigned = float(domain.mass_element.ravel()[labels == -2].sum())
+    labels = np.where(domain.free.ravel() & (labels >= 0), labels, -1)
     g = np.where(labels >= 0, g, np.inf)
     wdA = domain.mass_element.ravel()
     n = len(gens)
@@ -390,4 +427,5 @@ def tessellate(domain: CoverageDomain, gens: Sequence[Generator],
     masses = np.bincount(lab[valid], weights=wdA[valid], minlength=n)
     f = g[valid] ** 2 - weights[lab[valid]] ** 2
     costs = np.bincount(lab[valid], weights=f * wdA[valid], minlength=n)
-    return Tessellation(labels.reshape(domain.shape), g.reshape(domain.shape), masses, costs)
+    return Tessellation(labels.reshape(domain.shape), g.reshape(domain.shape), masses, costs,
+                        unassigned)

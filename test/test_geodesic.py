@@ -1,0 +1,306 @@
+"""Geodesic power Voronoi tessellation and control (seed 000): correctness tests."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from conftest import WORLDS
+
+from coverage_ros.core.domain import CoverageDomain
+from coverage_ros.core.graph import octile_bound
+from coverage_ros.core.grid import OCCUPIED, GridMap
+from coverage_ros.core.reference import obvious_cell, paper_cell
+from coverage_ros.core.tessellation import (
+    Generator,
+    SearchCache,
+    geodesic_cell,
+    tessellate,
+)
+from coverage_ros.core.world import cluster_starts, load_world
+
+RES = 0.1
+
+
+def empty_domain(h=40, w=50, connectivity=8) -> CoverageDomain:
+    return CoverageDomain.from_grid(GridMap(np.zeros((h, w), np.int8), RES), 0.0,
+                                    connectivity=connectivity)
+
+
+#: The L-shaped obstacle of :func:`l_domain` [m]: a vertical bar and a bar on top of it.
+BAR = (2.0, 1.0, 2.4, 3.0)
+TOP = (0.8, 2.6, 2.4, 3.0)
+
+
+def l_domain() -> CoverageDomain:
+    """40 x 40 cells of 0.1 m with the L-shaped obstacle BAR + TOP."""
+    occ = np.zeros((40, 40), np.int8)
+    occ[10:30, 20:24] = OCCUPIED  # BAR: rows 10..29, cols 20..23
+    occ[26:30, 8:24] = OCCUPIED  # TOP
+    return CoverageDomain.from_grid(GridMap(occ, RES), 0.0)
+
+
+def segment_hits_rect(p, q, rect) -> np.ndarray:
+    """Whether the segments p -> q (q: (N, 2)) pass through the rectangle (dense sampling)."""
+    x0, y0, x1, y1 = rect
+    t = np.linspace(0.0, 1.0, 400)[None, :, None]
+    pts = p[None, None, :] + t * (q[:, None, :] - p[None, None, :])
+    inside = ((pts[..., 0] > x0) & (pts[..., 0] < x1) & (pts[..., 1] > y0) & (pts[..., 1] < y1))
+    return inside.any(axis=1)
+
+
+def random_domain(rng, h=30, w=36, blocks=5) -> CoverageDomain:
+    occ = np.zeros((h, w), np.int8)
+    for _ in range(blocks):
+        r, c = rng.integers(0, h - 6), rng.integers(0, w - 6)
+        occ[r:r + rng.integers(2, 7), c:c + rng.integers(2, 7)] = OCCUPIED
+    return CoverageDomain.from_grid(GridMap(occ, RES), 0.0)
+
+
+def random_generators(domain, rng, k, weights=False) -> list[Generator]:
+    free = np.argwhere(domain.free)
+    pick = free[rng.choice(len(free), k, replace=False)]
+    pts = domain.geometry.cell_centers(pick) + rng.uniform(-0.4, 0.4, (k, 2)) * RES
+    return [Generator(p, float(rng.uniform(0, 0.6)) if weights else 0.0) for p in pts]
+
+
+def distances_from(domain, point, method):
+    """Full distance field of one generator (a one-robot tessellation)."""
+    return tessellate(domain, [Generator(np.asarray(point, float))], method).distances
+
+
+# ---------------------------------------------------------------------------- distances
+def test_free_space_distances_are_euclidean_with_visibility_sources():
+    domain = empty_domain()
+    p = np.array([1.23, 2.07])
+    g = distances_from(domain, p, "visibility")
+    X, Y = domain.geometry.all_cell_centers()
+    assert np.allclose(g, np.hypot(X - p[0], Y - p[1]), atol=1e-9)
+
+
+@pytest.mark.parametrize("connectivity", [8, 16])
+def test_free_space_graph_distances_follow_the_neighbourhood_metric(connectivity):
+    """Paper sources (cells around the point): the graph metric's exact values, within the
+    neighbourhood's anisotropy bound of the Euclidean distance."""
+    domain = empty_domain(connectivity=connectivity)
+    p = np.array([2.05, 1.95])  # on a cell centre: one connection of length ~0
+    g = distances_from(domain, p, "paper")
+    X, Y = domain.geometry.all_cell_centers()
+    d = np.hypot(X - p[0], Y - p[1])
+    if connectivity == 8:
+        dx, dy = np.abs(X - p[0]), np.abs(Y - p[1])
+        octile = np.maximum(dx, dy) + (math.sqrt(2) - 1) * np.minimum(dx, dy)
+        assert np.allclose(g, octile, atol=1e-9)
+    assert np.all(g >= d - 1e-9)
+    assert np.all(g <= octile_bound(connectivity) * d + 1e-9)
+    assert octile_bound(8) == pytest.approx(1.0 / math.cos(math.pi / 8))
+
+
+def test_distances_around_an_l_shaped_obstacle():
+    domain = l_domain()
+    p = np.array([3.05, 0.45])  # right of the bar and below it
+    corner = np.array([BAR[0], BAR[1]])  # the geodesics into the L wrap its bottom-left corner
+    g = distances_from(domain, p, "visibility")
+    X, Y = domain.geometry.all_cell_centers()
+    q = np.stack([X.ravel(), Y.ravel()], axis=-1)
+    inside_l = ((X > TOP[0] + 0.1) & (X < BAR[0] - 0.05) & (Y < TOP[1] - 0.05)).ravel()
+    hidden = (inside_l & segment_hits_rect(p, q, BAR)).reshape(X.shape) & domain.free
+    analytic = np.hypot(*(corner - p)) + np.hypot(X - corner[0], Y - corner[1])
+    assert hidden.sum() > 50
+    excess = (g - analytic)[hidden]
+    assert np.all(excess >= -1e-9)  # never shorter than the true geodesic
+    # Longer only by the graph's anisotropy on the part behind the corner, plus the corner's
+    # half-cell clearance.
+    behind = np.hypot(X - corner[0], Y - corner[1])[hidden]
+    assert np.all(excess <= (octile_bound(8) - 1) * behind + 3 * RES)
+    # Cells in plain sight keep exact straight-line distances.
+    visible = (X > 2.5) & domain.free
+    assert np.allclose(g[visible], np.hypot(X - p[0], Y - p[1])[visible], atol=1e-9)
+
+
+# ---------------------------------------------------------------------------- cells
+@pytest.mark.parametrize("seed", range(4))
+def test_cells_partition_the_free_space_and_match_the_centralized_tessellation(seed):
+    rng = np.random.default_rng(seed)
+    domain = random_domain(rng)
+    gens = random_generators(domain, rng, 6, weights=seed % 2 == 1)
+    central = tessellate(domain, gens)
+    owner = np.full(domain.free.size, -1)
+    for i, gen in enumerate(gens):
+        cell = geodesic_cell(domain, gen, gens[:i] + gens[i + 1:])
+        assert np.all(owner[cell.nodes] == -1), "cells overlap"
+        owner[cell.nodes] = i
+        assert set(cell.nodes.tolist()) == set(np.flatnonzero(central.labels.ravel() == i))
+        assert cell.mass == pytest.approx(central.masses[i])
+        assert cell.cost == pytest.approx(central.costs[i])
+    reachable = np.isfinite(central.distances.ravel()) & domain.free.ravel()
+    assert np.array_equal(owner >= 0, reachable)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_fast_update_equals_the_obvious_implementation(seed):
+    rng = np.random.default_rng(100 + seed)
+    domain = random_domain(rng)
+    gens = random_generators(domain, rng, 5, weights=seed == 2)
+    for i in range(len(gens)):
+        others = gens[:i] + gens[i + 1:]
+        fast = geodesic_cell(domain, gens[i], others)
+        slow = obvious_cell(domain, gens[i], others)
+        order = np.argsort(fast.nodes)
+        assert np.array_equal(fast.nodes[order], slow.nodes)
+        assert np.allclose(fast.distances[order], slow.distances, atol=1e-9)
+        assert fast.mass == pytest.approx(slow.mass) and fast.cost == pytest.approx(slow.cost)
+        # Tangent anchors can differ where shortest paths tie; the covectors agree closely.
+        assert np.allclose(fast.covector, slow.covector, rtol=0.02,
+                           atol=0.02 * np.abs(slow.covector).max())
+
+
+def test_paper_mode_equals_the_papers_pseudo_code():
+    rng = np.random.default_rng(7)
+    domain = random_domain(rng)
+    gens = random_generators(domain, rng, 5)
+    for i in range(len(gens)):
+        others = gens[:i] + gens[i + 1:]
+        fast = geodesic_cell(domain, gens[i], others, method="paper")
+        ref = paper_cell(domain, gens[i], others)
+        assert np.array_equal(np.sort(fast.nodes), ref.nodes)
+        assert np.allclose(fast.covector, ref.covector, rtol=1e-9, atol=1e-9)
+        assert np.allclose(fast.next_vertex, domain.to_map(domain.node_centers(
+            np.array([ref.next_vertex])))[0])
+
+
+def test_cache_and_search_growth_do_not_change_results():
+    rng = np.random.default_rng(3)
+    domain = random_domain(rng, 40, 50)
+    gens = random_generators(domain, rng, 6)
+    cache = SearchCache()
+    for step in range(8):
+        gens = [Generator(g.position + rng.normal(0, 0.01, 2)) if domain.is_free_point(
+            g.position + 0.0) else g for g in gens]
+        gens = [g if domain.is_free_point(g.position) else Generator(g.position) for g in gens]
+        cached = geodesic_cell(domain, gens[0], gens[1:], cache=cache)
+        fresh = geodesic_cell(domain, gens[0], gens[1:])
+        assert np.array_equal(np.sort(cached.nodes), np.sort(fresh.nodes)), step
+        assert np.allclose(cached.covector, fresh.covector)
+    assert cache.hits > 0
+    # A lone robot far from its only neighbour: the first radius is too small and must grow.
+    far = geodesic_cell(domain, gens[0], [Generator(gens[0].position + [0.05, 0.0])])
+    assert far.passes >= 1
+    full = tessellate(domain, [gens[0], Generator(gens[0].position + [0.05, 0.0])])
+    assert set(far.nodes.tolist()) == set(np.flatnonzero(full.labels.ravel() == 0))
+
+
+def test_larger_power_weight_gets_a_larger_cell():
+    domain = empty_domain(30, 60)
+    a, b = np.array([2.0, 1.5]), np.array([4.0, 1.5])
+    masses = []
+    weights = (0.0, 0.7, 1.0)
+    for r in weights:
+        cells = tessellate(domain, [Generator(a, r), Generator(b, 0.0)])
+        masses.append(cells.masses[0])
+        assert cells.masses.sum() == pytest.approx(domain.mass_element.sum())
+    assert masses[0] == pytest.approx(9.0)  # half of the 6 m x 3 m room
+    assert masses[0] < masses[1] < masses[2]
+    # The power bisector moves by (R_a^2 - R_b^2) / (2 |a - b|) towards b; the room is 3 m high.
+    for r, m in zip(weights, masses, strict=True):
+        shift = r * r / (2 * 2.0)
+        assert m - masses[0] == pytest.approx(shift * 3.0, abs=RES * 3.0)
+
+
+def test_control_points_to_the_centroid_in_a_convex_room():
+    domain = empty_domain(40, 40)
+    own = Generator(np.array([0.7, 0.9]))
+    cell = geodesic_cell(domain, own, [Generator(np.array([3.2, 3.1]))])
+    xy = domain.to_map(domain.node_centers(cell.nodes))
+    centroid = xy.mean(axis=0)
+    assert np.allclose(cell.goal, centroid, atol=1e-9)
+    assert np.allclose(cell.control, centroid - own.position, atol=1e-9)
+    step = cell.next_vertex - domain.to_map(domain.node_centers(
+        domain.snap(own.position)[0][:1]))[0]
+    assert step @ (centroid - own.position) > 0  # the paper's next vertex heads there too
+
+
+def test_goal_is_clipped_to_reachable_free_space():
+    domain = l_domain()
+    own = Generator(np.array([3.05, 2.2]))  # right of the bar; most of its cell is behind it
+    cell = geodesic_cell(domain, own, [Generator(np.array([3.5, 0.4]))])
+    g = domain.to_grid(cell.goal)[0]
+    t = np.linspace(0, 1, 200)[:, None]
+    line = domain.to_grid(own.position)[0] + t * (g - domain.to_grid(own.position)[0])
+    assert all(domain.free[int(y), int(x)] for x, y in line)
+
+
+# ---------------------------------------------------------------------------- team behaviour
+@pytest.mark.parametrize("world", ["l_shape", "u_shape"])
+def test_coverage_cost_never_increases(world):
+    from coverage_ros.core.offline import OfflineConfig, run_offline
+
+    spec = load_world(WORLDS / f"{world}.yaml")
+    domain = CoverageDomain.from_grid(spec.grid, 0.105, spec.density)
+    finals = []
+    for seed in (0, 2):
+        starts = cluster_starts(spec.grid, 4, 0.105, np.random.default_rng(seed))
+        result = run_offline(domain, "geodesic", starts, config=OfflineConfig(max_iterations=60))
+        H = np.array([tessellate(domain, [Generator(p) for p in P]).cost
+                      for P in result.positions])
+        assert np.all(np.diff(H) <= 1e-9 * H[0]), np.diff(H).max()
+        assert result.converged
+        assert H[-1] < 0.15 * H[0]
+        finals.append(H[-1])
+    # Different clustered starts settle in the same (one arm each) configuration.
+    assert finals[0] == pytest.approx(finals[1], rel=0.01)
+
+
+def test_converges_to_lloyds_cvt_in_an_obstacle_free_square():
+    from coverage_ros.core.offline import OfflineConfig, run_offline
+    from coverage_ros.core.strategies import StrategyContext
+
+    domain = CoverageDomain.from_grid(GridMap(np.zeros((80, 80), np.int8), 0.05), 0.0)
+    for k, seed in ((4, 0), (5, 1)):
+        starts = np.random.default_rng(seed).uniform(0.5, 1.5, (k, 2))
+        ctx = [StrategyContext(domain=domain, robot_id=i, convergence_tolerance=0.005)
+               for i in range(k)]
+        final = {}
+        for name in ("geodesic", "lloyd"):
+            res = run_offline(domain, name, starts, contexts=ctx,
+                              config=OfflineConfig(max_iterations=200))
+            assert res.converged
+            final[name] = res.positions[-1]
+        gap = np.hypot(*(final["geodesic"] - final["lloyd"]).T).max()
+        assert gap <= 0.05, f"{k} robots: {gap / 0.05:.2f} cells apart"
+
+
+def test_sphere_four_robots_reach_equal_areas():
+    from coverage_ros.core.charts import sphere_domain
+    from coverage_ros.core.offline import OfflineConfig, run_offline
+    from coverage_ros.core.strategies import StrategyContext
+
+    domain = sphere_domain(48)
+    starts = np.array([[0.9, 0.5], [1.0, 0.6], [0.95, 0.7], [1.1, 0.55]])  # (theta, phi)
+    ctx = [StrategyContext(domain=domain, robot_id=i, convergence_tolerance=0.01)
+           for i in range(4)]
+    res = run_offline(domain, "geodesic", starts, contexts=ctx,
+                      config=OfflineConfig(max_iterations=200))
+    areas = tessellate(domain, [Generator(p) for p in res.positions[-1]]).masses
+    assert areas.sum() == pytest.approx(domain.mass_element.sum(), rel=1e-9)
+    assert np.abs(areas / areas.mean() - 1).max() < 0.05
+    # Equal areas on the sphere, not in the chart: chart areas would differ a lot.
+    th = res.positions[-1][:, 0]
+    assert np.ptp(np.sin(th)) > 0.05 or np.abs(areas / areas.mean() - 1).max() < 0.05
+
+
+def test_torus_cells_cross_the_chart_seam():
+    from coverage_ros.core.charts import torus_domain
+
+    domain = torus_domain(48, obstacles=((2.0, 2.0, 2.6, 3.2),))
+    period = 2 * math.pi
+    gens = [Generator(np.array([0.1, 3.0])), Generator(np.array([3.1, 3.0])),
+            Generator(np.array([1.5, 0.2]))]
+    central = tessellate(domain, gens)
+    for i in range(3):
+        cell = geodesic_cell(domain, gens[i], gens[:i] + gens[i + 1:])
+        assert set(cell.nodes.tolist()) == set(np.flatnonzero(central.labels.ravel() == i))
+    cols = np.flatnonzero(central.labels.ravel() == 0) % domain.shape[1]
+    res = domain.resolution
+    assert (cols * res < 0.5).any() and ((cols + 1) * res > period - 0.5).any()

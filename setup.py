@@ -26,6 +26,7 @@ setup(
     entry_points={
         "console_scripts": [
             "world_node = coverage_ros.nodes.world_node:main",
+            "coverage-plan = coverage_ros.cli.plan:main",
         ],
     },
 )

@@ -37,7 +37,7 @@ from coverage_ros.core.world import load_world
 from coverage_ros.errors import ConfigError, CoverageError
 from coverage_ros.nodes import conversions as conv
 from coverage_ros.sim.world import Scan, SimConfig, World
-from coverage_ros.sim.worlds import resolve_world_path
+from coverage_ros.worlds import resolve_world_path
 
 DEFAULT_NUM_ROBOTS = 4  # robots when the world lists no start poses
 WARN_PERIOD = 2.0  # [s] wall time between repeats of a throttled warning

@@ -8,7 +8,7 @@ from pathlib import Path
 from coverage_ros.errors import WorldError
 
 PACKAGE = "coverage_ros"
-SOURCE_WORLDS = Path(__file__).resolve().parents[2] / "config" / "worlds"
+SOURCE_WORLDS = Path(__file__).resolve().parents[1] / "config" / "worlds"
 
 
 def shipped_world_dirs() -> list[Path]:

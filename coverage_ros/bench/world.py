@@ -23,7 +23,7 @@ import numpy as np
 from coverage_ros.core.world import load_world
 from coverage_ros.errors import CoverageError
 from coverage_ros.sim.world import SimConfig, World
-from coverage_ros.sim.worlds import resolve_world_path
+from coverage_ros.worlds import resolve_world_path
 
 REPO = Path(__file__).resolve().parents[2]
 DEFAULT_WORLD = REPO.parent / "shared" / "maps" / "depot.yaml"

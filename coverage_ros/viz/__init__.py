@@ -1,0 +1,1 @@
+"""Visualisation outputs (PNG images, rerun recordings). Algorithms never import this."""

@@ -1,0 +1,69 @@
+"""PNG pictures of a coverage plan: the map, each robot's cell in its colour, start and final
+positions, and trajectories. Image row 0 is the top of the map (north up)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from coverage_ros.core.grid import GridMap
+from coverage_ros.viz.colors import robot_colors
+
+#: [px] target size of the longer image side.
+TARGET_SIDE = 1000
+FREE_RGB = (255, 255, 255)
+OBSTACLE_RGB = (40, 40, 40)
+UNKNOWN_RGB = (190, 190, 190)
+CELL_ALPHA = 0.45  # how strongly a cell's colour tints the free space
+
+
+def render_plan(grid: GridMap, labels: np.ndarray | None, trajectories: np.ndarray,
+                path: str | Path, robot_ids=None, title: str | None = None) -> Path:
+    """Write the picture; ``labels (H, W)`` robot index per cell (-1 none), ``trajectories
+    (T, n, 2)`` map-frame positions (first row: starts, last row: finals)."""
+    from PIL import Image, ImageDraw
+
+    H, W = grid.shape
+    scale = max(1, int(TARGET_SIDE // max(H, W)))
+    occ = grid.occupancy
+    rgb = np.empty((H, W, 3), dtype=np.float64)
+    rgb[:] = FREE_RGB
+    rgb[occ < 0] = UNKNOWN_RGB
+    rgb[occ >= 65] = OBSTACLE_RGB
+    n = trajectories.shape[1]
+    ids = np.arange(n) if robot_ids is None else np.asarray(robot_ids)
+    colors = robot_colors(ids).astype(np.float64)
+    if labels is not None:
+        lab = np.asarray(labels)
+        own = lab >= 0
+        rgb[own] = (1 - CELL_ALPHA) * rgb[own] + CELL_ALPHA * colors[lab[own]]
+        # Darker outlines where neighbouring cells belong to different robots.
+        edge = np.zeros_like(own)
+        edge[:, 1:] |= own[:, 1:] & (lab[:, 1:] != lab[:, :-1])
+        edge[1:, :] |= own[1:, :] & (lab[1:, :] != lab[:-1, :])
+        rgb[edge] *= 0.55
+    img = Image.fromarray(np.flipud(rgb).clip(0, 255).astype(np.uint8), "RGB")
+    img = img.resize((W * scale, H * scale), Image.NEAREST)
+    draw = ImageDraw.Draw(img)
+
+    def px(points: np.ndarray) -> np.ndarray:
+        g = grid.world_to_grid(points) * scale
+        return np.stack([g[..., 0], H * scale - g[..., 1]], axis=-1)
+
+    r = max(4, int(0.25 / grid.resolution * scale / 2))  # markers of about a robot's size
+    for i in range(n):
+        c = tuple(int(v) for v in (colors[i] * 0.7))
+        path_px = px(trajectories[:, i, :])
+        if len(path_px) > 1:
+            draw.line([tuple(p) for p in path_px], fill=c, width=max(2, scale // 2))
+        x0, y0 = path_px[0]
+        draw.ellipse([x0 - r, y0 - r, x0 + r, y0 + r], outline=c, width=2)
+        x1, y1 = path_px[-1]
+        draw.ellipse([x1 - r, y1 - r, x1 + r, y1 + r], fill=c, outline=(0, 0, 0))
+        draw.text((x1 + r + 2, y1 - r), str(int(ids[i])), fill=(0, 0, 0))
+    if title:
+        draw.text((6, 6), title, fill=(0, 0, 0))
+    path = Path(path)
+    img.save(path)
+    return path

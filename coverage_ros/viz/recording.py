@@ -1,0 +1,196 @@
+"""Rerun recordings of coverage runs (offline plans and live teams).
+
+Entity layout (all in the ``map`` frame, metres, z = 0 is the floor)::
+
+    /world/map            GridMap, static: free white, obstacles dark, unknown grey
+    /world/density        GridMap, static: importance density (viridis), under the cells
+    /world/cells          GridMap: every robot's cell in the robot's colour
+    /world/robots         Points3D: robot positions (labels "robot_<id>", robot colours)
+    /world/goals          Points3D: current goals
+    /world/trajectories/robot_<id>   LineStrips3D: path driven so far
+    /world/plans/robot_<id>          LineStrips3D: planned path
+    /world/scans/robot_<id>          Points3D: lidar hits
+    /metrics/H            Scalars: coverage cost
+    /metrics/mass/robot_<id>         Scalars: cell masses
+
+A rerun ``GridMap`` draws its data row 0 at the top and is placed by its lower-left corner,
+so ROS-convention grids (row 0 at the origin) are flipped here. Grid maps only render in 3-D
+views; the default blueprint looks at the floor from above.
+"""
+
+from __future__ import annotations
+
+import uuid
+from pathlib import Path
+
+import numpy as np
+
+from coverage_ros.core.grid import GridMap
+from coverage_ros.viz.colors import robot_color, robot_colors
+
+APP_ID = "coverage_ros"
+TIMELINE = "sim_time"
+CELL_OPACITY = 0.45  # cells tint the map without hiding it
+DENSITY_OPACITY = 0.35
+Z_MAP, Z_DENSITY, Z_CELLS = 0.0, 0.001, 0.002  # [m] draw order along z as well
+ROBOT_HEIGHT = 0.05  # [m] robots and paths float just above the map
+
+
+def _rr():
+    import rerun as rr  # local: only the viz layer needs rerun
+
+    return rr
+
+
+def map_rgb(grid: GridMap) -> np.ndarray:
+    """``(H, W, 3) uint8`` picture of an occupancy grid in ROS row order."""
+    occ = grid.occupancy
+    rgb = np.full(occ.shape + (3,), 255, dtype=np.uint8)
+    rgb[occ < 0] = (150, 150, 150)
+    rgb[occ >= 65] = (30, 30, 30)
+    return rgb
+
+
+def cells_rgba(labels: np.ndarray, robot_ids=None) -> np.ndarray:
+    """``(H, W, 4) uint8``: label ``k >= 0`` in robot ``robot_ids[k]``'s colour, transparent
+    where ``labels < 0``."""
+    lab = np.asarray(labels)
+    out = np.zeros(lab.shape + (4,), dtype=np.uint8)
+    own = lab >= 0
+    ids = np.arange(int(lab.max()) + 1 if own.any() else 0) if robot_ids is None \
+        else np.asarray(robot_ids)
+    if own.any():
+        out[own, :3] = robot_colors(ids[lab[own]])
+        out[own, 3] = 255
+    return out
+
+
+class CoverageRecorder:
+    """Writes the entities above to one rerun recording stream."""
+
+    def __init__(self, recording_id: str | None = None, application_id: str = APP_ID):
+        rr = _rr()
+        self.rr = rr
+        self.recording_id = recording_id or str(uuid.uuid4())
+        self.stream = rr.RecordingStream(application_id, recording_id=self.recording_id)
+        self._grid: GridMap | None = None
+
+    # ------------------------------------------------------------------ sinks
+    def save(self, path: str | Path) -> None:
+        self.stream.save(str(path), default_blueprint=self.blueprint())
+
+    def connect(self, url: str) -> None:
+        self.stream.connect_grpc(url, default_blueprint=self.blueprint())
+
+    def flush(self) -> None:
+        self.stream.flush(timeout_sec=10.0)
+
+    def blueprint(self):
+        import rerun.blueprint as rrb
+
+        eye = None
+        if self._grid is not None:
+            x0, y0, x1, y1 = self._grid.extent()
+            cx, cy = 0.5 * (x0 + x1), 0.5 * (y0 + y1)
+            height = 1.1 * max(x1 - x0, y1 - y0)
+            eye = rrb.EyeControls3D(position=(cx, cy, height), look_target=(cx, cy, 0.0),
+                                    eye_up=(0.0, 1.0, 0.0))
+        view = rrb.Spatial3DView(origin="/world", name="map and cells",
+                                 **({"eye_controls": eye} if eye is not None else {}))
+        return rrb.Blueprint(
+            rrb.Horizontal(
+                view,
+                rrb.Vertical(rrb.TimeSeriesView(origin="/metrics/H", name="coverage cost H"),
+                             rrb.TimeSeriesView(origin="/metrics/mass", name="cell masses")),
+                column_shares=[3, 1]),
+            rrb.TimePanel(timeline=TIMELINE), collapse_panels=True)
+
+    # ------------------------------------------------------------------ static layers
+    def _grid_map(self, grid: GridMap, rgb: np.ndarray, channels: str):
+        rr = self.rr
+        data = np.ascontiguousarray(np.flipud(rgb))
+        fmt = rr.components.ImageFormat(width=grid.width, height=grid.height,
+                                        color_model=channels, channel_datatype="U8")
+        return data, fmt
+
+    def log_map(self, grid: GridMap, density: np.ndarray | None = None) -> None:
+        rr = self.rr
+        self._grid = grid
+        x0, y0 = grid.origin[0], grid.origin[1]
+        data, fmt = self._grid_map(grid, map_rgb(grid), "RGB")
+        self.stream.log("/world/map", rr.GridMap(data=data.tobytes(), format=fmt,
+                                                 cell_size=grid.resolution,
+                                                 translation=[x0, y0, Z_MAP]), static=True)
+        if density is not None and np.ptp(density) > 0:
+            w = np.asarray(density, dtype=np.float64)
+            scaled = (255.0 * (w - w.min()) / max(np.ptp(w), 1e-12)).astype(np.uint8)
+            self.stream.log("/world/density", rr.GridMap(
+                data=np.ascontiguousarray(np.flipud(scaled)).tobytes(),
+                format=rr.components.ImageFormat(width=grid.width, height=grid.height,
+                                                 color_model="L", channel_datatype="U8"),
+                cell_size=grid.resolution, translation=[x0, y0, Z_DENSITY],
+                colormap=rr.components.Colormap.Viridis, opacity=DENSITY_OPACITY),
+                static=True)
+
+    # ------------------------------------------------------------------ time-varying
+    def set_time(self, seconds: float) -> None:
+        self.stream.set_time(TIMELINE, duration=float(seconds))
+
+    def log_cells(self, labels: np.ndarray, robot_ids=None) -> None:
+        assert self._grid is not None, "log_map first"
+        rr = self.rr
+        grid = self._grid
+        data, fmt = self._grid_map(grid, cells_rgba(labels, robot_ids), "RGBA")
+        self.stream.log("/world/cells", rr.GridMap(
+            data=data.tobytes(), format=fmt, cell_size=grid.resolution,
+            translation=[grid.origin[0], grid.origin[1], Z_CELLS], opacity=CELL_OPACITY))
+
+    def log_robots(self, robot_ids, positions: np.ndarray, radii) -> None:
+        rr = self.rr
+        P = np.asarray(positions, dtype=np.float64).reshape(-1, 2)
+        ids = list(robot_ids)
+        self.stream.log("/world/robots", rr.Points3D(
+            np.column_stack([P, np.full(len(P), ROBOT_HEIGHT)]),
+            radii=np.broadcast_to(np.asarray(radii, dtype=np.float32), (len(P),)),
+            colors=robot_colors(ids), labels=[f"robot_{i}" for i in ids]))
+
+    def log_goals(self, robot_ids, goals: np.ndarray) -> None:
+        rr = self.rr
+        G = np.asarray(goals, dtype=np.float64).reshape(-1, 2)
+        ids = list(robot_ids)
+        self.stream.log("/world/goals", rr.Points3D(
+            np.column_stack([G, np.full(len(G), ROBOT_HEIGHT)]), radii=0.04,
+            colors=robot_colors(ids)))
+
+    def log_path(self, kind: str, robot_id: int, points: np.ndarray) -> None:
+        """``kind`` is ``trajectories`` or ``plans``."""
+        rr = self.rr
+        P = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+        strip = np.column_stack([P, np.full(len(P), ROBOT_HEIGHT)])
+        self.stream.log(f"/world/{kind}/robot_{robot_id}", rr.LineStrips3D(
+            [strip], radii=0.015, colors=[robot_color(robot_id)]))
+
+    def log_scan(self, robot_id: int, points: np.ndarray) -> None:
+        rr = self.rr
+        P = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+        self.stream.log(f"/world/scans/robot_{robot_id}", rr.Points3D(
+            np.column_stack([P, np.full(len(P), ROBOT_HEIGHT)]), radii=0.012,
+            colors=[robot_color(robot_id)]))
+
+    def log_metrics(self, H: float | None = None, masses: dict[int, float] | None = None,
+                    ) -> None:
+        rr = self.rr
+        if H is not None and np.isfinite(H):
+            self.stream.log("/metrics/H", rr.Scalars(float(H)))
+        for rid, m in (masses or {}).items():
+            self.stream.log(f"/metrics/mass/robot_{rid}", rr.Scalars(float(m)))
+
+    def name_series(self, robot_ids) -> None:
+        """Static series styling: names and robot colours for the mass plots."""
+        rr = self.rr
+        self.stream.log("/metrics/H", rr.SeriesLines(names="H", colors=[[20, 20, 20]]),
+                        static=True)
+        for rid in robot_ids:
+            self.stream.log(f"/metrics/mass/robot_{rid}",
+                            rr.SeriesLines(names=f"robot_{rid}", colors=[robot_color(rid)]),
+                            static=True)

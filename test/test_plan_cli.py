@@ -1,0 +1,97 @@
+"""coverage-plan: the offline planner's outputs and errors."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from conftest import REPO, WORLDS
+
+from coverage_ros.cli.plan import main, parse_starts
+from coverage_ros.core.world import load_world
+from coverage_ros.errors import ConfigError
+
+
+@pytest.fixture(scope="module")
+def plan(tmp_path_factory):
+    out = tmp_path_factory.mktemp("plan")
+    code = main(["--map", str(WORLDS / "l_shape.yaml"), "--robots", "3", "--seed", "4",
+                 "--json", str(out / "p.json"), "--png", str(out / "p.png"),
+                 "--record", str(out / "p.rrd"), "--quiet"])
+    assert code == 0
+    return out
+
+
+def test_json_summary(plan):
+    data = json.loads((plan / "p.json").read_text())
+    for key in ("map", "strategy", "robots", "start_positions", "positions", "H", "iterations",
+                "converged", "update_ms", "grid"):
+        assert key in data, key
+    assert data["strategy"] == "geodesic" and data["robots"] == 3
+    assert data["converged"] is True
+    assert set(data["update_ms"]) == {"median", "p90", "max"}
+    assert 0 < data["update_ms"]["median"] <= data["update_ms"]["p90"] <= data["update_ms"]["max"]
+    assert data["grid"] == {"width": 202, "height": 202, "resolution": 0.05}
+    # The robots spread out of their cluster and lower the coverage cost a lot.
+    starts, final = np.array(data["start_positions"]), np.array(data["positions"])
+    assert np.ptp(starts, axis=0).max() < 1.0 < np.ptp(final, axis=0).max()
+    assert data["H"] < 0.3 * data["H_start"]
+    world = load_world(WORLDS / "l_shape.yaml")
+    for x, y in final:
+        assert world.start_clearance(x, y) >= 0.105
+
+
+def test_png_picture(plan):
+    from PIL import Image
+
+    img = Image.open(plan / "p.png")
+    assert img.size[0] >= 800 and img.size[0] == img.size[1]
+    colours = {c for _, c in img.getcolors(1 << 20)}
+    assert (40, 40, 40) in colours  # the obstacle
+
+
+def test_recording_holds_the_expected_entities(plan):
+    from rerun.chunk import RrdReader
+
+    store = RrdReader(plan / "p.rrd").store()
+    paths = set(store.schema().entity_paths())
+    expected = {"/world/map", "/world/cells", "/world/robots", "/metrics/H"}
+    expected |= {f"/metrics/mass/robot_{i}" for i in range(3)}
+    expected |= {f"/world/trajectories/robot_{i}" for i in range(3)}
+    assert expected <= paths, expected - paths
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--map", "/nonexistent/map.yaml", "--robots", "2"], "/nonexistent/map.yaml: file not found"),
+    (["--map", "office", "--robots", "2", "--starts", "1,1;x,2"], r"--starts\[1\]"),
+    (["--map", "office", "--robots", "2", "--starts", "1,1"], "gives 1 positions for --robots 2"),
+    (["--map", "office", "--robots", "1", "--starts", "4.0,1.5"], r"--starts\[0\].*inside"),
+    (["--map", "nosuchworld", "--robots", "1"], "no shipped world of that name"),
+])
+def test_errors_are_one_line_and_named(args, message, capsys):
+    assert main(args + ["--quiet"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1
+    import re
+
+    assert re.search(message, err), err
+
+
+def test_parse_starts():
+    assert parse_starts("1,2;3,4,0.5").tolist() == [[1, 2, 0], [3, 4, 0.5]]
+    with pytest.raises(ConfigError, match="nan"):
+        parse_starts("1,nan")
+
+
+def test_console_script_runs(tmp_path):
+    exe = REPO / ".venv" / "bin" / "coverage-plan"
+    ros2_run = REPO / "install" / "coverage_ros" / "lib" / "coverage_ros" / "coverage-plan"
+    assert ros2_run.exists(), "colcon's ros2 run layout has the console script"
+    out = subprocess.run([str(exe if exe.exists() else sys.executable), "--map", "empty",
+                          "--robots", "2", "--json", str(tmp_path / "e.json"), "--quiet"],
+                         capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert json.loads((tmp_path / "e.json").read_text())["converged"]

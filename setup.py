@@ -26,7 +26,10 @@ setup(
     entry_points={
         "console_scripts": [
             "world_node = coverage_ros.nodes.world_node:main",
+            "robot_node = coverage_ros.nodes.robot_node:main",
             "coverage-plan = coverage_ros.cli.plan:main",
+            "rerun_bridge = coverage_ros.nodes.rerun_bridge:main",
+            "coverage-team = coverage_ros.cli.team:main",
         ],
     },
 )

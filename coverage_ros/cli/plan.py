@@ -27,6 +27,7 @@ from coverage_ros.core.world import (
     WorldSpec,
     cluster_starts,
     load_world,
+    parse_poses,
     validate_starts,
 )
 from coverage_ros.errors import ConfigError, CoverageError
@@ -35,20 +36,7 @@ from coverage_ros.worlds import resolve_world_path
 
 def parse_starts(text: str, where: str = "--starts") -> np.ndarray:
     """``"x,y;x,y"`` or ``"x,y,yaw;..."`` -> ``(n, 3)`` (yaw 0 when omitted)."""
-    rows = []
-    for k, item in enumerate(s for s in text.split(";") if s.strip()):
-        parts = item.split(",")
-        try:
-            vals = [float(v) for v in parts]
-        except ValueError:
-            raise ConfigError.at(f"{where}[{k}]", "must be numbers 'x,y' or 'x,y,yaw'",
-                                 item) from None
-        if len(vals) not in (2, 3) or not all(math.isfinite(v) for v in vals):
-            raise ConfigError.at(f"{where}[{k}]", "must be 'x,y' or 'x,y,yaw' (finite)", item)
-        rows.append(vals + [0.0] * (3 - len(vals)))
-    if not rows:
-        raise ConfigError.at(where, "no start given", text, "'x,y;x,y;...'")
-    return np.array(rows)
+    return parse_poses(text, where)
 
 
 def choose_starts(world: WorldSpec, n: int, radius: float, starts: str | None,

@@ -482,6 +482,24 @@ def validate_starts(spec: WorldSpec, starts: list[tuple[float, float, float]],
 
 
 # ---------------------------------------------------------------------------- placement
+def parse_poses(text: str, where: str = "starts") -> np.ndarray:
+    """``"x,y;x,y"`` or ``"x,y,yaw;..."`` -> ``(n, 3)`` poses (yaw 0 when omitted)."""
+    rows = []
+    for k, item in enumerate(s for s in text.split(";") if s.strip()):
+        try:
+            vals = [float(v) for v in item.split(",")]
+        except ValueError:
+            raise ConfigError.at(f"{where}[{k}]", "must be numbers 'x,y' or 'x,y,yaw'",
+                                 item) from None
+        if len(vals) not in (2, 3) or not all(math.isfinite(v) for v in vals):
+            raise ConfigError.at(f"{where}[{k}]", "must be 'x,y' or 'x,y,yaw' (finite)", item)
+        rows.append(vals + [0.0] * (3 - len(vals)))
+    if not rows:
+        raise ConfigError.at(where, "no pose given", text, "'x,y;x,y;...'")
+    return np.array(rows)
+
+
+
 def cluster_starts(grid: GridMap, count: int, radius: float, rng: np.random.Generator,
                    gap: float = CLUSTER_GAP) -> np.ndarray:
     """``(count, 3)`` poses ``(x, y, yaw)`` packed in a compact hexagonal cluster.

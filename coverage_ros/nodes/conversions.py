@@ -18,6 +18,12 @@ Conventions (REP 103 / REP 105 / REP 117)
   ``range_min`` (REP 117).
 * Velocity commands (``cmd_vel``): ``linear.x`` [m/s] forward and ``angular.z`` [rad/s]
   counter-clockwise in ``base_link``; the other components are ignored (differential drive).
+* Coverage state (``coverage_state``): a ``sensor_msgs/JointState`` used as a stamped vector of
+  named values in the ``map`` frame: ``name[k]`` / ``position[k]`` pairs ``x``, ``y`` (the
+  generator [m]), ``weight`` (power weight R [m]), ``mass``, ``cost``, ``update_ms``, and for
+  some strategies ``virtual_x``/``virtual_y`` (virtual generator [m]) and further extras.
+* Cells (``cell``): a ``nav_msgs/OccupancyGrid`` cropped to the cell's bounding box, on the
+  map's cell lattice: 100 = part of the robot's cell, 0 = not.
 
 Arrays cross the message boundary with ``array.array`` (``tobytes``/``np.frombuffer``): element-
 wise assignment of a numpy array to a message sequence is ~60x slower.
@@ -34,10 +40,10 @@ import numpy as np
 import yaml
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
-from geometry_msgs.msg import Quaternion, Twist
-from nav_msgs.msg import OccupancyGrid, Odometry
+from geometry_msgs.msg import Point32, PolygonStamped, PoseStamped, Quaternion, Twist
+from nav_msgs.msg import OccupancyGrid, Odometry, Path
 from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import LaserScan
+from sensor_msgs.msg import JointState, LaserScan
 
 from coverage_ros.core.grid import GridMap
 from coverage_ros.core.world import LidarSpec, RobotSpec
@@ -263,3 +269,127 @@ def diagnostic_status(name: str, message: str, values: dict[str, Any],
 def diagnostic_values(status: DiagnosticStatus) -> dict[str, str]:
     """The key/value pairs of a ``DiagnosticStatus`` as a dict."""
     return {kv.key: kv.value for kv in status.values}
+
+
+# ---------------------------------------------------------------------------- robot outputs
+def pose_stamped_msg(stamp: Time, x: float, y: float, yaw: float,
+                     frame_id: str = MAP_FRAME) -> PoseStamped:
+    msg = PoseStamped()
+    msg.header.stamp = stamp
+    msg.header.frame_id = frame_id
+    msg.pose.position.x, msg.pose.position.y = float(x), float(y)
+    msg.pose.orientation = yaw_to_quaternion(yaw)
+    return msg
+
+
+def path_msg(stamp: Time, points: np.ndarray, frame_id: str = MAP_FRAME) -> Path:
+    """``nav_msgs/Path`` through ``(M, 2)`` points, each pose heading along the path."""
+    msg = Path()
+    msg.header.stamp = stamp
+    msg.header.frame_id = frame_id
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+    for k, (x, y) in enumerate(pts):
+        nxt = pts[min(k + 1, len(pts) - 1)] - pts[max(k - 1, 0)] if len(pts) > 1 else (1.0, 0.0)
+        msg.poses.append(pose_stamped_msg(stamp, x, y, math.atan2(nxt[1], nxt[0]), frame_id))
+    return msg
+
+
+def path_to_points(msg: Path) -> np.ndarray:
+    return np.array([[p.pose.position.x, p.pose.position.y] for p in msg.poses],
+                    dtype=np.float64).reshape(-1, 2)
+
+
+def cell_grid_msg(grid: GridMap, nodes: np.ndarray, stamp: Time,
+                  frame_id: str = MAP_FRAME) -> OccupancyGrid:
+    """The cell ``nodes`` (ids ``row * W + col`` of ``grid``) as an OccupancyGrid cropped to
+    their bounding box (100 in the cell, 0 elsewhere); an empty 0 x 0 grid for no cell."""
+    W = grid.width
+    nodes = np.asarray(nodes, dtype=np.int64)
+    msg = OccupancyGrid()
+    msg.header.stamp = stamp
+    msg.header.frame_id = frame_id
+    msg.info.resolution = float(grid.resolution)
+    if len(nodes) == 0:
+        return msg
+    rows, cols = nodes // W, nodes % W
+    r0, c0 = int(rows.min()), int(cols.min())
+    h, w = int(rows.max()) - r0 + 1, int(cols.max()) - c0 + 1
+    data = np.zeros((h, w), dtype=np.int8)
+    data[rows - r0, cols - c0] = 100
+    ox, oy = grid.grid_to_world(np.array([c0, r0], dtype=np.float64))
+    msg.info.width, msg.info.height = w, h
+    msg.info.origin.position.x, msg.info.origin.position.y = float(ox), float(oy)
+    msg.info.origin.orientation = yaw_to_quaternion(grid.origin[2])
+    msg.data = array.array("b", data.tobytes())
+    return msg
+
+
+def polygon_msg(stamp: Time, polygon: np.ndarray, frame_id: str = MAP_FRAME) -> PolygonStamped:
+    msg = PolygonStamped()
+    msg.header.stamp = stamp
+    msg.header.frame_id = frame_id
+    for x, y in np.asarray(polygon, dtype=np.float64).reshape(-1, 2):
+        msg.polygon.points.append(Point32(x=float(x), y=float(y), z=0.0))
+    return msg
+
+
+def scan_to_points(msg: LaserScan, pose: tuple[float, float, float]) -> np.ndarray:
+    """``(M, 2)`` map-frame hit points of a scan taken at robot ``pose`` (the lidar sits at
+    the robot centre, axes as base_link); only finite returns within the sensor limits."""
+    angles, ranges = laser_scan_to_ranges(msg)
+    ok = np.isfinite(ranges) & (ranges >= msg.range_min) & (ranges <= msg.range_max)
+    a = angles[ok] + pose[2]
+    r = ranges[ok]
+    return np.stack([pose[0] + r * np.cos(a), pose[1] + r * np.sin(a)], axis=-1)
+
+
+# ---------------------------------------------------------------------------- coverage state
+STATE_REQUIRED = ("x", "y")
+
+
+def coverage_state_msg(stamp: Time, values: dict[str, float],
+                       frame_id: str = MAP_FRAME) -> JointState:
+    """``coverage_state`` message from named values (see module docstring)."""
+    msg = JointState()
+    msg.header.stamp = stamp
+    msg.header.frame_id = frame_id
+    names = list(values)
+    msg.name = names
+    msg.position = [float(values[k]) for k in names]
+    return msg
+
+
+def coverage_state_values(msg: JointState, expected_frame: str = MAP_FRAME) -> dict[str, float]:
+    """Named values of a ``coverage_state`` message; ValueError naming the problem (wrong
+    frame, missing x/y, mismatched lengths, non-finite x/y)."""
+    if msg.header.frame_id != expected_frame:
+        raise ValueError(f"frame_id {msg.header.frame_id!r}, expected {expected_frame!r}")
+    if len(msg.name) != len(msg.position):
+        raise ValueError(f"{len(msg.name)} names but {len(msg.position)} values")
+    values = {str(n): float(v) for n, v in zip(msg.name, msg.position, strict=True)}
+    for key in STATE_REQUIRED:
+        if key not in values:
+            raise ValueError(f"no {key!r} value")
+        if not math.isfinite(values[key]):
+            raise ValueError(f"{key} is {values[key]!r}")
+    return values
+
+
+# ---------------------------------------------------------------------------- viewer inputs
+def pose_stamped_to_pose(msg: PoseStamped) -> tuple[float, float, float]:
+    """``(x, y, yaw)`` of a ``geometry_msgs/PoseStamped``, in its header frame."""
+    p = msg.pose
+    return p.position.x, p.position.y, quaternion_to_yaw(p.orientation)
+
+
+def polygon_to_points(msg: PolygonStamped) -> np.ndarray:
+    """``(M, 2) float64`` [m] vertices of a ``geometry_msgs/PolygonStamped`` (z dropped)."""
+    return np.array([[p.x, p.y] for p in msg.polygon.points], dtype=np.float64).reshape(-1, 2)
+
+
+def cell_grid_to_grid(msg: OccupancyGrid) -> GridMap | None:
+    """A ``cell`` grid (see module docstring) as a :class:`GridMap`, None for the empty 0 x 0
+    grid of a robot without a cell; ConfigError if inconsistent."""
+    if msg.info.width == 0 or msg.info.height == 0:
+        return None
+    return occupancy_grid_to_grid(msg)

@@ -33,7 +33,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import LaserScan
 from std_msgs.msg import Int32, String
 
-from coverage_ros.core.world import load_world
+from coverage_ros.core.world import load_world, parse_poses
 from coverage_ros.errors import ConfigError, CoverageError
 from coverage_ros.nodes import conversions as conv
 from coverage_ros.sim.world import Scan, SimConfig, World
@@ -83,6 +83,8 @@ _PARAMETERS = {  # name: (default, description)
     "world": ("office", "shipped world name (config/worlds/<name>.yaml) or path to a package "
               "world YAML or a map_server YAML"),
     "num_robots": (-1, "robots at start-up; -1: one per start pose of the world, else 4"),
+    "starts": ("", "start poses 'x,y,yaw;x,y,yaw;...' [m, rad] overriding the world's; "
+               "num_robots -1 then means one robot per pose"),
     "seed": (0, "seed of placement, odometry noise and lidar noise (same seed, same run)"),
     "real_time_factor": (1.0, "sim seconds per wall second; 0: as fast as possible"),
     "physics_rate_hz": (50.0, "[Hz] fixed physics steps per simulated second"),
@@ -120,6 +122,7 @@ class WorldNode(Node):
             self.declare_parameter(name, default, ParameterDescriptor(description=text))
         p = {name: self.get_parameter(name).value for name in _PARAMETERS}
         scan_noise = p.pop("scan_noise_std")
+        starts_text = p.pop("starts")
         sim = SimConfig(seed=p.pop("seed"), physics_rate_hz=p.pop("physics_rate_hz"),
                         cmd_timeout=p.pop("cmd_timeout"),
                         odom_noise_trans=p.pop("odom_noise_trans"),
@@ -138,8 +141,20 @@ class WorldNode(Node):
         self.status_pub = self.create_publisher(DiagnosticArray, "/world/robots", 10)
         self.create_subscription(String, "/world/spawn", self._on_spawn, 10)
         self.create_subscription(Int32, "/world/remove", self._on_remove, 10)
-        for robot_id in self.sim.populate(count):
-            self._open_io(robot_id)
+        if starts_text:
+            poses = parse_poses(starts_text, "starts")
+            if self.config.num_robots < 0:
+                count = len(poses)
+            if count > len(poses):
+                raise ConfigError.at("starts", f"gives {len(poses)} poses for num_robots {count}",
+                                     starts_text)
+            for i in range(count):
+                self.sim.add_robot(i, tuple(float(v) for v in poses[i]),
+                                   self.spec.robot_spec(i))
+                self._open_io(i)
+        else:
+            for robot_id in self.sim.populate(count):
+                self._open_io(robot_id)
         self.map_pub.publish(conv.grid_to_occupancy_grid(self.spec.grid, conv.to_time_msg(0.0)))
         self._publish_clock()
         dt = self.config.sim.dt

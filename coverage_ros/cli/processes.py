@@ -1,0 +1,123 @@
+"""Child processes of the team launcher: one per node, exactly what ``ros2 run`` would start.
+
+Every child runs in its own process group (so a Ctrl-C in the terminal reaches only the
+launcher, which then stops the children in order), asks the kernel to SIGTERM it if the
+launcher dies (Linux ``PR_SET_PDEATHSIG``), and writes its output to a log file. Processes are
+stopped by PID/process group only: SIGINT (a clean rclpy shutdown), then SIGTERM, then SIGKILL.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import os
+import signal
+import subprocess
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+PACKAGE = "coverage_ros"
+PR_SET_PDEATHSIG = 1  # linux/prctl.h
+
+
+def _die_with_parent() -> None:  # runs in the child between fork and exec
+    with contextlib.suppress(Exception):
+        libc = ctypes.CDLL("libc.so.6", use_errno=True)
+        libc.prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
+
+
+def executable(name: str) -> list[str]:
+    """Command for a package executable: ``<prefix>/lib/coverage_ros/<name>`` found through the
+    ament index (the ``ros2 run`` layout), else the Python module in this environment."""
+    with contextlib.suppress(Exception):
+        from ament_index_python.packages import get_package_prefix
+
+        path = Path(get_package_prefix(PACKAGE)) / "lib" / PACKAGE / name
+        if path.is_file() and os.access(path, os.X_OK):
+            return [str(path)]
+    modules = {"world_node": "coverage_ros.nodes.world_node",
+               "robot_node": "coverage_ros.nodes.robot_node",
+               "rerun_bridge": "coverage_ros.nodes.rerun_bridge"}
+    return [sys.executable, "-m", modules[name]]
+
+
+def ros_args(namespace: str | None = None, **params) -> list[str]:
+    out = ["--ros-args"]
+    if namespace:
+        out += ["-r", f"__ns:={namespace}"]
+    for key, value in params.items():
+        if isinstance(value, bool):
+            text = "true" if value else "false"
+        elif isinstance(value, str):
+            text = value if value else "''"
+        else:
+            text = repr(value)
+        out += ["-p", f"{key}:={text}"]
+    return out
+
+
+@dataclass
+class Child:
+    name: str
+    popen: subprocess.Popen
+    log: Path
+
+    @property
+    def alive(self) -> bool:
+        return self.popen.poll() is None
+
+
+class ProcessSet:
+    """The launcher's children, started and stopped together."""
+
+    def __init__(self, env: dict[str, str], log_dir: Path) -> None:
+        self.env = env
+        self.log_dir = log_dir
+        self.children: dict[str, Child] = {}
+
+    def start(self, name: str, cmd: list[str]) -> Child:
+        log = self.log_dir / f"{name}.log"
+        with open(log, "wb") as fh:
+            popen = subprocess.Popen(cmd, env=self.env, stdout=fh, stderr=subprocess.STDOUT,
+                                     stdin=subprocess.DEVNULL, start_new_session=True,
+                                     preexec_fn=_die_with_parent)
+        child = Child(name, popen, log)
+        self.children[name] = child
+        return child
+
+    def signal(self, name: str, sig: int) -> None:
+        child = self.children.get(name)
+        if child is not None and child.alive:
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(child.popen.pid, sig)
+
+    def stop(self, names: list[str] | None = None, timeout: float = 8.0) -> None:
+        """SIGINT, wait; SIGTERM, wait; SIGKILL - for the given children (default all)."""
+        names = [n for n in (names or list(self.children)) if n in self.children]
+        for sig, wait in ((signal.SIGINT, timeout), (signal.SIGTERM, 3.0),
+                          (signal.SIGKILL, 3.0)):
+            alive = [n for n in names if self.children[n].alive]
+            if not alive:
+                break
+            for n in alive:
+                self.signal(n, sig)
+            deadline = time.monotonic() + wait
+            while time.monotonic() < deadline and any(self.children[n].alive for n in alive):
+                time.sleep(0.05)
+        for n in names:
+            with contextlib.suppress(subprocess.TimeoutExpired):
+                self.children[n].popen.wait(timeout=1.0)
+
+    def failed(self) -> list[Child]:
+        """Children that exited on their own with a non-zero code."""
+        return [c for c in self.children.values()
+                if not c.alive and c.popen.returncode not in (0, None, -2, -15)]
+
+    def tail(self, child: Child, lines: int = 5) -> str:
+        try:
+            text = child.log.read_text(errors="replace").strip().splitlines()
+        except OSError:
+            return ""
+        return "\n".join(text[-lines:])

@@ -1,0 +1,233 @@
+"""coverage-team: run a coverage team - the world node and one robot process per robot.
+
+    coverage-team --robots 6 --world office --strategy geodesic --duration 60 --record
+
+Starts ``world_node`` and ``robot_node`` x N (and ``rerun_bridge`` when recording or viewing)
+as separate processes, exactly as ``ros2 run`` would, with discovery limited to this machine
+and a fresh ``ROS_DOMAIN_ID``; shows progress (sim time, coverage cost); stops everything
+cleanly at the end or on Ctrl-C; writes ``<out>/summary.json`` and prints a table.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import json
+import math
+import os
+import random
+import signal
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from coverage_ros.cli.processes import ProcessSet, executable, ros_args
+from coverage_ros.cli.team_metrics import TeamTracker, summary_table
+from coverage_ros.core.domain import CoverageDomain
+from coverage_ros.core.strategies import STRATEGIES
+from coverage_ros.core.world import cluster_starts, load_world, parse_poses, validate_starts
+from coverage_ros.errors import ConfigError, CoverageError
+from coverage_ros.worlds import resolve_world_path
+
+STARTUP_TIMEOUT = 90.0  # [s] wall time for the world and robots to come up (16 robots, 2 cores)
+PROGRESS_PERIOD = 0.5  # [s] wall time between progress refreshes
+METRICS_PERIOD = 2.0  # [s] wall time between coverage cost evaluations for the progress bar
+
+
+def build_parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(prog="coverage-team", description=__doc__.split("\n")[0])
+    ap.add_argument("--robots", type=int, default=4, help="team size")
+    ap.add_argument("--world", default="office",
+                    help="package world YAML, map_server YAML or a shipped world name")
+    ap.add_argument("--strategy", default="geodesic", choices=sorted(STRATEGIES))
+    ap.add_argument("--duration", type=float, default=60.0, help="[s] simulated time to run")
+    ap.add_argument("--seed", type=int, default=0, help="start cluster and simulator seed")
+    ap.add_argument("--starts", help="start poses 'x,y,yaw;...' (default: a compact seeded "
+                    "cluster, so the robots must spread)")
+    ap.add_argument("--rtf", type=float, default=1.0,
+                    help="real-time factor of the simulation (0: as fast as possible)")
+    ap.add_argument("--out", type=Path, help="output folder (default out/team-<time>)")
+    ap.add_argument("--record", action="store_true", help="write <out>/recording.rrd")
+    ap.add_argument("--viewer", action="store_true", help="stream to a spawned rerun viewer")
+    ap.add_argument("--serve-web", action="store_true",
+                    help="serve the rerun web viewer on 127.0.0.1")
+    ap.add_argument("--domain-id", type=int, help="ROS_DOMAIN_ID (default: a fresh one)")
+    ap.add_argument("--control-rate", type=float, default=2.0, help="[Hz] coverage updates")
+    ap.add_argument("--sensor-radius", type=float, default=3.5,
+                    help="[m] sensing radius for coverage_ratio")
+    ap.add_argument("--robot-param", action="append", default=[], metavar="NAME:=VALUE",
+                    help="extra robot_node parameter (repeatable), e.g. strategy_params:={...}")
+    ap.add_argument("--kill", action="append", default=[], metavar="ID@SECONDS",
+                    help="kill robot ID's process at that sim time (robot loss experiments)")
+    ap.add_argument("--quiet", action="store_true", help="no progress display")
+    return ap
+
+
+def _domain_id(requested: int | None) -> int:
+    if requested is not None:
+        if not 0 <= requested <= 232:
+            raise ConfigError.at("--domain-id", "must be in 0..232", requested)
+        return requested
+    return random.SystemRandom().randint(100, 199)
+
+
+def _kills(specs: list[str], n: int) -> list[tuple[float, int]]:
+    out = []
+    for spec in specs:
+        try:
+            rid, t = spec.split("@")
+            out.append((float(t), int(rid)))
+        except ValueError:
+            raise ConfigError.at("--kill", "must be ID@SECONDS", spec) from None
+        if not 0 <= out[-1][1] < n:
+            raise ConfigError.at("--kill", f"robot id out of range 0..{n - 1}", spec)
+    return sorted(out)
+
+
+def _robot_params(items: list[str]) -> dict[str, str]:
+    params = {}
+    for item in items:
+        if ":=" not in item:
+            raise ConfigError.at("--robot-param", "must be NAME:=VALUE", item)
+        k, v = item.split(":=", 1)
+        params[k.strip()] = v
+    return params
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return run(args)
+    except CoverageError as exc:
+        print(f"coverage-team: error: {exc}", file=sys.stderr)
+        return 2
+
+
+def run(args: argparse.Namespace) -> int:
+    if args.robots < 1:
+        raise ConfigError.at("--robots", "must be >= 1", args.robots)
+    if not (math.isfinite(args.duration) and args.duration > 0):
+        raise ConfigError.at("--duration", "must be > 0 [s]", args.duration)
+    if not (math.isfinite(args.rtf) and args.rtf >= 0):
+        raise ConfigError.at("--rtf", "must be >= 0 (0: as fast as possible)", args.rtf)
+    world_path = resolve_world_path(args.world, "--world")
+    world = load_world(world_path)
+    radius = world.robot.radius
+    if args.starts:
+        starts = parse_poses(args.starts, "--starts")
+        if len(starts) != args.robots:
+            raise ConfigError.at("--starts", f"gives {len(starts)} poses for --robots "
+                                 f"{args.robots}", args.starts)
+        validate_starts(world, [(x, y, radius) for x, y, _ in starts], "--starts")
+    else:
+        starts = cluster_starts(world.grid, args.robots, radius, np.random.default_rng(args.seed))
+    kills = _kills(args.kill, args.robots)
+    extra = _robot_params(args.robot_param)
+    out = args.out or Path("out") / time.strftime("team-%Y%m%d-%H%M%S")
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "logs").mkdir(exist_ok=True)
+    domain_id = _domain_id(args.domain_id)
+    env = dict(os.environ)
+    env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    env["ROS_DOMAIN_ID"] = str(domain_id)
+    env["PYTHONUNBUFFERED"] = "1"
+    # The launcher's own monitor node joins the same domain.
+    os.environ["ROS_DOMAIN_ID"] = env["ROS_DOMAIN_ID"]
+    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = env["ROS_AUTOMATIC_DISCOVERY_RANGE"]
+    say = (lambda *_: None) if args.quiet else (lambda m: print(m, file=sys.stderr, flush=True))
+    say(f"coverage-team: {args.robots} x {args.strategy} on {world_path} for {args.duration:g} "
+        f"s sim time (ROS_DOMAIN_ID={domain_id}, discovery "
+        f"{env['ROS_AUTOMATIC_DISCOVERY_RANGE']}); output in {out}")
+
+    procs = ProcessSet(env, out / "logs")
+    # Robots first: they load while the world starts, then wait for /map and /clock.
+    for i in range(args.robots):
+        params = {"robot_id": i, "use_sim_time": True, "strategy": args.strategy,
+                  "world": str(world_path), "control_rate": float(args.control_rate),
+                  "robot_radius": radius, "sensor_radius": float(args.sensor_radius)}
+        cmd = executable("robot_node") + ros_args(f"/robot_{i}", **params)
+        cmd += [a for k, v in extra.items() for a in ("-p", f"{k}:={v}")]
+        procs.start(f"robot_{i}", cmd)
+    start_text = ";".join(f"{x:.4f},{y:.4f},{yaw:.4f}" for x, y, yaw in starts)
+    procs.start("world", executable("world_node") + ros_args(
+        world=str(world_path), starts=start_text, num_robots=args.robots, seed=args.seed,
+        real_time_factor=float(args.rtf)))
+    viewer = _start_viz(args, procs, out, radius, world_path, say)
+
+    domain = CoverageDomain.from_grid(world.grid, radius, world.density)
+    interrupted = False
+    failure = None
+    tracker = None
+    previous = signal.signal(signal.SIGTERM, _sigterm_as_interrupt)
+    t_wall0 = time.monotonic()
+    try:
+        tracker = TeamTracker(domain, world, starts, args, kills, procs, say)
+        tracker.run(STARTUP_TIMEOUT, PROGRESS_PERIOD, METRICS_PERIOD)
+    except KeyboardInterrupt:
+        interrupted = True
+        say("\ncoverage-team: interrupted, stopping the team")
+    except RuntimeError as exc:
+        failure = str(exc)
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+        robots = [n for n in procs.children if n.startswith("robot_")]
+        procs.stop(robots)
+        procs.stop(["bridge"], timeout=15.0)  # let the recording be flushed and closed
+        procs.stop(["world"])
+        procs.stop()
+        if tracker is not None:
+            tracker.close()
+    wall = time.monotonic() - t_wall0
+    if failure is not None:
+        print(f"coverage-team: error: {failure}", file=sys.stderr)
+        return 1
+    if tracker is None or tracker.sim_time <= 0:
+        failed = procs.failed()
+        for child in failed:
+            say(f"  {child.name} exited with {child.popen.returncode}:\n{procs.tail(child)}")
+        return 1
+    summary = tracker.summary(wall, interrupted)
+    (out / "summary.json").write_text(json.dumps(summary, indent=2))
+    if not args.quiet:
+        print(summary_table(summary))
+    say(f"coverage-team: wrote {out / 'summary.json'}; logs in {out / 'logs'}")
+    if args.record:
+        say(f"  recording: {out / 'recording.rrd'}  (open it with: rerun {out / 'recording.rrd'})")
+    if viewer is not None:
+        with contextlib.suppress(Exception):
+            viewer.wait(timeout=0)
+    return 130 if interrupted else 0
+
+
+def _sigterm_as_interrupt(signum, frame) -> None:
+    raise KeyboardInterrupt
+
+
+def _start_viz(args, procs: ProcessSet, out: Path, radius: float, world_path: Path, say):
+    """The rerun bridge (and viewer) if asked for; returns the viewer process or None."""
+    if not (args.record or args.viewer or args.serve_web):
+        return None
+    import subprocess
+
+    params = {"robot_radius": radius, "world": str(world_path), "use_sim_time": True}
+    viewer = None
+    if args.record:
+        params["record_path"] = str((out / "recording.rrd").resolve())
+    if args.viewer:
+        port = 9876
+        rerun = Path(sys.executable).with_name("rerun")
+        viewer = subprocess.Popen([str(rerun), "--port", str(port), "--bind", "127.0.0.1"],
+                                  stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                                  start_new_session=True)
+        params["connect_url"] = f"rerun+http://127.0.0.1:{port}/proxy"
+        say(f"  rerun viewer started (port {port})")
+    if args.serve_web:
+        params["serve_web"] = True
+    procs.start("bridge", executable("rerun_bridge") + ros_args(**params))
+    return viewer
+
+
+if __name__ == "__main__":
+    sys.exit(main())

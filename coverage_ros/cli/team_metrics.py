@@ -1,0 +1,245 @@
+"""The team launcher's monitor: a small rclpy node that follows a running team and scores it.
+
+It listens to ``/clock``, ``/world/robots`` (collisions, path lengths), every robot's
+``ground_truth`` and ``coverage_state``; shows progress; kills robots on schedule; and at the
+end computes the summary metrics (definitions in README "Team launcher"):
+
+* ``H`` / ``H_start``: geodesic coverage cost (density-weighted, as ``coverage-plan``) of the
+  final / start positions of the robots still running;
+* ``mass_deviation_I``: seed 003's I of the final geodesic cell masses;
+* ``coverage_ratio``: free area within ``sensor_radius`` and line of sight of some robot;
+* ``min_separation``: smallest distance between two robot centres seen during the run;
+* ``converged_at``: first sim time from which H stayed within 2 % of its final value.
+"""
+
+from __future__ import annotations
+
+import math
+import signal
+import sys
+import time
+
+import numpy as np
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray
+from nav_msgs.msg import Odometry
+from rclpy.node import Node
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Int32
+
+from coverage_ros.core.metrics import coverage_ratio, mass_deviation
+from coverage_ros.core.tessellation import Generator, tessellate
+from coverage_ros.nodes import conversions as conv
+
+CONVERGED_BAND = 0.02  # H within 2 % of its final value counts as converged
+
+
+class TeamTracker:
+    def __init__(self, domain, world, starts: np.ndarray, args, kills, procs, say) -> None:
+        self.domain, self.world, self.args = domain, world, args
+        self.starts = np.asarray(starts, dtype=np.float64)
+        self.kills = list(kills)
+        self.procs, self.say = procs, say
+        n = args.robots
+        rclpy.init()
+        self.node = Node("coverage_team")
+        self.sim_time = 0.0
+        self.ready_at: float | None = None
+        self.poses: dict[int, np.ndarray] = {}
+        self.status: dict[int, dict[str, str]] = {}
+        self.states_seen: set[int] = set()
+        self.lost: dict[int, float] = {}
+        self.H_samples: list[tuple[float, float]] = []
+        self.min_sep = math.inf
+        self.node.create_subscription(Clock, "/clock", self._on_clock, 10)
+        self.node.create_subscription(DiagnosticArray, "/world/robots", self._on_status, 10)
+        self.remove_pub = self.node.create_publisher(Int32, "/world/remove", 10)
+        for i in range(n):
+            self.node.create_subscription(Odometry, f"/robot_{i}/ground_truth",
+                                          lambda m, i=i: self._on_pose(i, m), 10)
+            self.node.create_subscription(JointState, f"/robot_{i}/coverage_state",
+                                          lambda m, i=i: self.states_seen.add(i), 10)
+
+    # ------------------------------------------------------------------ inputs
+    def _on_clock(self, msg: Clock) -> None:
+        self.sim_time = max(self.sim_time, conv.from_time_msg(msg.clock))
+
+    def _on_status(self, msg: DiagnosticArray) -> None:
+        for st in msg.status:
+            values = conv.diagnostic_values(st)
+            if "id" in values:
+                self.status[int(float(values["id"]))] = values
+
+    def _on_pose(self, i: int, msg: Odometry) -> None:
+        if i not in self.lost:
+            self.poses[i] = np.array(conv.odometry_to_pose(msg))
+
+    # ------------------------------------------------------------------ main loop
+    def alive(self) -> list[int]:
+        return [i for i in range(self.args.robots) if i not in self.lost]
+
+    def run(self, startup_timeout: float, progress_period: float, metrics_period: float) -> None:
+        n = self.args.robots
+        t0 = time.monotonic()
+        self.say("  waiting for the world and the robots ...")
+        while self.ready_at is None:
+            rclpy.spin_once(self.node, timeout_sec=0.1)
+            self._check_children()
+            if len(self.states_seen) == n and len(self.poses) == n:
+                self.ready_at = self.sim_time
+            elif time.monotonic() - t0 > startup_timeout:
+                missing = sorted(set(range(n)) - self.states_seen)
+                raise RuntimeError(f"robots {missing} did not start within "
+                                   f"{startup_timeout:g} s (see their logs)")
+        self.say(f"  team ready at sim time {self.ready_at:.1f} s after "
+                 f"{time.monotonic() - t0:.1f} s wall")
+        self.H_samples.append((self.ready_at, self._cost()))
+        end = self.ready_at + self.args.duration
+        last_progress = last_metrics = 0.0
+        self.wall_start = time.monotonic()
+        self.sim_start = self.sim_time
+        while self.sim_time < end:
+            rclpy.spin_once(self.node, timeout_sec=0.05)
+            self._check_children()
+            self._separation()
+            while self.kills and self.sim_time - self.ready_at >= self.kills[0][0]:
+                _, rid = self.kills.pop(0)
+                self._kill(rid)
+            now = time.monotonic()
+            if now - last_metrics >= metrics_period:
+                last_metrics = now
+                self.H_samples.append((self.sim_time, self._cost()))
+            if now - last_progress >= progress_period:
+                last_progress = now
+                self._progress(end)
+        self.H_samples.append((self.sim_time, self._cost()))
+        self._progress(end, final=True)
+
+    def _check_children(self) -> None:
+        world = self.procs.children.get("world")
+        if world is not None and not world.alive:
+            raise RuntimeError(f"world_node exited ({world.popen.returncode}):\n"
+                               f"{self.procs.tail(world)}")
+        for i in self.alive():
+            child = self.procs.children.get(f"robot_{i}")
+            if child is not None and not child.alive and i not in self.lost:
+                self.say(f"\n  robot {i} exited ({child.popen.returncode}):\n"
+                         f"{self.procs.tail(child)}")
+                self.lost[i] = self.sim_time
+
+    def _kill(self, rid: int) -> None:
+        self.say(f"\n  killing robot {rid} at sim time {self.sim_time:.1f} s")
+        self.procs.signal(f"robot_{rid}", signal.SIGKILL)
+        self.remove_pub.publish(Int32(data=rid))
+        self.lost[rid] = self.sim_time
+        self.poses.pop(rid, None)
+
+    def _separation(self) -> None:
+        P = np.array([self.poses[i][:2] for i in self.alive() if i in self.poses])
+        if len(P) > 1:
+            d = np.hypot(P[:, None, 0] - P[None, :, 0], P[:, None, 1] - P[None, :, 1])
+            d[np.diag_indices(len(P))] = np.inf
+            self.min_sep = min(self.min_sep, float(d.min()))
+
+    def _positions(self) -> np.ndarray:
+        return np.array([self.poses[i][:2] for i in self.alive() if i in self.poses])
+
+    def _cost(self) -> float:
+        P = self._positions()
+        if len(P) == 0:
+            return math.nan
+        return float(tessellate(self.domain, [Generator(p) for p in P]).cost)
+
+    def _progress(self, end: float, final: bool = False) -> None:
+        if self.args.quiet:
+            return
+        span = end - self.ready_at
+        frac = min(1.0, max(0.0, (self.sim_time - self.ready_at) / span))
+        wall = time.monotonic() - self.wall_start
+        rtf = (self.sim_time - self.sim_start) / wall if wall > 0 else 0.0
+        H = self.H_samples[-1][1] if self.H_samples else math.nan
+        bar = "#" * int(30 * frac) + "." * (30 - int(30 * frac))
+        collisions = sum(int(float(s.get("collisions", 0))) for s in self.status.values())
+        line = (f"  [{bar}] sim {self.sim_time - self.ready_at:6.1f}/{span:g} s  rtf {rtf:4.2f}"
+                f"  H {H:9.4g}  collisions {collisions}")
+        if sys.stderr.isatty():
+            print("\r" + line, end="\n" if final else "", file=sys.stderr, flush=True)
+        elif final or int(frac * 10) != getattr(self, "_decile", -1):
+            self._decile = int(frac * 10)
+            print(line, file=sys.stderr, flush=True)
+
+    # ------------------------------------------------------------------ results
+    def summary(self, wall_time: float, interrupted: bool) -> dict:
+        alive = [i for i in self.alive() if i in self.poses]
+        P = np.array([self.poses[i][:2] for i in alive]).reshape(-1, 2)
+        tess = tessellate(self.domain, [Generator(p) for p in P]) if len(P) else None
+        H_start = float(tessellate(self.domain, [Generator(p) for p in self.starts[:, :2]]).cost)
+        robots = []
+        for i in range(self.args.robots):
+            st = self.status.get(i, {})
+            final = self.poses.get(i)
+            robots.append({
+                "id": i, "start": self.starts[i].round(4).tolist(),
+                "final": None if final is None else np.round(final, 4).tolist(),
+                "path_length": round(float(st.get("path_length", 0.0)), 4),
+                "collisions": int(float(st.get("collisions", 0))),
+                **({"lost_at": round(self.lost[i], 2)} if i in self.lost else {})})
+        H = float(tess.cost) if tess is not None else math.nan
+        return {
+            "world": str(self.world.source), "strategy": self.args.strategy,
+            "seed": self.args.seed, "sim_time": round(self.sim_time, 3),
+            "wall_time": round(wall_time, 3),
+            "rtf": round((self.sim_time - self.sim_start) /
+                         max(time.monotonic() - self.wall_start, 1e-9), 3)
+            if hasattr(self, "wall_start") else 0.0,
+            "ready_at": None if self.ready_at is None else round(self.ready_at, 3),
+            "interrupted": interrupted, "robots": robots,
+            "metrics": {
+                "H": H, "H_start": H_start,
+                "mass_deviation_I": mass_deviation(tess.masses) if tess is not None else None,
+                "coverage_ratio": coverage_ratio(self.world.grid, P, self.args.sensor_radius),
+                "min_separation": self.min_sep if math.isfinite(self.min_sep) else None,
+                "converged_at": self._converged_at(H),
+            },
+        }
+
+    def _converged_at(self, H_final: float) -> float | None:
+        if not self.H_samples or not math.isfinite(H_final):
+            return None
+        t_conv = None
+        for t, h in reversed(self.H_samples):
+            if not abs(h - H_final) <= CONVERGED_BAND * H_final:
+                break
+            t_conv = t
+        return None if t_conv is None else round(t_conv - (self.ready_at or 0.0), 3)
+
+    def close(self) -> None:
+        self.node.destroy_node()
+        rclpy.try_shutdown()
+
+
+def summary_table(summary: dict) -> str:
+    """A short human-readable table of a summary."""
+    m = summary["metrics"]
+
+    def xy(p) -> str:
+        return "-" if p is None else f"({p[0]:.2f}, {p[1]:.2f})"
+
+    def num(v, digits: int = 3) -> str:
+        return "-" if v is None else f"{v:.{digits}g}"
+
+    lines = [f"{'robot':>5} {'start (x, y)':>16} {'final (x, y)':>16} {'path [m]':>9} "
+             f"{'collisions':>10}"]
+    for r in summary["robots"]:
+        final = "lost" if r.get("lost_at") is not None else xy(r["final"])
+        lines.append(f"{r['id']:>5} {xy(r['start']):>16} {final:>16} {r['path_length']:>9.2f} "
+                     f"{r['collisions']:>10d}")
+    drop = 100.0 * (1.0 - m["H"] / m["H_start"]) if m["H_start"] else math.nan
+    conv_at = "-" if m["converged_at"] is None else f"{m['converged_at']:.1f} s"
+    lines.append(f"H {num(m['H'], 4)} (start {num(m['H_start'], 4)}, {drop:.0f} % lower), "
+                 f"I {num(m['mass_deviation_I'])}, coverage {100 * m['coverage_ratio']:.0f} %, "
+                 f"min separation {num(m['min_separation'])} m, converged at {conv_at}")
+    lines.append(f"sim {summary['sim_time']:.1f} s in {summary['wall_time']:.1f} s wall "
+                 f"(rtf {summary['rtf']:.2f})")
+    return "\n".join(lines)

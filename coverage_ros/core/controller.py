@@ -1,0 +1,221 @@
+"""One robot's coverage controller, independent of ROS (the robot node only feeds it).
+
+Two loops, as on the real robot:
+
+* :meth:`RobotController.update` (the coverage period, a few Hz): the strategy computes the own
+  cell from the robot's pose, scan and the neighbours it currently trusts, and decides a goal
+  (then a path is planned to it) or a velocity; also returns the state to publish.
+* :meth:`RobotController.command` (the tracking period, ~10 Hz): the tracker follows the path
+  (or the strategy's velocity is used), and the safety filter has the last word.
+
+Neighbours are known only from what they published (:class:`NeighbourTable`): entries with
+non-finite values, positions off the map, or older than ``neighbour_timeout`` are ignored.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from coverage_ros.core.domain import CoverageDomain
+from coverage_ros.core.navigation import (
+    PathTracker,
+    SafetyConfig,
+    SafetyFilter,
+    TrackerConfig,
+    plan_path,
+)
+from coverage_ros.core.strategies import (
+    Decision,
+    Neighbour,
+    Observation,
+    Scan,
+    SharedState,
+    StrategyContext,
+    make_strategy,
+)
+from coverage_ros.core.world import RobotSpec
+from coverage_ros.errors import ConfigError
+
+#: [m] a neighbour may be reported this far outside the map's extent (localisation noise).
+MAP_MARGIN = 0.5
+#: [m] goal changes smaller than this keep the current path (no replanning jitter).
+REPLAN_DISTANCE = 0.05
+STATE_KEYS = ("x", "y", "weight", "mass", "cost", "update_ms")
+
+
+@dataclass(frozen=True)
+class ControllerConfig:
+    robot_id: int
+    strategy: str = "geodesic"
+    strategy_params: dict[str, Any] = field(default_factory=dict)
+    robot: RobotSpec = field(default_factory=RobotSpec)
+    sensor_radius: float = 3.5  # [m]
+    power_weight: float = 0.0  # [m]
+    comm_range: float = 0.0  # [m] 0 = unlimited
+    neighbour_timeout: float = 2.0  # [s]
+    goal_tolerance: float = 0.05  # [m]
+
+    def __post_init__(self) -> None:
+        if self.robot_id < 0:
+            raise ConfigError.at("robot_id", "must be >= 0", self.robot_id)
+        for name in ("comm_range", "power_weight"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v >= 0):
+                raise ConfigError.at(name, "must be a finite number >= 0", v)
+        for name in ("sensor_radius", "neighbour_timeout", "goal_tolerance"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0):
+                raise ConfigError.at(name, "must be a finite number > 0", v)
+
+
+@dataclass
+class _Entry:
+    state: SharedState
+    received: float  # [s] node clock when received
+
+
+class NeighbourTable:
+    """The latest valid state of every other robot, by id."""
+
+    def __init__(self, extent: tuple[float, float, float, float], timeout: float) -> None:
+        self.extent = extent
+        self.timeout = timeout
+        self.entries: dict[int, _Entry] = {}
+
+    def receive(self, robot_id: int, values: dict[str, float], now: float) -> str:
+        """Store a neighbour's published values; returns "" or why they were rejected."""
+        for key, v in values.items():
+            if key in STATE_KEYS[:4] and not math.isfinite(v):
+                return f"{key} is {v!r}"
+        x, y = values["x"], values["y"]
+        xmin, ymin, xmax, ymax = self.extent
+        if not (xmin - MAP_MARGIN <= x <= xmax + MAP_MARGIN
+                and ymin - MAP_MARGIN <= y <= ymax + MAP_MARGIN):
+            return f"position ({x:.2f}, {y:.2f}) is outside the map"
+        weight = values.get("weight", 0.0)
+        if weight < 0:
+            return f"weight {weight!r} < 0"
+        virtual = None
+        if "virtual_x" in values and "virtual_y" in values:
+            virtual = np.array([values["virtual_x"], values["virtual_y"]])
+            if not np.all(np.isfinite(virtual)):
+                virtual = None
+        extra = {k: v for k, v in values.items()
+                 if k not in STATE_KEYS and k not in ("virtual_x", "virtual_y")}
+        mass = values.get("mass")
+        self.entries[robot_id] = _Entry(SharedState(
+            position=np.array([x, y]), weight=weight,
+            mass=mass if mass is not None and math.isfinite(mass) else None,
+            virtual=virtual, extra=extra), now)
+        return ""
+
+    def current(self, now: float, own: np.ndarray | None = None, comm_range: float = 0.0,
+                ) -> list[Neighbour]:
+        """Fresh neighbours (within ``comm_range`` of ``own`` if that is > 0), by id."""
+        out = []
+        for rid in sorted(self.entries):
+            e = self.entries[rid]
+            if now - e.received > self.timeout:
+                continue
+            if comm_range > 0 and own is not None and \
+                    float(np.hypot(*(e.state.position - own))) > comm_range:
+                continue
+            out.append(Neighbour(rid, e.state, e.received))
+        return out
+
+    def forget(self, robot_id: int) -> None:
+        self.entries.pop(robot_id, None)
+
+
+@dataclass
+class UpdateResult:
+    decision: Decision
+    path: np.ndarray | None
+    state: dict[str, float]  # the values to publish as coverage_state
+    neighbours: list[int]
+
+
+class RobotController:
+    """See module docstring."""
+
+    def __init__(self, domain: CoverageDomain, config: ControllerConfig) -> None:
+        self.domain = domain
+        self.config = config
+        ctx = StrategyContext(domain=domain, robot=config.robot, robot_id=config.robot_id,
+                              sensor_radius=config.sensor_radius, weight=config.power_weight,
+                              convergence_tolerance=config.goal_tolerance,
+                              seed=config.robot_id)
+        self.strategy = make_strategy(config.strategy, ctx, **config.strategy_params)
+        self.neighbours = NeighbourTable(domain.geometry.extent(), config.neighbour_timeout)
+        self.tracker = PathTracker(TrackerConfig.for_robot(config.robot,
+                                                           goal_tolerance=config.goal_tolerance))
+        self.safety = SafetyFilter(domain, SafetyConfig(radius=config.robot.radius,
+                                                        a_max=config.robot.a_max))
+        self.pose: np.ndarray | None = None
+        self.scan: Scan | None = None
+        self.scan_points: np.ndarray | None = None
+        self.goal: np.ndarray | None = None
+        self.path: np.ndarray | None = None
+        self.velocity: tuple[float, float] | None = None
+        self.last: UpdateResult | None = None
+        self.safety_note = ""
+
+    @property
+    def needs_scan(self) -> bool:
+        return self.strategy.needs_scan
+
+    def set_pose(self, pose: tuple[float, float, float]) -> None:
+        self.pose = np.asarray(pose, dtype=np.float64)
+
+    def set_scan(self, scan: Scan, points_map: np.ndarray) -> None:
+        self.scan, self.scan_points = scan, points_map
+
+    def update(self, now: float) -> UpdateResult | None:
+        """One coverage period; None until the robot knows its pose."""
+        if self.pose is None:
+            return None
+        nbrs = self.neighbours.current(now, self.pose[:2], self.config.comm_range)
+        obs = Observation(self.config.robot_id, self.pose.copy(), now, self.scan)
+        t0 = time.perf_counter()
+        decision = self.strategy.update(obs, nbrs)
+        update_ms = (time.perf_counter() - t0) * 1e3
+        self.velocity = decision.velocity
+        if decision.velocity is None and decision.goal is not None:
+            goal = np.asarray(decision.goal, dtype=np.float64)
+            if (self.goal is None or self.path is None
+                    or float(np.hypot(*(goal - self.goal))) > REPLAN_DISTANCE):
+                self.goal = goal
+                self.path = plan_path(self.domain, self.pose[:2], goal)
+        shared = decision.shared
+        state = {"x": float(shared.position[0]), "y": float(shared.position[1]),
+                 "weight": float(shared.weight), "mass": float(decision.mass),
+                 "cost": float(decision.cost), "update_ms": update_ms,
+                 "radius": float(self.config.robot.radius)}
+        if shared.virtual is not None:
+            state["virtual_x"], state["virtual_y"] = (float(v) for v in shared.virtual)
+        state.update({k: float(v) for k, v in shared.extra.items()})
+        self.last = UpdateResult(decision, self.path, state, [n.robot_id for n in nbrs])
+        return self.last
+
+    def command(self, now: float, dt: float) -> tuple[float, float]:
+        """One tracking period: the safe (v, w) to send."""
+        if self.pose is None:
+            return 0.0, 0.0
+        if self.velocity is not None:
+            v, w = self.velocity
+            v = float(np.clip(v, -self.config.robot.v_max, self.config.robot.v_max))
+            w = float(np.clip(w, -self.config.robot.w_max, self.config.robot.w_max))
+        else:
+            v, w, _ = self.tracker.command(self.pose, self.path, dt)
+        nbrs = self.neighbours.current(now)
+        positions = np.array([n.position for n in nbrs]).reshape(-1, 2)
+        radii = np.array([n.state.extra.get("radius", self.config.robot.radius) for n in nbrs])
+        v, w, self.safety_note = self.safety.filter(self.pose, v, w, positions, radii,
+                                                    self.scan_points)
+        self.tracker.override(v, w)
+        return v, w

@@ -1,0 +1,359 @@
+"""robot_node: one robot of a decentralized coverage team.
+
+Runs in the robot's namespace (``/robot_<id>``). It knows the map (from ``/map`` or a file), its
+own pose and scan, and what its neighbours publish; it finds its neighbours itself from the ROS
+graph (every ``/robot_<k>/coverage_state`` topic), so no team list is configured and robots may
+join or vanish at any time. Every coverage period it computes its own cell with the chosen
+strategy, publishes ``goal_pose``, ``plan``, ``cell`` and ``coverage_state``; every tracking
+period it sends a safe ``cmd_vel``. See README "Robot node" for parameters and topics.
+
+    ros2 run coverage_ros robot_node --ros-args -r __ns:=/robot_3 -p robot_id:=3 \\
+        -p use_sim_time:=true -p strategy:=geodesic
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import re
+import sys
+import time
+from dataclasses import dataclass, field
+
+import rclpy
+import yaml
+from geometry_msgs.msg import PolygonStamped, PoseStamped, Twist, TwistStamped
+from nav_msgs.msg import OccupancyGrid, Odometry, Path
+from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.clock import Clock, ClockType
+from rclpy.exceptions import ParameterException
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+from sensor_msgs.msg import JointState, LaserScan
+
+from coverage_ros.core.controller import ControllerConfig, RobotController
+from coverage_ros.core.density import parse_density
+from coverage_ros.core.domain import CoverageDomain
+from coverage_ros.core.strategies import Scan
+from coverage_ros.core.world import RobotSpec, load_world
+from coverage_ros.errors import ConfigError, CoverageError
+from coverage_ros.nodes import conversions as conv
+from coverage_ros.worlds import resolve_world_path
+
+MAP_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
+                     reliability=ReliabilityPolicy.RELIABLE)
+DISCOVERY_PERIOD = 1.0  # [s] wall time between looks at the ROS graph for new neighbours
+WARN_PERIOD = 5.0  # [s] wall time between two warnings of the same kind
+STATE_TYPE = "sensor_msgs/msg/JointState"
+
+_PARAMETERS = {  # name: (default, description)
+    "robot_id": (-1, "this robot's id; -1: from the namespace /<robot_prefix><id>"),
+    "strategy": ("geodesic", "coverage strategy: geodesic, lloyd, tangentbug, bvc, acvt"),
+    "strategy_params": ("", "YAML mapping of strategy parameters, e.g. '{method: paper}'"),
+    "world": ("", "world name or YAML: importance density (and the map when map_topic is '')"),
+    "map_topic": ("/map", "nav_msgs/OccupancyGrid topic (transient local); '': map of 'world'"),
+    "density": ("", "YAML importance density overriding the world's (default uniform)"),
+    "robot_radius": (RobotSpec().radius, "[m] robot radius (inflates the map)"),
+    "v_max": (RobotSpec().v_max, "[m/s] maximum linear speed"),
+    "w_max": (RobotSpec().w_max, "[rad/s] maximum angular speed"),
+    "a_max": (RobotSpec().a_max, "[m/s^2] linear acceleration limit"),
+    "alpha_max": (RobotSpec().alpha_max, "[rad/s^2] angular acceleration limit"),
+    "sensor_radius": (3.5, "[m] sensing radius (sensor-based strategies, coverage metrics)"),
+    "power_weight": (0.0, "[m] power weight R of this robot (power Voronoi cells)"),
+    "control_rate": (2.0, "[Hz] coverage updates (cell, goal, state)"),
+    "tracking_rate": (10.0, "[Hz] path tracking and cmd_vel"),
+    "comm_range": (0.0, "[m] neighbours farther than this are ignored; 0: no limit"),
+    "neighbour_timeout": (2.0, "[s] a neighbour silent this long is ignored"),
+    "pose_topic": ("ground_truth", "nav_msgs/Odometry with the robot pose in the map frame"),
+    "scan_topic": ("scan", "sensor_msgs/LaserScan of the robot's lidar"),
+    "use_scan": (True, "use the lidar in the safety filter (always on for sensor strategies)"),
+    "use_stamped_cmd_vel": (False, "publish geometry_msgs/TwistStamped instead of Twist"),
+    "goal_tolerance": (0.05, "[m] goal closer than this = arrived / converged"),
+    "robot_prefix": ("robot_", "namespace prefix of the team's robots (neighbour discovery)"),
+    "connectivity": (8, "grid graph neighbourhood: 8 (seed 000) or 16"),
+}
+
+
+@dataclass(frozen=True)
+class RobotNodeConfig:
+    controller: ControllerConfig
+    world: str = ""
+    map_topic: str = "/map"
+    density: str = ""
+    control_rate: float = 2.0
+    tracking_rate: float = 10.0
+    pose_topic: str = "ground_truth"
+    scan_topic: str = "scan"
+    use_scan: bool = True
+    use_stamped_cmd_vel: bool = False
+    robot_prefix: str = "robot_"
+    connectivity: int = 8
+    extra: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        for name in ("control_rate", "tracking_rate"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0):
+                raise ConfigError.at(name, "must be a number > 0 [Hz]", v)
+        if not self.map_topic and not self.world:
+            raise ConfigError.at("map_topic", "is empty and no 'world' gives the map", "")
+        if self.connectivity not in (8, 16):
+            raise ConfigError.at("connectivity", "must be 8 or 16", self.connectivity)
+
+
+def robot_id_from_namespace(namespace: str, prefix: str) -> int:
+    m = re.fullmatch(rf"/{re.escape(prefix)}(\d+)", namespace)
+    if not m:
+        raise ConfigError.at("robot_id", f"not set and the namespace {namespace!r} is not "
+                             f"/{prefix}<id>", -1, f"-p robot_id:=N or -r __ns:=/{prefix}N")
+    return int(m.group(1))
+
+
+class RobotNode(Node):
+    """See module docstring."""
+
+    def __init__(self) -> None:
+        super().__init__("coverage_robot")
+        for name, (default, text) in _PARAMETERS.items():
+            self.declare_parameter(name, default, ParameterDescriptor(description=text))
+        p = {name: self.get_parameter(name).value for name in _PARAMETERS}
+        self.config = self._config(p)
+        cc = self.config.controller
+        self.frames = conv.RobotFrames.of(self.config.robot_prefix, cc.robot_id)
+        self.controller: RobotController | None = None
+        self._density = None
+        self._file_grid = None
+        self._load_world_inputs()
+        self._warned: dict[str, float] = {}
+        self._subs: dict[int, object] = {}
+        self._last_tick = None
+        self.cmd_pub = self.create_publisher(
+            TwistStamped if self.config.use_stamped_cmd_vel else Twist, "cmd_vel", 10)
+        self.goal_pub = self.create_publisher(PoseStamped, "goal_pose", 10)
+        self.plan_pub = self.create_publisher(Path, "plan", 10)
+        self.cell_pub = self.create_publisher(OccupancyGrid, "cell", 10)
+        self.polygon_pub = self.create_publisher(PolygonStamped, "cell_polygon", 10)
+        self.state_pub = self.create_publisher(JointState, "coverage_state", 10)
+        self.create_subscription(Odometry, self.config.pose_topic, self._on_pose, 10)
+        self._scan_sub = None
+        if self.config.map_topic:
+            self.create_subscription(OccupancyGrid, self.config.map_topic, self._on_map, MAP_QOS)
+        else:
+            self._build(self._file_grid)
+        wall = Clock(clock_type=ClockType.STEADY_TIME)
+        self.create_timer(DISCOVERY_PERIOD, self._discover, clock=wall)
+        self.create_timer(1.0 / self.config.control_rate, self._on_control)
+        self.create_timer(1.0 / self.config.tracking_rate, self._on_tracking)
+        self.get_logger().info(
+            f"robot {cc.robot_id}: strategy {cc.strategy}, map from "
+            f"{self.config.map_topic or self.config.world}")
+
+    # ------------------------------------------------------------------ configuration
+    def _config(self, p: dict) -> RobotNodeConfig:
+        prefix = p["robot_prefix"]
+        rid = p["robot_id"] if p["robot_id"] >= 0 else robot_id_from_namespace(
+            self.get_namespace(), prefix)
+        params = {}
+        if p["strategy_params"]:
+            try:
+                params = yaml.safe_load(p["strategy_params"]) or {}
+            except yaml.YAMLError as exc:
+                raise ConfigError.at("strategy_params", f"is not valid YAML ({exc})",
+                                     p["strategy_params"]) from None
+            if not isinstance(params, dict):
+                raise ConfigError.at("strategy_params", "must be a YAML mapping",
+                                     p["strategy_params"])
+        robot = RobotSpec(radius=p["robot_radius"], v_max=p["v_max"], w_max=p["w_max"],
+                          a_max=p["a_max"], alpha_max=p["alpha_max"])
+        controller = ControllerConfig(
+            robot_id=rid, strategy=p["strategy"], strategy_params=params, robot=robot,
+            sensor_radius=p["sensor_radius"], power_weight=p["power_weight"],
+            comm_range=p["comm_range"], neighbour_timeout=p["neighbour_timeout"],
+            goal_tolerance=p["goal_tolerance"])
+        return RobotNodeConfig(
+            controller=controller, world=p["world"], map_topic=p["map_topic"],
+            density=p["density"], control_rate=p["control_rate"],
+            tracking_rate=p["tracking_rate"], pose_topic=p["pose_topic"],
+            scan_topic=p["scan_topic"], use_scan=p["use_scan"],
+            use_stamped_cmd_vel=p["use_stamped_cmd_vel"], robot_prefix=prefix,
+            connectivity=p["connectivity"])
+
+    def _load_world_inputs(self) -> None:
+        if self.config.world:
+            spec = load_world(resolve_world_path(self.config.world))
+            self._density = spec.density
+            self._file_grid = spec.grid
+        if self.config.density:
+            try:
+                data = yaml.safe_load(self.config.density)
+            except yaml.YAMLError as exc:
+                raise ConfigError.at("density", f"is not valid YAML ({exc})",
+                                     self.config.density) from None
+            self._density = parse_density(data, "density")
+
+    def _build(self, grid) -> None:
+        t0 = time.perf_counter()
+        domain = CoverageDomain.from_grid(grid, self.config.controller.robot.radius,
+                                          self._density, connectivity=self.config.connectivity)
+        self.controller = RobotController(domain, self.config.controller)
+        if (self.config.use_scan or self.controller.needs_scan) and self._scan_sub is None:
+            self._scan_sub = self.create_subscription(
+                LaserScan, self.config.scan_topic, self._on_scan, qos_profile_sensor_data)
+        self.get_logger().info(f"map {grid.width} x {grid.height} cells at "
+                               f"{grid.resolution:g} m ready in {time.perf_counter() - t0:.2f} s")
+
+    # ------------------------------------------------------------------ inputs
+    def _on_map(self, msg: OccupancyGrid) -> None:
+        if self.controller is not None:
+            return  # the map is static; a re-publication changes nothing
+        try:
+            self._build(conv.occupancy_grid_to_grid(msg))
+        except (CoverageError, ValueError) as exc:
+            self._warn("map", f"dropped a map on {self.config.map_topic}: {exc}")
+
+    def _on_pose(self, msg: Odometry) -> None:
+        if self.controller is None:
+            return
+        if msg.header.frame_id != conv.MAP_FRAME:
+            self._warn("pose", f"dropped a pose in frame {msg.header.frame_id!r} (expected "
+                       f"{conv.MAP_FRAME!r}) on {self.config.pose_topic}")
+            return
+        pose = conv.odometry_to_pose(msg)
+        if not all(math.isfinite(v) for v in pose):
+            self._warn("pose", f"dropped a non-finite pose {pose} on {self.config.pose_topic}")
+            return
+        self.controller.set_pose(pose)
+
+    def _on_scan(self, msg: LaserScan) -> None:
+        c = self.controller
+        if c is None or c.pose is None:
+            return
+        _, ranges = conv.laser_scan_to_ranges(msg)
+        if len(ranges) == 0 or not math.isfinite(msg.angle_increment):
+            self._warn("scan", "dropped an empty or malformed scan")
+            return
+        scan = Scan(ranges=ranges, angle_min=float(msg.angle_min),
+                    angle_increment=float(msg.angle_increment), range_min=float(msg.range_min),
+                    range_max=float(msg.range_max))
+        c.set_scan(scan, conv.scan_to_points(msg, tuple(c.pose)))
+
+    def _discover(self) -> None:
+        """Subscribe to every new /<prefix><k>/coverage_state topic (k != own id)."""
+        pattern = re.compile(rf"/{re.escape(self.config.robot_prefix)}(\d+)/coverage_state")
+        for name, types in self.get_topic_names_and_types():
+            m = pattern.fullmatch(name)
+            if not m or STATE_TYPE not in types:
+                continue
+            rid = int(m.group(1))
+            if rid == self.config.controller.robot_id or rid in self._subs:
+                continue
+            self._subs[rid] = self.create_subscription(
+                JointState, name, lambda msg, rid=rid: self._on_state(rid, msg), 10)
+            self.get_logger().info(f"neighbour {rid} found on {name}")
+
+    def _on_state(self, robot_id: int, msg: JointState) -> None:
+        if self.controller is None:
+            return
+        try:
+            values = conv.coverage_state_values(msg)
+        except ValueError as exc:
+            self._warn(f"state{robot_id}", f"dropped coverage_state of robot {robot_id}: {exc}")
+            return
+        why = self.controller.neighbours.receive(robot_id, values, self._now())
+        if why:
+            self._warn(f"state{robot_id}", f"dropped coverage_state of robot {robot_id}: {why}")
+
+    # ------------------------------------------------------------------ loops
+    def _now(self) -> float:
+        return self.get_clock().now().nanoseconds * 1e-9
+
+    def _on_control(self) -> None:
+        c = self.controller
+        if c is None:
+            return
+        now = self._now()
+        try:
+            result = c.update(now)
+        except Exception as exc:  # a strategy bug must not take the robot down: stop instead
+            self._warn("update", f"coverage update failed ({type(exc).__name__}: {exc}); "
+                       "holding position")
+            c.path, c.velocity = None, (0.0, 0.0)
+            return
+        if result is None:
+            self._warn("nopose", f"no pose yet on {self.config.pose_topic}")
+            return
+        stamp = conv.to_time_msg(now)
+        self.state_pub.publish(conv.coverage_state_msg(stamp, result.state))
+        d = result.decision
+        grid = c.domain.geometry
+        self.cell_pub.publish(conv.cell_grid_msg(grid, d.cell, stamp))
+        if d.cell_polygon is not None and len(d.cell_polygon):
+            self.polygon_pub.publish(conv.polygon_msg(stamp, d.cell_polygon))
+        if d.goal is not None:
+            self.goal_pub.publish(conv.pose_stamped_msg(stamp, d.goal[0], d.goal[1],
+                                                        float(c.pose[2])))
+        if result.path is not None:
+            self.plan_pub.publish(conv.path_msg(stamp, result.path))
+        elif d.goal is not None and d.velocity is None:
+            self._warn("plan", f"no path to goal ({d.goal[0]:.2f}, {d.goal[1]:.2f})")
+
+    def _on_tracking(self) -> None:
+        c = self.controller
+        if c is None or c.pose is None:
+            return
+        now = self._now()
+        dt = 1.0 / self.config.tracking_rate if self._last_tick is None else \
+            min(max(now - self._last_tick, 0.0), 0.5)
+        self._last_tick = now
+        v, w = c.command(now, dt)
+        self._publish_cmd(v, w, now)
+
+    def _publish_cmd(self, v: float, w: float, now: float) -> None:
+        twist = conv.command_to_twist(v, w)
+        if self.config.use_stamped_cmd_vel:
+            msg = TwistStamped()
+            msg.header.stamp = conv.to_time_msg(now)
+            msg.header.frame_id = self.frames.base_link
+            msg.twist = twist
+            self.cmd_pub.publish(msg)
+        else:
+            self.cmd_pub.publish(twist)
+
+    def stop(self) -> None:
+        """Best effort: leave the robot standing."""
+        if self.context.ok():
+            self._publish_cmd(0.0, 0.0, self._now())
+
+    def _warn(self, key: str, text: str) -> None:
+        now = time.monotonic()
+        if now - self._warned.get(key, -math.inf) >= WARN_PERIOD:
+            self._warned[key] = now
+            self.get_logger().warning(text)
+
+
+def main(args=None) -> int:
+    rclpy.init(args=args)
+    try:
+        node = RobotNode()
+    except (CoverageError, ParameterException) as exc:
+        print(f"robot_node: error: {exc}", file=sys.stderr)
+        rclpy.try_shutdown()
+        return 2
+    try:
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except Exception:
+        if node.context.ok():
+            raise
+    finally:
+        with contextlib.suppress(Exception):  # the context may already be gone
+            node.stop()
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

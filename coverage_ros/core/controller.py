@@ -30,6 +30,7 @@ from coverage_ros.core.navigation import (
     plan_path,
 )
 from coverage_ros.core.strategies import (
+    STRATEGIES,
     Decision,
     Neighbour,
     Observation,
@@ -63,6 +64,9 @@ class ControllerConfig:
     def __post_init__(self) -> None:
         if self.robot_id < 0:
             raise ConfigError.at("robot_id", "must be >= 0", self.robot_id)
+        if self.strategy not in STRATEGIES:
+            raise ConfigError.at("strategy", "unknown strategy", self.strategy,
+                                 f"one of {sorted(STRATEGIES)}")
         for name in ("comm_range", "power_weight"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0):

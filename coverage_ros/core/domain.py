@@ -39,6 +39,7 @@ class CoverageDomain:
     density: np.ndarray  # (H, W) float64 >= 0, zero on blocked cells
     tensor: np.ndarray | None = None  # (H, W, 2, 2) metric tensor in grid axes, or None
     zeta: np.ndarray | None = None  # (H, W) isotropic metric weight, or None
+    robot_radius: float = 0.0  # [m] the free space is inflated by this (maps)
     _cache: dict = field(default_factory=dict, repr=False)
 
     # ------------------------------------------------------------------ construction
@@ -50,7 +51,15 @@ class CoverageDomain:
         free = grid.inflated_free_mask(robot_radius, unknown_is_free=unknown_is_free)
         graph = build_grid_graph(free, grid.resolution, connectivity=connectivity, zeta=zeta)
         w = density_on_grid(density or UniformDensity(), grid, free)
-        return cls(geometry=grid, graph=graph, density=w, zeta=zeta)
+        return cls(geometry=grid, graph=graph, density=w, zeta=zeta, robot_radius=robot_radius)
+
+    @property
+    def clearance(self) -> np.ndarray:
+        """``(H, W)`` [m] distance of every cell centre to the nearest obstacle cell."""
+        key = "clearance"
+        if key not in self._cache:
+            self._cache[key] = self.geometry.clearance()
+        return self._cache[key]
 
     # ------------------------------------------------------------------ basic properties
     @property
@@ -79,7 +88,7 @@ class CoverageDomain:
         if w.shape != self.shape or np.any(w < 0) or not np.all(np.isfinite(w)):
             raise ConfigError.at("density", "must be a finite (H, W) array >= 0", w.shape)
         return CoverageDomain(self.geometry, self.graph, np.where(self.free, w, 0.0),
-                              self.tensor, self.zeta)
+                              self.tensor, self.zeta, self.robot_radius)
 
     @property
     def metric_lower_bound(self) -> float:

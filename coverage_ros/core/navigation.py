@@ -31,16 +31,28 @@ from coverage_ros.errors import ConfigError
 
 #: Fraction of a cell between collision checks along a segment or arc.
 CHECK_STEP_CELLS = 0.25
+#: [m] extra clearance beyond the robot radius that planned shortcuts keep from walls (pure
+#: pursuit cuts corners a little; this keeps the robot off them).
+PATH_MARGIN = 0.05
 #: v scales tried by the safety filter, largest first (0 is always safe).
 SAFE_SCALES = (1.0, 0.6, 0.3, 0.12, 0.0)
 
 
-def segment_free(domain: CoverageDomain, a: np.ndarray, b: np.ndarray) -> bool:
-    """Whether every point of the segment a-b (map frame) lies on a free C-space cell."""
+def segment_free(domain: CoverageDomain, a: np.ndarray, b: np.ndarray,
+                 margin: float = 0.0) -> bool:
+    """Whether every point of the segment a-b (map frame) lies on a free C-space cell, and
+    (``margin`` > 0) at least ``margin`` farther from obstacles than the C-space requires."""
     ga, gb = domain.to_grid(np.stack([a, b]))
     n = max(2, int(math.ceil(float(np.hypot(*(gb - ga))) / CHECK_STEP_CELLS)) + 1)
     t = np.linspace(0.0, 1.0, n)[:, None]
-    return points_free(domain, ga + t * (gb - ga))
+    pts = ga + t * (gb - ga)
+    if not points_free(domain, pts):
+        return False
+    if margin <= 0:
+        return True
+    cells = np.floor(pts[:, ::-1]).astype(np.int64)
+    need = domain.robot_radius + 0.5 * domain.resolution + margin
+    return bool((domain.clearance[cells[:, 0], cells[:, 1]] >= need).all())
 
 
 def points_free(domain: CoverageDomain, grid_pts: np.ndarray) -> bool:
@@ -57,7 +69,9 @@ def plan_path(domain: CoverageDomain, start: np.ndarray, goal: np.ndarray,
     cannot be reached within ``max_detour`` times the straight-line distance (+ 2 m)."""
     start = np.asarray(start, dtype=np.float64)
     goal = np.asarray(goal, dtype=np.float64)
-    if segment_free(domain, start, goal):
+    if segment_free(domain, start, goal, PATH_MARGIN) or (
+            float(np.hypot(*(goal - start))) < 4 * domain.resolution
+            and segment_free(domain, start, goal)):
         return np.stack([start, goal])
     local = local_graph_for(domain, None, np.zeros((1, 2)), np.zeros(1), math.inf)
     nodes, costs, _ = domain.snap(start)
@@ -80,13 +94,14 @@ def plan_path(domain: CoverageDomain, start: np.ndarray, goal: np.ndarray,
 
 
 def shortcut(domain: CoverageDomain, path: np.ndarray) -> np.ndarray:
-    """Greedy line-of-sight shortening: from each waypoint, jump to the farthest visible one."""
+    """Greedy line-of-sight shortening: from each waypoint, jump to the farthest one reachable
+    in a straight line that keeps :data:`PATH_MARGIN` from the walls (else the next one)."""
     out = [path[0]]
     i = 0
     while i < len(path) - 1:
         j = len(path) - 1
-        while j > i + 1 and not segment_free(domain, path[i], path[j]):
-            j = max(i + 1, (i + j) // 2) if j - i > 8 else j - 1
+        while j > i + 1 and not segment_free(domain, path[i], path[j], PATH_MARGIN):
+            j -= 1
         out.append(path[j])
         i = j
     return np.array(out)
@@ -174,15 +189,14 @@ def carrot(path: np.ndarray, p: np.ndarray, lookahead: float) -> np.ndarray:
     d = np.hypot(*(a + t[:, None] * ab - p).T)
     k = int(np.argmin(d))
     seg_len = np.sqrt(L2)
-    remaining = lookahead
     pos = t[k] * seg_len[k]
-    while k < len(ab):
-        if seg_len[k] - pos >= remaining:
-            return a[k] + ab[k] * ((pos + remaining) / seg_len[k])
-        remaining -= seg_len[k] - pos
-        pos = 0.0
-        k += 1
-    return path[-1]
+    # The carrot stays on the current segment: looking past a corner would cut it.
+    if seg_len[k] - pos >= lookahead:
+        return a[k] + ab[k] * ((pos + lookahead) / seg_len[k])
+    if seg_len[k] - pos > 0.5 * lookahead or k == len(ab) - 1:
+        return b[k]
+    nxt = k + 1  # nearly at the corner: start along the next segment
+    return a[nxt] + ab[nxt] * min(1.0, (lookahead - (seg_len[k] - pos)) / seg_len[nxt])
 
 
 @dataclass(frozen=True)

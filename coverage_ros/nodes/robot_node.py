@@ -47,6 +47,10 @@ DISCOVERY_PERIOD = 1.0  # [s] wall time between looks at the ROS graph for new n
 WARN_PERIOD = 5.0  # [s] wall time between two warnings of the same kind
 STATE_TYPE = "sensor_msgs/msg/JointState"
 
+
+class FatalConfigError(CoverageError):
+    """A configuration error found after start-up (e.g. when the map arrives): ends the node."""
+
 _PARAMETERS = {  # name: (default, description)
     "robot_id": (-1, "this robot's id; -1: from the namespace /<robot_prefix><id>"),
     "strategy": ("geodesic", "coverage strategy: geodesic, lloyd, tangentbug, bvc, acvt"),
@@ -208,9 +212,14 @@ class RobotNode(Node):
         if self.controller is not None:
             return  # the map is static; a re-publication changes nothing
         try:
-            self._build(conv.occupancy_grid_to_grid(msg))
+            grid = conv.occupancy_grid_to_grid(msg)
         except (CoverageError, ValueError) as exc:
             self._warn("map", f"dropped a map on {self.config.map_topic}: {exc}")
+            return
+        try:
+            self._build(grid)
+        except ConfigError as exc:
+            raise FatalConfigError(str(exc)) from None
 
     def _on_pose(self, msg: Odometry) -> None:
         if self.controller is None:
@@ -340,10 +349,14 @@ def main(args=None) -> int:
         print(f"robot_node: error: {exc}", file=sys.stderr)
         rclpy.try_shutdown()
         return 2
+    code = 0
     try:
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    except FatalConfigError as exc:
+        print(f"robot_node: error: {exc}", file=sys.stderr)
+        code = 2
     except Exception:
         if node.context.ok():
             raise
@@ -352,7 +365,7 @@ def main(args=None) -> int:
             node.stop()
         node.destroy_node()
         rclpy.try_shutdown()
-    return 0
+    return code
 
 
 if __name__ == "__main__":

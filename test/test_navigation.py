@@ -1,0 +1,150 @@
+"""Local navigation: planning, tracking within limits, and the safety filter."""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import numpy as np
+import pytest
+
+from coverage_ros.core.controller import ControllerConfig, NeighbourTable, RobotController
+from coverage_ros.core.domain import CoverageDomain
+from coverage_ros.core.grid import OCCUPIED, GridMap
+from coverage_ros.core.navigation import (
+    PathTracker,
+    SafetyConfig,
+    SafetyFilter,
+    TrackerConfig,
+    plan_path,
+    segment_free,
+)
+from coverage_ros.core.world import RobotSpec
+
+RES = 0.05
+RADIUS = 0.105
+
+
+def room(wall=True) -> CoverageDomain:
+    """4 m x 3 m room; with a wall across x = 2 m from y = 0 to y = 2.2 m."""
+    occ = np.zeros((60, 80), np.int8)
+    occ[0, :] = occ[-1, :] = OCCUPIED
+    occ[:, 0] = occ[:, -1] = OCCUPIED
+    if wall:
+        occ[:44, 39:41] = OCCUPIED
+    return CoverageDomain.from_grid(GridMap(occ, RES), RADIUS)
+
+
+def drive(pose, v, w, dt):
+    x, y, th = pose
+    return np.array([x + v * dt * math.cos(th + 0.5 * w * dt),
+                     y + v * dt * math.sin(th + 0.5 * w * dt), th + w * dt])
+
+
+def test_plan_goes_around_the_wall_and_stays_free():
+    d = room()
+    path = plan_path(d, np.array([1.0, 0.5]), np.array([3.0, 0.5]))
+    assert path is not None and len(path) >= 3
+    assert path[:, 1].max() > 2.2  # over the end of the wall
+    for a, b in itertools.pairwise(path):
+        assert segment_free(d, a, b)
+    length = np.hypot(*np.diff(path, axis=0).T).sum()
+    assert length < 1.15 * (2 * math.hypot(1.0, 1.9))  # close to the shortest way round
+
+
+def test_straight_path_when_free_and_none_when_unreachable():
+    d = room()
+    assert plan_path(d, np.array([0.5, 0.5]), np.array([1.5, 2.5])).shape == (2, 2)
+    occ = np.zeros((40, 40), np.int8)
+    occ[:, 20] = OCCUPIED  # a wall all the way across
+    closed = CoverageDomain.from_grid(GridMap(occ, RES), RADIUS)
+    assert plan_path(closed, np.array([0.3, 1.0]), np.array([1.7, 1.0])) is None
+
+
+def test_tracker_reaches_the_goal_within_the_limits():
+    d = room()
+    spec = RobotSpec()
+    tracker = PathTracker(TrackerConfig.for_robot(spec))
+    path = plan_path(d, np.array([1.0, 0.5]), np.array([3.0, 0.5]))
+    pose, dt = np.array([1.0, 0.5, -math.pi / 2]), 0.1
+    v_prev = w_prev = 0.0
+    for _ in range(600):
+        v, w, arrived = tracker.command(pose, path, dt)
+        assert abs(v) <= spec.v_max + 1e-9 and abs(w) <= spec.w_max + 1e-9
+        assert abs(v - v_prev) <= spec.a_max * dt + 1e-9
+        assert abs(w - w_prev) <= spec.alpha_max * dt + 1e-9
+        v_prev, w_prev = v, w
+        if arrived:
+            break
+        pose = drive(pose, v, w, dt)
+        r, c = d.geometry.world_to_cell(pose[:2])
+        assert d.clearance[r, c] > RADIUS + 0.5 * RES, "the body came within half a cell"
+    assert arrived and np.hypot(*(pose[:2] - path[-1])) < 0.06
+
+
+def test_safety_filter_stops_before_a_wall_but_lets_the_robot_turn_and_back_off():
+    d = room()
+    f = SafetyFilter(d, SafetyConfig(radius=RADIUS))
+    at_wall = np.array([1.8, 1.0, 0.0])  # facing the wall at x = 1.95, 0.15 m ahead
+    v, w, why = f.filter(at_wall, 0.22, 0.3)
+    assert v < 0.22 and "wall" in why
+    # Moving away is always allowed, even from inside the inflated zone.
+    inside = np.array([1.86, 1.0, math.pi])
+    assert f.filter(inside, 0.22, 0.0)[0] == pytest.approx(0.22)
+    assert f.filter(inside, 0.0, 1.0)[:2] == (0.0, 1.0)
+    # Simulated: full speed at the wall never enters it.
+    pose = np.array([1.0, 1.0, 0.0])
+    for _ in range(100):
+        v, w, _ = f.filter(pose, 0.22, 0.0)
+        pose = drive(pose, v, w, 0.1)
+    assert pose[0] + RADIUS < 1.95
+
+
+def test_safety_filter_keeps_robots_apart():
+    d = room(wall=False)
+    f = SafetyFilter(d, SafetyConfig(radius=RADIUS))
+    a, b = np.array([1.0, 1.5, 0.0]), np.array([1.5, 1.5, math.pi])
+    for _ in range(100):  # head-on, both commanded at full speed
+        va, wa, _ = f.filter(a, 0.22, 0.0, b[None, :2])
+        vb, wb, _ = f.filter(b, 0.22, 0.0, a[None, :2])
+        a, b = drive(a, va, wa, 0.1), drive(b, vb, wb, 0.1)
+    assert np.hypot(*(a[:2] - b[:2])) >= 2 * RADIUS + 0.02
+    # Sideways past a neighbour is fine.
+    assert f.filter(np.array([1.0, 1.0, 0.0]), 0.22, 0.0, np.array([[1.0, 1.4]]))[0] == 0.22
+
+
+def test_safety_filter_uses_scan_points():
+    d = room(wall=False)
+    f = SafetyFilter(d, SafetyConfig(radius=RADIUS))
+    box = np.array([[1.2, y] for y in np.linspace(0.8, 1.2, 9)])  # not on the map, 9.5 cm
+    assert f.filter(np.array([1.0, 1.0, 0.0]), 0.22, 0.0, scan_points=box)[0] < 0.22
+    assert f.filter(np.array([1.0, 1.0, math.pi]), 0.22, 0.0, scan_points=box)[0] == 0.22
+
+
+def test_neighbour_table_validates_and_expires():
+    t = NeighbourTable((0.0, 0.0, 4.0, 3.0), timeout=2.0)
+    assert t.receive(1, {"x": 1.0, "y": 1.0, "weight": 0.2, "mass": 3.0}, now=10.0) == ""
+    assert "outside the map" in t.receive(2, {"x": 9.0, "y": 1.0}, now=10.0)
+    assert "nan" in t.receive(3, {"x": 1.0, "y": 1.0, "mass": float("nan")}, now=10.0)
+    assert "weight" in t.receive(4, {"x": 1.0, "y": 1.0, "weight": -1.0}, now=10.0)
+    assert [n.robot_id for n in t.current(11.0)] == [1]
+    assert t.current(12.5) == []  # stale
+    t.receive(5, {"x": 3.5, "y": 2.5, "virtual_x": 1.0, "virtual_y": 2.0, "radius": 0.2}, 13.0)
+    n5 = t.current(13.0)[0]
+    assert np.allclose(n5.state.virtual, [1.0, 2.0]) and n5.state.extra["radius"] == 0.2
+    assert t.current(13.0, own=np.array([0.5, 0.5]), comm_range=1.0) == []
+
+
+def test_controller_update_and_command():
+    d = room()
+    c = RobotController(d, ControllerConfig(robot_id=0))
+    assert c.update(0.0) is None  # no pose yet
+    c.set_pose((1.0, 1.0, 0.0))
+    c.neighbours.receive(1, {"x": 3.0, "y": 1.0}, now=0.0)
+    res = c.update(0.5)
+    assert res.neighbours == [1]
+    assert set(res.state) >= {"x", "y", "weight", "mass", "cost", "update_ms", "radius"}
+    assert res.decision.goal is not None and res.path is not None
+    v, w = c.command(0.6, 0.1)
+    assert abs(v) <= 0.22 and abs(w) <= 2.84
+

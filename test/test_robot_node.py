@@ -1,0 +1,138 @@
+"""robot_node as a real process, checked over DDS from a plain rclpy client."""
+
+from __future__ import annotations
+
+import math
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from conftest import REPO
+from rosutil import NodeProcess, RosClient, domain_id, ros_env
+
+pytestmark = pytest.mark.integration
+
+INSTALL = REPO / "install" / "coverage_ros"
+START = (1.0, 1.0, 0.0)  # office, bottom-left room
+
+
+def robot_exe(env: dict) -> str:
+    """The ros2-run executable, found the way `ros2 run` finds it: through the ament index."""
+    code = ("from ament_index_python.packages import get_package_prefix as p; "
+            "print(p('coverage_ros'))")
+    prefix = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
+                            text=True, check=True).stdout.strip()
+    exe = f"{prefix}/lib/coverage_ros/robot_node"
+    assert prefix == str(INSTALL), prefix
+    return exe
+
+
+@pytest.fixture(scope="module")
+def team():
+    """World (office, one robot at START) + robot 0 started as `ros2 run` would."""
+    domain = domain_id(10)
+    env = ros_env(domain, AMENT_PREFIX_PATH=str(INSTALL))
+    exe = robot_exe(env)
+    world = NodeProcess.world_node(domain, "world:=office", "starts:=1.0,1.0,0.0")
+    robot = NodeProcess([exe, "--ros-args", "-r", "__ns:=/robot_0", "-p", "robot_id:=0",
+                         "-p", "use_sim_time:=true", "-p", "world:=office",
+                         "-p", "neighbour_timeout:=1.5"], domain, env)
+    client = RosClient(domain)
+    yield world, robot, client
+    client.close()
+    robot.stop()
+    world.stop()
+
+
+def test_robot_publishes_its_state_goal_plan_cell_and_commands(team):
+    from geometry_msgs.msg import PoseStamped, Twist
+    from nav_msgs.msg import OccupancyGrid, Odometry, Path
+    from sensor_msgs.msg import JointState
+
+    from coverage_ros.nodes import conversions as conv
+
+    world, robot, client = team
+    state = client.wait_for("/robot_0/coverage_state", JointState, timeout=40.0)
+    values = conv.coverage_state_values(state)
+    truth = client.wait_for("/robot_0/ground_truth", Odometry, timeout=10.0)
+    x, y, _ = conv.odometry_to_pose(truth)
+    assert math.hypot(values["x"] - x, values["y"] - y) < 0.3
+    assert values["mass"] > 0 and values["radius"] == pytest.approx(0.105)
+    goal = client.wait_for("/robot_0/goal_pose", PoseStamped, timeout=10.0)
+    assert goal.header.frame_id == "map"
+    plan = client.wait_for("/robot_0/plan", Path, timeout=10.0)
+    assert len(plan.poses) >= 2
+    cell = client.wait_for("/robot_0/cell", OccupancyGrid, timeout=10.0)
+    data = np.frombuffer(bytes(cell.data), dtype=np.int8)
+    # Alone in the office, its cell is everything it can reach: most of the 12 x 8 m floor.
+    assert (data == 100).sum() * cell.info.resolution ** 2 > 40.0
+    moving = client.wait_for("/robot_0/cmd_vel", Twist, lambda m: abs(m.linear.x) > 0.01,
+                             timeout=10.0)
+    assert abs(moving.linear.x) <= 0.22 + 1e-9 and abs(moving.angular.z) <= 2.84 + 1e-9
+    assert robot.alive() and world.alive()
+
+
+def test_neighbours_are_discovered_and_bad_states_dropped(team):
+    from nav_msgs.msg import OccupancyGrid
+    from sensor_msgs.msg import JointState
+
+    from coverage_ros.nodes import conversions as conv
+
+    _, robot, client = team
+    pub = client.publisher("/robot_7/coverage_state", JointState)
+    bad_pubs = {k: client.publisher(f"/robot_{k}/coverage_state", JointState)
+                for k in (8, 9, 10)}
+    neighbour = (1.0, 2.5)  # same room, above the robot: it takes the upper half
+
+    def publish_all():
+        stamp = conv.to_time_msg(0.0)
+        pub.publish(conv.coverage_state_msg(stamp, {"x": neighbour[0], "y": neighbour[1]}))
+        bad_pubs[8].publish(conv.coverage_state_msg(stamp, {"x": math.nan, "y": 1.0}))
+        bad_pubs[9].publish(conv.coverage_state_msg(stamp, {"x": 1.0, "y": 1.0}, "odom"))
+        bad_pubs[10].publish(conv.coverage_state_msg(stamp, {"x": 80.0, "y": 1.0}))
+
+    def cell_excludes_neighbour(msg) -> bool:
+        if msg.info.width == 0:
+            return False
+        data = np.frombuffer(bytes(msg.data), dtype=np.int8).reshape(msg.info.height,
+                                                                      msg.info.width)
+        col = int((neighbour[0] - msg.info.origin.position.x) / msg.info.resolution)
+        row = int((neighbour[1] - msg.info.origin.position.y) / msg.info.resolution)
+        inside = 0 <= row < msg.info.height and 0 <= col < msg.info.width
+        return not inside or data[row, col] != 100
+
+    cells = client.subscribe("/robot_0/cell", OccupancyGrid)
+    deadline_spins = 0
+    while not (cells and cell_excludes_neighbour(cells[-1])):
+        publish_all()
+        client.spin_for(0.2)
+        deadline_spins += 1
+        assert deadline_spins < 150, "the robot never took its neighbour into account"
+    assert robot.alive()
+    log = robot.output()
+    assert "neighbour 7 found" in log
+    assert "dropped coverage_state of robot 8" in log and "nan" in log
+    assert "dropped coverage_state of robot 9" in log and "frame_id 'odom'" in log
+    assert "dropped coverage_state of robot 10" in log and "outside the map" in log
+    # Once the neighbour falls silent it is dropped again after neighbour_timeout.
+    cells.clear()
+    client.spin_until(lambda: cells and not cell_excludes_neighbour(cells[-1]), timeout=20.0,
+                      what="the cell to grow back after the neighbour went silent")
+
+
+@pytest.mark.parametrize("args, message", [
+    (["-r", "__ns:=/somewhere"], "robot_id: not set and the namespace '/somewhere'"),
+    (["-p", "robot_id:=0", "-p", "strategy:=magic"], "strategy: unknown strategy"),
+    (["-p", "robot_id:=0", "-p", "control_rate:=0.0"], "control_rate: must be a number > 0"),
+    (["-p", "robot_id:=0", "-p", "world:=nowhere"], "no shipped world of that name"),
+    (["-p", "robot_id:=0", "-p", "strategy_params:=justtext"], "strategy_params: must be a YAML"),
+    (["-p", "robot_id:=0", "-p", "strategy_params:=[1, 2]"], "'strategy_params'"),
+])
+def test_bad_parameters_exit_with_one_line(args, message):
+    env = ros_env(domain_id(11))
+    out = subprocess.run([sys.executable, "-m", "coverage_ros.nodes.robot_node", "--ros-args",
+                          *args], env=env, capture_output=True, text=True, timeout=60, cwd=REPO)
+    assert out.returncode == 2
+    err = out.stderr.strip().splitlines()
+    assert len(err) == 1 and message in err[0], out.stderr

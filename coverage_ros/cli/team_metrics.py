@@ -85,7 +85,7 @@ class TeamTracker:
         self.say("  waiting for the world and the robots ...")
         while self.ready_at is None:
             rclpy.spin_once(self.node, timeout_sec=0.1)
-            self._check_children()
+            self._check_children(starting=True)
             if len(self.states_seen) == n and len(self.poses) == n:
                 self.ready_at = self.sim_time
             elif time.monotonic() - t0 > startup_timeout:
@@ -116,13 +116,16 @@ class TeamTracker:
         self.H_samples.append((self.sim_time, self._cost()))
         self._progress(end, final=True)
 
-    def _check_children(self) -> None:
+    def _check_children(self, starting: bool = False) -> None:
         world = self.procs.children.get("world")
         if world is not None and not world.alive:
             raise RuntimeError(f"world_node exited ({world.popen.returncode}):\n"
                                f"{self.procs.tail(world)}")
         for i in self.alive():
             child = self.procs.children.get(f"robot_{i}")
+            if child is not None and not child.alive and starting:
+                raise RuntimeError(f"robot {i} exited during start-up "
+                                   f"({child.popen.returncode}):\n{self.procs.tail(child)}")
             if child is not None and not child.alive and i not in self.lost:
                 self.say(f"\n  robot {i} exited ({child.popen.returncode}):\n"
                          f"{self.procs.tail(child)}")

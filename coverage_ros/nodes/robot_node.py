@@ -257,6 +257,8 @@ class RobotNode(Node):
             rid = int(m.group(1))
             if rid == self.config.controller.robot_id or rid in self._subs:
                 continue
+            if self.count_publishers(name) == 0:
+                continue  # only subscribers so far (e.g. a monitor): not a robot yet
             self._subs[rid] = self.create_subscription(
                 JointState, name, lambda msg, rid=rid: self._on_state(rid, msg), 10)
             self.get_logger().info(f"neighbour {rid} found on {name}")

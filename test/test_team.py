@@ -1,0 +1,63 @@
+"""The whole stack: coverage-team runs the world and robot nodes as processes over DDS."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+
+import pytest
+from conftest import REPO, WORLDS
+from rosutil import domain_id
+
+from coverage_ros.cli.plan import main as plan_main
+
+pytestmark = [pytest.mark.integration, pytest.mark.slow]
+
+WORLD = WORLDS / "l_shape.yaml"
+TEAM = [str(REPO / ".venv" / "bin" / "coverage-team"), "--world", str(WORLD), "--quiet"]
+
+
+def best_plan_cost(robots: int, seeds, tmp_path) -> float:
+    """The best final H coverage-plan finds on the same map from clustered starts."""
+    best = float("inf")
+    for seed in seeds:
+        out = tmp_path / f"plan-{robots}-{seed}.json"
+        assert plan_main(["--map", str(WORLD), "--robots", str(robots), "--seed", str(seed),
+                          "--json", str(out), "--quiet"]) == 0
+        best = min(best, json.loads(out.read_text())["H"])
+    return best
+
+
+def run_team(tmp_path, *args: str, offset: int) -> dict:
+    out = tmp_path / "team"
+    proc = subprocess.run(TEAM + ["--out", str(out), "--domain-id", str(domain_id(offset)),
+                                  *args], capture_output=True, text=True, timeout=400)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    return json.loads((out / "summary.json").read_text())
+
+
+def test_geodesic_team_spreads_out_and_reaches_the_planned_cost(tmp_path):
+    summary = run_team(tmp_path, "--robots", "4", "--duration", "50", "--seed", "2", offset=12)
+    m = summary["metrics"]
+    assert summary["strategy"] == "geodesic" and len(summary["robots"]) == 4
+    assert m["H"] <= 0.6 * m["H_start"], m
+    best = best_plan_cost(4, (2, 0), tmp_path)
+    assert m["H"] <= 1.15 * best, (m["H"], best)
+    assert all(r["collisions"] == 0 for r in summary["robots"]), summary["robots"]
+    assert m["min_separation"] >= 2 * 0.105
+    assert m["coverage_ratio"] > 0.95
+    for key in ("world", "seed", "sim_time", "wall_time", "rtf"):
+        assert key in summary
+    assert all(len(r["start"]) == 3 and len(r["final"]) == 3 and r["path_length"] > 0
+               for r in summary["robots"])
+
+
+def test_a_lost_robots_area_is_absorbed_by_the_others(tmp_path):
+    summary = run_team(tmp_path, "--robots", "4", "--duration", "70", "--seed", "2",
+                       "--kill", "1@25", offset=13)
+    robots = {r["id"]: r for r in summary["robots"]}
+    assert "lost_at" in robots[1] and all("lost_at" not in robots[i] for i in (0, 2, 3))
+    m = summary["metrics"]  # H of the three survivors at the end
+    best = best_plan_cost(3, (2, 0), tmp_path)
+    assert m["H"] <= 1.2 * best, (m["H"], best)
+    assert all(robots[i]["collisions"] == 0 for i in (0, 2, 3))

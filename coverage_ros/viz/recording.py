@@ -10,8 +10,15 @@ Entity layout (all in the ``map`` frame, metres, z = 0 is the floor)::
     /world/trajectories/robot_<id>   LineStrips3D: path driven so far
     /world/plans/robot_<id>          LineStrips3D: planned path
     /world/scans/robot_<id>          Points3D: lidar hits
+    /world/cell_polygons/robot_<id>  LineStrips3D: cell outline (strategies that publish one)
     /metrics/H            Scalars: coverage cost
     /metrics/mass/robot_<id>         Scalars: cell masses
+    /state/robot_<id>/<name>         Scalars: a robot's published coverage_state values
+    /status/robot_<id>/<name>        Scalars: the simulator's per-robot counters
+
+A live trajectory is logged in pieces: the growing tail at ``/world/trajectories/robot_<id>``
+and each finished piece once at ``/world/trajectories/robot_<id>/part_<k>`` (see
+:class:`coverage_ros.viz.team.Trajectory`); offline plans log the whole path at the first.
 
 A rerun ``GridMap`` draws its data row 0 at the top and is placed by its lower-left corner,
 so ROS-convention grids (row 0 at the origin) are flipped here. Grid maps only render in 3-D
@@ -20,7 +27,13 @@ views; the default blueprint looks at the floor from above.
 
 from __future__ import annotations
 
+import contextlib
+import signal
+import subprocess
+import sys
+import time
 import uuid
+from collections.abc import Iterable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -34,6 +47,7 @@ CELL_OPACITY = 0.45  # cells tint the map without hiding it
 DENSITY_OPACITY = 0.35
 Z_MAP, Z_DENSITY, Z_CELLS = 0.0, 0.001, 0.002  # [m] draw order along z as well
 ROBOT_HEIGHT = 0.05  # [m] robots and paths float just above the map
+FLUSH_TIMEOUT = 10.0  # [s] wall time to hand buffered data to the sinks at the end
 
 
 def _rr():
@@ -74,6 +88,7 @@ class CoverageRecorder:
         self.recording_id = recording_id or str(uuid.uuid4())
         self.stream = rr.RecordingStream(application_id, recording_id=self.recording_id)
         self._grid: GridMap | None = None
+        self._last_cells: np.ndarray | None = None  # RGBA of the last cell layer logged
 
     # ------------------------------------------------------------------ sinks
     def save(self, path: str | Path) -> None:
@@ -82,8 +97,26 @@ class CoverageRecorder:
     def connect(self, url: str) -> None:
         self.stream.connect_grpc(url, default_blueprint=self.blueprint())
 
+    def set_outputs(self, record_path: str | Path | None = None,
+                    connect_urls: Iterable[str] = ()) -> None:
+        """Write to a file and/or stream to viewers (gRPC), all at once."""
+        rr = self.rr
+        sinks = [rr.GrpcSink(url) for url in connect_urls]
+        if record_path:
+            sinks.insert(0, rr.FileSink(str(record_path)))
+        self.stream.set_sinks(*sinks, default_blueprint=self.blueprint())
+
+    def send_blueprint(self) -> None:
+        """Make the current :meth:`blueprint` (e.g. now looking at the map) the active one."""
+        self.stream.send_blueprint(self.blueprint(), make_active=True, make_default=True)
+
     def flush(self) -> None:
-        self.stream.flush(timeout_sec=10.0)
+        self.stream.flush(timeout_sec=FLUSH_TIMEOUT)
+
+    def close(self) -> None:
+        """Flush and close every sink (a file gets its footer and is complete)."""
+        self.flush()
+        self.stream.disconnect()
 
     def blueprint(self):
         import rerun.blueprint as rrb
@@ -121,7 +154,14 @@ class CoverageRecorder:
         self.stream.log("/world/map", rr.GridMap(data=data.tobytes(), format=fmt,
                                                  cell_size=grid.resolution,
                                                  translation=[x0, y0, Z_MAP]), static=True)
-        if density is not None and np.ptp(density) > 0:
+        if density is not None:
+            self.log_density(grid, density)
+
+    def log_density(self, grid: GridMap, density: np.ndarray) -> None:
+        """The ``(H, W)`` density on ``grid`` (static; nothing for a uniform density)."""
+        rr = self.rr
+        x0, y0 = grid.origin[0], grid.origin[1]
+        if np.ptp(density) > 0:
             w = np.asarray(density, dtype=np.float64)
             scaled = (255.0 * (w - w.min()) / max(np.ptp(w), 1e-12)).astype(np.uint8)
             self.stream.log("/world/density", rr.GridMap(
@@ -137,10 +177,15 @@ class CoverageRecorder:
         self.stream.set_time(TIMELINE, duration=float(seconds))
 
     def log_cells(self, labels: np.ndarray, robot_ids=None) -> None:
+        """The cell layer (skipped when it looks exactly like the last one logged)."""
         assert self._grid is not None, "log_map first"
         rr = self.rr
         grid = self._grid
-        data, fmt = self._grid_map(grid, cells_rgba(labels, robot_ids), "RGBA")
+        rgba = cells_rgba(labels, robot_ids)
+        if self._last_cells is not None and np.array_equal(rgba, self._last_cells):
+            return
+        self._last_cells = rgba
+        data, fmt = self._grid_map(grid, rgba, "RGBA")
         self.stream.log("/world/cells", rr.GridMap(
             data=data.tobytes(), format=fmt, cell_size=grid.resolution,
             translation=[grid.origin[0], grid.origin[1], Z_CELLS], opacity=CELL_OPACITY))
@@ -162,12 +207,14 @@ class CoverageRecorder:
             np.column_stack([G, np.full(len(G), ROBOT_HEIGHT)]), radii=0.04,
             colors=robot_colors(ids)))
 
-    def log_path(self, kind: str, robot_id: int, points: np.ndarray) -> None:
-        """``kind`` is ``trajectories`` or ``plans``."""
+    def log_path(self, kind: str, robot_id: int, points: np.ndarray,
+                 part: int | None = None) -> None:
+        """``kind`` is ``trajectories`` or ``plans``; ``part`` k logs piece k of a path."""
         rr = self.rr
         P = np.asarray(points, dtype=np.float64).reshape(-1, 2)
         strip = np.column_stack([P, np.full(len(P), ROBOT_HEIGHT)])
-        self.stream.log(f"/world/{kind}/robot_{robot_id}", rr.LineStrips3D(
+        path = f"/world/{kind}/robot_{robot_id}" + (f"/part_{part}" if part is not None else "")
+        self.stream.log(path, rr.LineStrips3D(
             [strip], radii=0.015, colors=[robot_color(robot_id)]))
 
     def log_scan(self, robot_id: int, points: np.ndarray) -> None:
@@ -176,6 +223,32 @@ class CoverageRecorder:
         self.stream.log(f"/world/scans/robot_{robot_id}", rr.Points3D(
             np.column_stack([P, np.full(len(P), ROBOT_HEIGHT)]), radii=0.012,
             colors=[robot_color(robot_id)]))
+
+    def log_trajectory(self, robot_id: int, tail: np.ndarray,
+                       finished: Sequence[tuple[int, np.ndarray]] = ()) -> None:
+        """A live trajectory: finished pieces (logged once each) and the growing tail."""
+        for k, points in finished:
+            self.log_path("trajectories", robot_id, points, part=k)
+        self.log_path("trajectories", robot_id, tail)
+
+    def log_polygon(self, robot_id: int, points: np.ndarray) -> None:
+        """A cell outline ``(M, 2)`` [m], drawn closed."""
+        P = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+        if len(P):
+            P = np.vstack([P, P[:1]])
+        self.stream.log(f"/world/cell_polygons/robot_{robot_id}", self.rr.LineStrips3D(
+            [np.column_stack([P, np.full(len(P), ROBOT_HEIGHT)])], radii=0.01,
+            colors=[robot_color(robot_id)]))
+
+    def log_values(self, prefix: str, values: dict[str, float]) -> None:
+        """Each finite value as a time series ``<prefix>/<name>``."""
+        for name, value in values.items():
+            if np.isfinite(value):
+                self.stream.log(f"{prefix}/{name}", self.rr.Scalars(float(value)))
+
+    def clear(self, entity_path: str, recursive: bool = False) -> None:
+        """Hide an entity from the current time on (a robot that left)."""
+        self.stream.log(entity_path, self.rr.Clear(recursive=recursive))
 
     def log_metrics(self, H: float | None = None, masses: dict[int, float] | None = None,
                     ) -> None:
@@ -194,3 +267,82 @@ class CoverageRecorder:
             self.stream.log(f"/metrics/mass/robot_{rid}",
                             rr.SeriesLines(names=f"robot_{rid}", colors=[robot_color(rid)]),
                             static=True)
+
+
+# ---------------------------------------------------------------------------- web viewer
+LOCALHOST = "127.0.0.1"  # servers listen on loopback only: nothing is exposed to the network
+SERVER_START_TIMEOUT = 10.0  # [s] wall time for `rerun --serve-web` to open its ports
+SERVER_STOP_TIMEOUT = 3.0  # [s] wall time between SIGTERM and SIGKILL of the server
+
+
+def rerun_executable() -> str:
+    """Path of the ``rerun`` binary shipped with rerun-sdk (not the Python wrapper script: a
+    signal to the wrapper would not reach the server it starts)."""
+    import shutil
+
+    with contextlib.suppress(ImportError):
+        import rerun_cli
+
+        exe = Path(rerun_cli.__file__).with_name("rerun")
+        if exe.is_file():
+            return str(exe)
+    exe = shutil.which("rerun")
+    if exe is None:
+        raise FileNotFoundError("the rerun binary (pip install rerun-sdk)")
+    return exe
+
+
+class WebViewerServer:
+    """A ``rerun --serve-web`` child process bound to 127.0.0.1: a gRPC proxy at
+    :attr:`grpc_url` (log to it with a ``GrpcSink``) and the web viewer at :attr:`web_url`.
+
+    The server stays in the caller's process group (a Ctrl-C or group signal reaches it
+    too) and :meth:`stop` ends it by its PID. It keeps what was logged in memory, up to
+    ``memory_limit``, for viewers that connect late.
+    """
+
+    def __init__(self, grpc_port: int, web_port: int, memory_limit: str = "25%") -> None:
+        import socket
+
+        self.grpc_port, self.web_port = grpc_port, web_port
+        for port in (grpc_port, web_port):  # fail here, with the port named, not in the child
+            with socket.socket() as sock:
+                if sock.connect_ex((LOCALHOST, port)) == 0:
+                    raise OSError(f"port {port} on {LOCALHOST} is already in use")
+        self.proc = subprocess.Popen(
+            [rerun_executable(), "--serve-web", "--bind", LOCALHOST, "--port", str(grpc_port),
+             "--web-viewer-port", str(web_port), "--server-memory-limit", memory_limit],
+            stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=sys.stderr)
+        deadline = time.monotonic() + SERVER_START_TIMEOUT
+        while not all(self._listening(p) for p in (grpc_port, web_port)):
+            if self.proc.poll() is not None or time.monotonic() > deadline:
+                self.stop()
+                raise OSError(f"rerun --serve-web did not open ports {grpc_port} and "
+                              f"{web_port} on {LOCALHOST} within {SERVER_START_TIMEOUT:g} s")
+            time.sleep(0.05)
+
+    @staticmethod
+    def _listening(port: int) -> bool:
+        import socket
+
+        with socket.socket() as sock:
+            return sock.connect_ex((LOCALHOST, port)) == 0
+
+    @property
+    def grpc_url(self) -> str:
+        return f"rerun+http://{LOCALHOST}:{self.grpc_port}/proxy"
+
+    @property
+    def web_url(self) -> str:
+        from urllib.parse import quote
+
+        return f"http://{LOCALHOST}:{self.web_port}/?url={quote(self.grpc_url, safe='')}"
+
+    def stop(self) -> None:
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGTERM)
+            try:
+                self.proc.wait(timeout=SERVER_STOP_TIMEOUT)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait()

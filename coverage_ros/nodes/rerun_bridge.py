@@ -1,0 +1,354 @@
+"""rerun_bridge: streams a running coverage team's ROS topics into one rerun recording.
+
+It subscribes ``/clock``, ``/map`` and ``/world/robots`` and, for every robot it finds in the
+ROS graph (namespaces ``/<robot_prefix><id>``, looked at every DISCOVERY_PERIOD; robots join and
+vanish at any time), ``ground_truth``, ``scan``, ``goal_pose``, ``plan``, ``cell``,
+``cell_polygon`` and ``coverage_state``. Everything is logged on the ``sim_time`` timeline at
+the messages' stamps, in the entity layout of :mod:`coverage_ros.viz.recording`. Every
+``metrics_period`` of sim time the coverage cost H and the cell masses of the robots' current
+positions (power weights from their ``coverage_state``) are computed with the core, as
+``coverage-plan`` does, on a worker thread so that messages keep flowing meanwhile.
+
+Robot nodes need none of this: the bridge only listens, so real robots are viewed the same way.
+
+    ros2 run coverage_ros rerun_bridge --ros-args -p record_path:=team.rrd -p world:=office
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import re
+import sys
+import threading
+import time
+from dataclasses import dataclass
+from pathlib import Path as FilePath
+
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import PolygonStamped, PoseStamped
+from nav_msgs.msg import OccupancyGrid, Odometry, Path
+from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.exceptions import ParameterException
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.qos import (
+    DurabilityPolicy,
+    QoSProfile,
+    ReliabilityPolicy,
+    qos_profile_sensor_data,
+)
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState, LaserScan
+
+from coverage_ros.core.world import RobotSpec, load_world
+from coverage_ros.errors import ConfigError, CoverageError
+from coverage_ros.nodes import conversions as conv
+from coverage_ros.worlds import resolve_world_path
+
+DISCOVERY_PERIOD = 1.0  # [s] wall time between looks at the ROS graph for robots
+VANISH_CHECKS = 2  # graph looks without any publisher before a robot counts as gone
+WARN_PERIOD = 5.0  # [s] wall time between two warnings of the same kind
+# Latched like map_server (the world node's and robot node's /map QoS).
+MAP_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
+# High-rate streams: best effort matches reliable and best-effort publishers alike.
+STREAM_QOS = QoSProfile(depth=5, reliability=ReliabilityPolicy.BEST_EFFORT)
+EVENT_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+TOPICS = {  # per-robot topic: (message type, QoS)
+    "ground_truth": (Odometry, STREAM_QOS),
+    "scan": (LaserScan, qos_profile_sensor_data),
+    "goal_pose": (PoseStamped, EVENT_QOS),
+    "plan": (Path, EVENT_QOS),
+    "cell": (OccupancyGrid, EVENT_QOS),
+    "cell_polygon": (PolygonStamped, EVENT_QOS),
+    "coverage_state": (JointState, EVENT_QOS),
+}
+STATUS_SKIP = {"id", "x", "y", "yaw"}  # /world/robots values already shown as robot positions
+
+
+def type_name(msg_type: type) -> str:
+    """``nav_msgs/msg/Odometry`` for the class ``Odometry`` (the ROS graph's spelling)."""
+    return f"{msg_type.__module__.split('.')[0]}/msg/{msg_type.__name__}"
+
+
+@dataclass(frozen=True)
+class BridgeConfig:
+    """The node's parameters, validated (meanings: _PARAMETERS and README)."""
+
+    record_path: str = ""
+    connect_url: str = ""
+    serve_web: bool = False
+    web_port: int = 9090
+    grpc_port: int = 9876
+    robot_prefix: str = "robot_"
+    recording_id: str = ""
+    world: str = ""
+    robot_radius: float = RobotSpec().radius
+    metrics_period: float = 1.0
+    cells_period: float = 0.5
+    robots_period: float = 0.1
+    trajectory_period: float = 0.5
+    scan_period: float = 0.5
+    scan_decimation: int = 2
+    computed_cells: bool = True
+
+    def __post_init__(self) -> None:
+        if not (self.record_path or self.connect_url or self.serve_web):
+            raise ConfigError.at("record_path", "no output: set record_path, connect_url or "
+                                 "serve_web", self.record_path)
+        if self.record_path and not FilePath(self.record_path).expanduser().parent.is_dir():
+            raise ConfigError.at("record_path", "folder does not exist", self.record_path)
+        if self.connect_url and not self.connect_url.startswith(
+                ("rerun://", "rerun+http://", "rerun+https://")):
+            raise ConfigError.at("connect_url", "must be a rerun gRPC URL", self.connect_url,
+                                 "rerun+http://127.0.0.1:9876/proxy")
+        for name in ("web_port", "grpc_port"):
+            if not 1 <= getattr(self, name) <= 65535:
+                raise ConfigError.at(name, "must be a TCP port 1..65535", getattr(self, name))
+        if self.serve_web and self.web_port == self.grpc_port:
+            raise ConfigError.at("web_port", "must differ from grpc_port", self.web_port)
+        if not self.robot_prefix or not self.robot_prefix.replace("_", "a").isalnum():
+            raise ConfigError.at("robot_prefix", "must be letters, digits and '_'",
+                                 self.robot_prefix)
+        if not (math.isfinite(self.robot_radius) and self.robot_radius > 0):
+            raise ConfigError.at("robot_radius", "must be a number > 0", self.robot_radius)
+        for name in ("metrics_period", "cells_period", "robots_period", "trajectory_period",
+                     "scan_period"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0):
+                raise ConfigError.at(name, "must be a number of seconds >= 0", value)
+        if self.scan_decimation < 1:
+            raise ConfigError.at("scan_decimation", "must be >= 1", self.scan_decimation)
+
+    def rates(self):
+        """The layers' settings (:class:`coverage_ros.viz.live_team.LiveRates`)."""
+        from coverage_ros.viz.live_team import LiveRates
+
+        return LiveRates(self.robots_period, self.trajectory_period, self.scan_period,
+                         self.cells_period, self.metrics_period, self.scan_decimation,
+                         self.robot_radius, self.computed_cells)
+
+
+_PARAMETERS = {  # name: (default, description)
+    "record_path": ("", "write the recording to this .rrd file"),
+    "connect_url": ("", "stream to a running viewer, e.g. rerun+http://127.0.0.1:9876/proxy"),
+    "serve_web": (False, "host a web viewer (and its gRPC proxy) on 127.0.0.1"),
+    "web_port": (9090, "HTTP port of the web viewer (serve_web)"),
+    "grpc_port": (9876, "gRPC port of the web viewer's proxy (serve_web)"),
+    "robot_prefix": ("robot_", "robot namespaces are /<prefix><id>"),
+    "recording_id": ("", "rerun recording id; processes with the same id share one "
+                     "recording; '': a new random id"),
+    "world": ("", "world name or YAML for the importance density layer and metrics; "
+              "'': uniform"),
+    "robot_radius": (RobotSpec().radius, "[m] robot radius: markers and the metrics' "
+                     "inflated map"),
+    "metrics_period": (1.0, "[s] sim time between H / cell-mass computations; 0: none"),
+    "cells_period": (0.5, "[s] sim time between cell-layer updates; 0: on every change"),
+    "robots_period": (0.1, "[s] sim time between robot-marker updates; 0: every pose"),
+    "trajectory_period": (0.5, "[s] sim time between trajectory points; 0: every pose"),
+    "scan_period": (0.5, "[s] sim time between logged scans of a robot; 0: every scan"),
+    "scan_decimation": (2, "log every n-th lidar hit"),
+    "computed_cells": (True, "until a robot publishes a cell, show the cells of the "
+                       "metrics' tessellation"),
+}
+
+
+class RerunBridge(Node):
+    """The rerun bridge node (see module docstring)."""
+
+    def __init__(self) -> None:
+        super().__init__("rerun_bridge")
+        for name, (default, text) in _PARAMETERS.items():
+            self.declare_parameter(name, default, ParameterDescriptor(description=text))
+        self.config = cfg = BridgeConfig(
+            **{n: self.get_parameter(n).value for n in _PARAMETERS})
+        world = load_world(resolve_world_path(cfg.world)) if cfg.world else None
+        from coverage_ros.viz.live_metrics import LiveMetrics
+        from coverage_ros.viz.live_team import LiveTeam
+        from coverage_ros.viz.recording import CoverageRecorder, WebViewerServer
+
+        self.rec = CoverageRecorder(cfg.recording_id or None)
+        self.web = WebViewerServer(cfg.grpc_port, cfg.web_port) if cfg.serve_web else None
+        urls = [u for u in (cfg.connect_url, self.web and self.web.grpc_url) if u]
+        try:
+            self.rec.set_outputs(FilePath(cfg.record_path).expanduser() if cfg.record_path
+                                 else None, urls)
+        except Exception:
+            self.close()
+            raise
+        self._last_warn: dict[str, float] = {}
+        self._warn_lock = threading.Lock()
+        metrics = LiveMetrics(self.rec, cfg.robot_radius,
+                              world.density if world is not None else None, self._warn)
+        self.team = LiveTeam(self.rec, cfg.rates(), metrics)
+        self.subs: dict[int, dict] = {}  # robot id -> {topic kind: Subscription}
+        self._idle: dict[int, int] = {}  # robot id -> graph looks without a publisher
+        self._topic_re = re.compile(rf"^/{re.escape(cfg.robot_prefix)}(\d+)/(\w+)$")
+        self.create_subscription(Clock, "/clock", self._guard("/clock", self._on_clock),
+                                 QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT))
+        self.create_subscription(OccupancyGrid, "/map", self._guard("/map", self._on_map),
+                                 MAP_QOS)
+        self.create_subscription(DiagnosticArray, "/world/robots",
+                                 self._guard("/world/robots", self._on_status), 10)
+        self.create_timer(DISCOVERY_PERIOD, self._discover)
+        outputs = [f"{what} {where}" for what, where in (
+            ("file", cfg.record_path), ("viewer", cfg.connect_url),
+            ("web viewer", self.web and self.web.web_url)) if where]
+        self.get_logger().info(f"recording {self.rec.recording_id} to {', '.join(outputs)}")
+        self._discover()
+
+    # ------------------------------------------------------------------ helpers
+    def _warn(self, key: str, text: str) -> None:
+        """Log a warning at most once per WARN_PERIOD per key (wall time; any thread)."""
+        now = time.monotonic()
+        with self._warn_lock:
+            if now - self._last_warn.get(key, -math.inf) < WARN_PERIOD:
+                return
+            self._last_warn[key] = now
+        self.get_logger().warning(text)
+
+    def _guard(self, what: str, callback, *args):
+        """``callback(*args, msg)``; a bad message is dropped with a throttled warning."""
+        def run(msg) -> None:
+            try:
+                callback(*args, msg)
+            except Exception as exc:  # a viewer never crashes on input
+                self._warn(what, f"dropped a message on {what}: {exc}")
+        return run
+
+    @staticmethod
+    def _map_frame(header) -> float:
+        """[s] stamp of a header in the map frame ('' counts as map); ValueError otherwise."""
+        if header.frame_id not in (conv.MAP_FRAME, ""):
+            raise ValueError(f"frame_id {header.frame_id!r}, expected {conv.MAP_FRAME!r}")
+        return conv.from_time_msg(header.stamp)
+
+    # ------------------------------------------------------------------ robots in the graph
+    def _discover(self) -> None:
+        found: dict[int, set[str]] = {}
+        for topic, types in self.get_topic_names_and_types():
+            match = self._topic_re.match(topic)
+            if match is None or match.group(2) not in TOPICS:
+                continue
+            expected = type_name(TOPICS[match.group(2)][0])
+            if expected not in types:
+                self._warn(topic, f"not subscribing {topic}: type {types}, expected {expected}")
+            elif self.count_publishers(topic) > 0:
+                found.setdefault(int(match.group(1)), set()).add(match.group(2))
+        for robot_id, kinds in found.items():
+            if robot_id not in self.subs:
+                self.subs[robot_id] = {}
+                self.team.add_robot(robot_id)
+                self.get_logger().info(f"robot {robot_id} joined")
+            self._idle[robot_id] = 0
+            subs = self.subs[robot_id]
+            for kind in sorted(kinds - subs.keys()):
+                msg_type, qos = TOPICS[kind]
+                topic = f"/{self.config.robot_prefix}{robot_id}/{kind}"
+                subs[kind] = self.create_subscription(
+                    msg_type, topic, self._guard(topic, getattr(self, f"_on_{kind}"), robot_id),
+                    qos)
+        for robot_id in [r for r in self.subs if r not in found]:
+            self._idle[robot_id] += 1
+            if self._idle[robot_id] >= VANISH_CHECKS:
+                for sub in self.subs.pop(robot_id).values():
+                    self.destroy_subscription(sub)
+                self.team.remove_robot(robot_id)
+                self.get_logger().info(f"robot {robot_id} left")
+
+    # ------------------------------------------------------------------ global topics
+    def _on_clock(self, msg: Clock) -> None:
+        self.team.advance(conv.from_time_msg(msg.clock))
+
+    def _on_map(self, msg: OccupancyGrid) -> None:
+        self._map_frame(msg.header)
+        grid = conv.occupancy_grid_to_grid(msg)
+        if self.team.set_map(grid):
+            self.get_logger().info(f"map {grid.width} x {grid.height} at {grid.resolution:g} m")
+
+    def _on_status(self, msg: DiagnosticArray) -> None:
+        t = conv.from_time_msg(msg.header.stamp)
+        prefix = self.config.robot_prefix
+        for status in msg.status:
+            if status.name == "world":
+                where = "world"
+            elif status.name.startswith(prefix) and status.name[len(prefix):].isdigit():
+                where = f"robot_{int(status.name[len(prefix):])}"
+            else:
+                continue
+            values = {}
+            for key, text in conv.diagnostic_values(status).items():
+                with contextlib.suppress(ValueError):
+                    if key not in STATUS_SKIP:
+                        values[key] = float(text)
+            self.team.status(where, t, values)
+
+    # ------------------------------------------------------------------ per-robot topics
+    def _on_ground_truth(self, robot_id: int, msg: Odometry) -> None:
+        self.team.pose(robot_id, self._map_frame(msg.header), conv.odometry_to_pose(msg))
+
+    def _on_scan(self, robot_id: int, msg: LaserScan) -> None:
+        # The scan frame is the robot's body frame (lidar at the centre, x forward).
+        t = conv.from_time_msg(msg.header.stamp)
+        if not self.team.scan(robot_id, t, lambda pose: conv.scan_to_points(msg, pose)):
+            self._warn(f"scanpose{robot_id}", f"robot {robot_id}: scan at t={t:.2f} s dropped: "
+                       "no ground_truth pose near that time")
+
+    def _on_goal_pose(self, robot_id: int, msg: PoseStamped) -> None:
+        x, y, _ = conv.pose_stamped_to_pose(msg)
+        self.team.goal(robot_id, self._map_frame(msg.header), (x, y))
+
+    def _on_plan(self, robot_id: int, msg: Path) -> None:
+        self.team.plan(robot_id, self._map_frame(msg.header), conv.path_to_points(msg))
+
+    def _on_cell(self, robot_id: int, msg: OccupancyGrid) -> None:
+        self.team.cell(robot_id, self._map_frame(msg.header), conv.cell_grid_to_grid(msg))
+
+    def _on_cell_polygon(self, robot_id: int, msg: PolygonStamped) -> None:
+        self.team.polygon(robot_id, self._map_frame(msg.header), conv.polygon_to_points(msg))
+
+    def _on_coverage_state(self, robot_id: int, msg: JointState) -> None:
+        values = conv.coverage_state_values(msg)  # checks the map frame
+        self.team.state(robot_id, conv.from_time_msg(msg.header.stamp), values)
+
+    # ------------------------------------------------------------------ shutdown
+    def close(self) -> None:
+        """Finish pending work, then flush and close every output (a complete .rrd)."""
+        team = getattr(self, "team", None)
+        if team is not None and team.metrics is not None:
+            team.metrics.close()
+        try:
+            self.rec.close()
+        finally:
+            if self.web is not None:
+                self.web.stop()
+
+
+def main(args=None) -> int:
+    rclpy.init(args=args)
+    try:
+        node = RerunBridge()
+    except (CoverageError, ParameterException, OSError) as exc:
+        print(f"rerun_bridge: error: {exc}", file=sys.stderr)
+        rclpy.try_shutdown()
+        return 2
+    try:
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except Exception:
+        if node.context.ok():  # SIGINT/SIGTERM mid-callback is a shutdown, not a crash
+            raise
+    finally:
+        node.close()
+        if node.config.record_path:
+            print(f"rerun_bridge: wrote {node.config.record_path}", file=sys.stderr)
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -17,7 +17,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.sparse.csgraph import dijkstra
@@ -30,7 +30,6 @@ from coverage_ros.core.strategies import (
     Decision,
     Neighbour,
     Observation,
-    SharedState,
     Strategy,
     StrategyContext,
     make_strategy,
@@ -111,8 +110,12 @@ def run_offline(domain: CoverageDomain, strategy: str, starts: np.ndarray,
     settled = 0
     decisions: list[Decision] = []
     it = 0
+    # What each robot last published (its decision's shared state; before its first update,
+    # its strategy's initial state), with the position its odometry gives now.
+    published = [robots[i].shared_state(Observation(i, np.array([*pos[i], yaw[i]]), 0.0))
+                 for i in range(n)]
     for it in range(1, config.max_iterations + 1):
-        shared = [SharedState(position=pos[i].copy(), weight=contexts[i].weight) for i in range(n)]
+        shared = [replace(published[i], position=pos[i].copy()) for i in range(n)]
         decisions = []
         for i, robot in enumerate(robots):
             pose = np.array([pos[i, 0], pos[i, 1], yaw[i]])
@@ -127,6 +130,7 @@ def run_offline(domain: CoverageDomain, strategy: str, starts: np.ndarray,
             decisions.append(robot.update(obs, nbrs))
             times.append(time.perf_counter() - t0)
         costs.append(sum(d.cost for d in decisions))
+        published = [d.shared for d in decisions]
         new = pos.copy()
         for i, d in enumerate(decisions):
             new[i], yaw[i] = _move(domain, strategy, contexts[i], pos[i], yaw[i], d, config)
@@ -134,7 +138,11 @@ def run_offline(domain: CoverageDomain, strategy: str, starts: np.ndarray,
         positions.append(pos.copy())
         yaws.append(yaw.copy())
         moved = float(np.hypot(*(pos - positions[-2]).T).max())
-        still = all(d.converged for d in decisions) or moved < contexts[0].convergence_tolerance
+        # Self-steering robots move less than the tolerance per step while under way: only
+        # their own convergence counts.
+        steering = any(d.velocity is not None for d in decisions)
+        still = all(d.converged for d in decisions) or (
+            not steering and moved < contexts[0].convergence_tolerance)
         settled = settled + 1 if still else 0
         if progress is not None:
             progress(it, costs[-1])

@@ -138,6 +138,21 @@ def test_cells_partition_the_free_space_and_match_the_centralized_tessellation(s
     assert np.array_equal(owner >= 0, reachable)
 
 
+def test_exact_ties_go_to_one_robot_everywhere():
+    """Robots on cell centres, symmetric: many cells are exactly as far from two robots.
+    Every robot's own search must give each such cell to the same robot as the others do."""
+    domain = empty_domain(30, 40)
+    pts = domain.geometry.cell_centers(np.array([[5, 5], [5, 25], [20, 5], [20, 25], [12, 15]]))
+    gens = [Generator(p) for p in pts]
+    owner = np.full(domain.free.size, -1)
+    for i, gen in enumerate(gens):
+        cell = geodesic_cell(domain, gen, gens[:i] + gens[i + 1:])
+        assert np.all(owner[cell.nodes] == -1), "a tied cell went to two robots"
+        owner[cell.nodes] = i
+    assert np.all(owner >= 0), "a tied cell went to nobody"
+    assert np.array_equal(owner, tessellate(domain, gens).labels.ravel())
+
+
 @pytest.mark.parametrize("seed", range(3))
 def test_fast_update_equals_the_obvious_implementation(seed):
     rng = np.random.default_rng(100 + seed)

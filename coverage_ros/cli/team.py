@@ -33,7 +33,9 @@ from coverage_ros.worlds import resolve_world_path
 
 STARTUP_TIMEOUT = 90.0  # [s] wall time for the world and robots to come up (16 robots, 2 cores)
 PROGRESS_PERIOD = 0.5  # [s] wall time between progress refreshes
-METRICS_PERIOD = 2.0  # [s] wall time between coverage cost evaluations for the progress bar
+#: [s] wall time between coverage cost evaluations for the progress bar (a tessellation of a
+#: large map costs ~0.5 s of CPU that the robots need more).
+METRICS_PERIOD = 10.0
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -61,6 +63,8 @@ def build_parser() -> argparse.ArgumentParser:
                     help="extra robot_node parameter (repeatable), e.g. strategy_params:={...}")
     ap.add_argument("--kill", action="append", default=[], metavar="ID@SECONDS",
                     help="kill robot ID's process at that sim time (robot loss experiments)")
+    ap.add_argument("--stats", action="store_true",
+                    help="sample CPU and memory of every process into summary.json")
     ap.add_argument("--quiet", action="store_true", help="no progress display")
     return ap
 

@@ -14,6 +14,7 @@ end computes the summary metrics (definitions in README "Team launcher"):
 
 from __future__ import annotations
 
+import contextlib
 import math
 import signal
 import sys
@@ -51,6 +52,7 @@ class TeamTracker:
         self.states_seen: set[int] = set()
         self.lost: dict[int, float] = {}
         self.H_samples: list[tuple[float, float]] = []
+        self.proc_stats = ProcessStats(procs) if getattr(args, "stats", False) else None
         self.min_sep = math.inf
         self.node.create_subscription(Clock, "/clock", self._on_clock, 10)
         self.node.create_subscription(DiagnosticArray, "/world/robots", self._on_status, 10)
@@ -107,6 +109,8 @@ class TeamTracker:
                 _, rid = self.kills.pop(0)
                 self._kill(rid)
             now = time.monotonic()
+            if self.proc_stats is not None:
+                self.proc_stats.sample(now)
             if now - last_metrics >= metrics_period:
                 last_metrics = now
                 self.H_samples.append((self.sim_time, self._cost()))
@@ -205,6 +209,7 @@ class TeamTracker:
                 "min_separation": self.min_sep if math.isfinite(self.min_sep) else None,
                 "converged_at": self._converged_at(H),
             },
+            **({"processes": self.proc_stats.report()} if self.proc_stats is not None else {}),
         }
 
     def _converged_at(self, H_final: float) -> float | None:
@@ -220,6 +225,46 @@ class TeamTracker:
     def close(self) -> None:
         self.node.destroy_node()
         rclpy.try_shutdown()
+
+
+class ProcessStats:
+    """CPU [% of one core] and memory (RSS) of every child process, sampled once a second."""
+
+    PERIOD = 1.0  # [s] wall
+
+    def __init__(self, procs) -> None:
+        import psutil
+
+        self.procs = procs
+        self.handles = {}
+        for name, child in procs.children.items():
+            with contextlib.suppress(psutil.Error):
+                self.handles[name] = psutil.Process(child.popen.pid)
+                self.handles[name].cpu_percent(None)  # starts the CPU time window
+        self.cpu: dict[str, list[float]] = {n: [] for n in self.handles}
+        self.rss: dict[str, float] = dict.fromkeys(self.handles, 0.0)
+        self.last = time.monotonic()
+
+    def sample(self, now: float) -> None:
+        import psutil
+
+        if now - self.last < self.PERIOD:
+            return
+        self.last = now
+        for name, h in self.handles.items():
+            with contextlib.suppress(psutil.Error):
+                self.cpu[name].append(h.cpu_percent(None))
+                self.rss[name] = max(self.rss[name], h.memory_info().rss / 2**20)
+
+    def report(self) -> dict:
+        per = {n: {"cpu_percent": round(float(np.mean(c)), 1) if c else None,
+                   "rss_mb_peak": round(self.rss[n], 1)} for n, c in self.cpu.items()}
+        robots = [v for n, v in per.items() if n.startswith("robot_") and v["cpu_percent"]]
+        return {"per_process": per, "robot_mean": {
+            "cpu_percent": round(float(np.mean([r["cpu_percent"] for r in robots])), 1)
+            if robots else None,
+            "rss_mb_peak": round(float(np.mean([r["rss_mb_peak"] for r in robots])), 1)
+            if robots else None}}
 
 
 def summary_table(summary: dict) -> str:

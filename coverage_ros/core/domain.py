@@ -31,6 +31,18 @@ from coverage_ros.core.grid import GridMap
 from coverage_ros.core.tangents import polar_depth, visible_from
 from coverage_ros.errors import ConfigError
 
+#: [chart units] scale of the tie-breaking bias added to every edge out of a virtual source.
+TIE_BIAS = 1e-9
+
+
+def tie_bias(grid_xy: np.ndarray) -> float:
+    """A tiny distance offset that depends only on a source's position. Cells exactly as far
+    from two robots (common when robots sit on cell centres) then go to the same robot in every
+    robot's own search, in the centralized tessellation and in the references alike."""
+    x, y = (float(v) for v in np.asarray(grid_xy, dtype=np.float64).ravel()[:2])
+    h = math.sin(x * 12.9898 + y * 78.233) * 43758.5453
+    return TIE_BIAS * (h - math.floor(h))
+
 
 @dataclass(frozen=True, eq=False)
 class CoverageDomain:
@@ -204,7 +216,7 @@ class CoverageDomain:
         disp = self.chart_displacement(g[None], centers)
         metric = self.metric_at(g[None])[0]
         costs = np.sqrt(np.einsum("ni,ij,nj->n", disp, metric, disp))
-        return nodes_arr, costs, g
+        return nodes_arr, costs + tie_bias(g), g
 
     def snap_many(self, points_map: np.ndarray) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
         """:meth:`snap` for ``(N, 2)`` points; vectorized for maps (Euclidean, no wrap)."""
@@ -235,7 +247,7 @@ class CoverageDomain:
                     nodes.append(base + int(odr) * W + int(odc))
             nodes_arr = np.array(nodes, dtype=np.int64)
             centers = np.stack([nodes_arr % W + 0.5, nodes_arr // W + 0.5], axis=-1)
-            costs = np.hypot(*(centers - g[i]).T) * self.resolution
+            costs = np.hypot(*(centers - g[i]).T) * self.resolution + tie_bias(g[i])
             out.append((nodes_arr, costs, g[i]))
         return out
 
@@ -296,7 +308,8 @@ class CoverageDomain:
         reach = math.sqrt(float(d2[near].max())) if len(near) else 0.0
         vis = near[self.visible_mask(g, centers[near], reach)]
         all_nodes = np.concatenate([snap_nodes, nodes[vis]])
-        all_costs = np.concatenate([snap_costs, np.sqrt(d2[vis]) * self.resolution])
+        all_costs = np.concatenate([snap_costs,
+                                    np.sqrt(d2[vis]) * self.resolution + tie_bias(g)])
         return all_nodes, all_costs, g
 
     def _offset_index(self, dr: int, dc: int) -> int | None:

@@ -25,7 +25,7 @@ from scipy.sparse.csgraph import dijkstra
 
 from coverage_ros.core.domain import CoverageDomain
 from coverage_ros.core.geometry import wrap_angle
-from coverage_ros.core.local_search import local_graph_for
+from coverage_ros.core.local_search import BLOCK, build_local_graph, local_graph_for
 from coverage_ros.core.world import RobotSpec
 from coverage_ros.errors import ConfigError
 
@@ -34,6 +34,8 @@ CHECK_STEP_CELLS = 0.25
 #: [m] extra clearance beyond the robot radius that planned shortcuts keep from walls (pure
 #: pursuit cuts corners a little; this keeps the robot off them).
 PATH_MARGIN = 0.05
+#: [m] the first path search looks this far around the box of start and goal.
+PLAN_WINDOW_MARGIN = 2.0
 #: v scales tried by the safety filter, largest first (0 is always safe).
 SAFE_SCALES = (1.0, 0.6, 0.3, 0.12, 0.0)
 
@@ -73,16 +75,20 @@ def plan_path(domain: CoverageDomain, start: np.ndarray, goal: np.ndarray,
             float(np.hypot(*(goal - start))) < 4 * domain.resolution
             and segment_free(domain, start, goal)):
         return np.stack([start, goal])
-    local = local_graph_for(domain, None, np.zeros((1, 2)), np.zeros(1), math.inf)
-    nodes, costs, _ = domain.snap(start)
-    csr = local.with_sources([(local.local_of(nodes), costs)])
     limit = max_detour * float(np.hypot(*(goal - start))) + 2.0
-    dist, pred = dijkstra(csr, directed=True, indices=local.n + 1, limit=limit,
-                          return_predecessors=True)
-    goal_nodes, _, _ = domain.snap(goal)
-    lids = local.local_of(goal_nodes)
-    lids = lids[lids > 0]
-    if len(lids) == 0 or not np.isfinite(dist[lids]).any():
+    # First a window around start and goal (paths to a coverage goal are short), then the
+    # whole map.
+    for window in (PLAN_WINDOW_MARGIN, None):
+        local = _planning_graph(domain, start, goal, window)
+        nodes, costs, _ = domain.snap(start)
+        csr = local.with_sources([(local.local_of(nodes), costs)])
+        dist, pred = dijkstra(csr, directed=True, indices=local.n + 1, limit=limit,
+                              return_predecessors=True)
+        lids = local.local_of(domain.snap(goal)[0])
+        lids = lids[lids > 0]
+        if len(lids) and np.isfinite(dist[lids]).any():
+            break
+    else:
         return None
     v = int(lids[np.argmin(dist[lids])])
     chain = []
@@ -91,6 +97,25 @@ def plan_path(domain: CoverageDomain, start: np.ndarray, goal: np.ndarray,
         v = int(pred[v])
     cells = domain.to_map(domain.node_centers(np.array(chain[::-1], dtype=np.int64)))
     return shortcut(domain, np.vstack([start, cells, goal]))
+
+
+def _planning_graph(domain: CoverageDomain, start: np.ndarray, goal: np.ndarray,
+                    margin: float | None):
+    """The search graph of the box around start and goal grown by ``margin`` [m] (None: the
+    whole domain)."""
+    if margin is None or any(domain.graph.wrap):
+        return local_graph_for(domain, None, np.zeros((1, 2)), np.zeros(1), math.inf)
+    g = domain.to_grid(np.stack([start, goal]))
+    m = margin / domain.resolution
+    H, W = domain.shape
+    Hb, Wb = -(-H // BLOCK), -(-W // BLOCK)
+    blocks = np.zeros((Hb, Wb), dtype=bool)
+    r0, r1 = (int(np.clip((g[:, 1].min() - m) // BLOCK, 0, Hb)),
+              int(np.clip((g[:, 1].max() + m) // BLOCK + 1, 0, Hb)))
+    c0, c1 = (int(np.clip((g[:, 0].min() - m) // BLOCK, 0, Wb)),
+              int(np.clip((g[:, 0].max() + m) // BLOCK + 1, 0, Wb)))
+    blocks[r0:r1, c0:c1] = True
+    return build_local_graph(domain, blocks)
 
 
 def shortcut(domain: CoverageDomain, path: np.ndarray) -> np.ndarray:

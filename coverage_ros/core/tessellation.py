@@ -39,7 +39,7 @@ import numpy as np
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
 
-from coverage_ros.core.domain import CoverageDomain
+from coverage_ros.core.domain import CoverageDomain, tie_bias
 from coverage_ros.core.local_search import LocalGraph, SearchCache, local_graph_for
 from coverage_ros.core.tangents import ancestor_table, first_ancestor_where
 
@@ -51,6 +51,10 @@ GROWTH = 1.6
 #: Slack on a warm-start search radius: the last cell's radius plus this many longest edges
 #: (robots move a few centimetres between updates; a cell that outgrew it costs a second pass).
 WARM_SLACK_EDGES = 2.0
+#: Cold start: the search radius is COLD_FACTOR times the distance to the COLD_NEIGHBOURS-th
+#: nearest neighbour.
+COLD_NEIGHBOURS = 4
+COLD_FACTOR = 0.6
 #: [cells] granularity of warm-start search radii.
 RADIUS_STEP_CELLS = 2.0
 #: [cells] look-ahead of tangent chords on non-Euclidean metrics.
@@ -139,8 +143,11 @@ def geodesic_cell(domain: CoverageDomain, own: Generator, others: Sequence[Gener
         step = RADIUS_STEP_CELLS * res
         L = math.ceil((hint + WARM_SLACK_EDGES * max_edge) / step) * step
     else:
-        far = lam * res * np.hypot(*(centers[1:] - centers[0]).T).max()
-        L = max(0.75 * far, 4.0 * max_edge)
+        # A cell rarely reaches past half the distance to the nearer neighbours around it;
+        # if it does, the search grows.
+        dists = np.sort(lam * res * np.hypot(*(centers[1:] - centers[0]).T))
+        near = dists[min(len(dists), COLD_NEIGHBOURS) - 1]
+        L = max(COLD_FACTOR * near, 4.0 * max_edge)
     passes = 0
     while True:
         passes += 1
@@ -208,7 +215,7 @@ def source_row(domain: CoverageDomain, local: LocalGraph, snap: tuple, radius: f
     reach = math.sqrt(float(d2[near].max())) if len(near) else 0.0
     vis = near[domain.visible_mask(g, c[near], reach)]
     return (np.concatenate([lid[keep], vis + band.start + 1]),
-            np.concatenate([costs[keep], np.sqrt(d2[vis]) * domain.resolution]))
+            np.concatenate([costs[keep], np.sqrt(d2[vis]) * domain.resolution + tie_bias(g)]))
 
 
 def _search(local: LocalGraph, csr: csr_matrix, weights: np.ndarray, radii: np.ndarray,
@@ -429,3 +436,4 @@ def tessellate(domain: CoverageDomain, gens: Sequence[Generator],
     costs = np.bincount(lab[valid], weights=f * wdA[valid], minlength=n)
     return Tessellation(labels.reshape(domain.shape), g.reshape(domain.shape), masses, costs,
                         unassigned)
+

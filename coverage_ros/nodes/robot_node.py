@@ -319,6 +319,12 @@ class RobotNode(Node):
         self._last_tick = now
         v, w = c.command(now, dt)
         self._publish_cmd(v, w, now)
+        if c.last is not None:
+            # The state at the tracking rate with the current position: neighbours' safety
+            # filters need fresh positions (the coverage period is too slow for that).
+            state = dict(c.last.state)
+            state["x"], state["y"] = float(c.pose[0]), float(c.pose[1])
+            self.state_pub.publish(conv.coverage_state_msg(conv.to_time_msg(now), state))
 
     def _publish_cmd(self, v: float, w: float, now: float) -> None:
         twist = conv.command_to_twist(v, w)

@@ -13,11 +13,13 @@ from coverage_ros.core.strategies.base import (
     Strategy,
     StrategyContext,
 )
+from coverage_ros.core.strategies.bvc import BvcStrategy
 from coverage_ros.core.strategies.geodesic import GeodesicStrategy
 from coverage_ros.core.strategies.lloyd import LloydStrategy
 from coverage_ros.errors import ConfigError
 
 STRATEGIES: dict[str, type[Strategy]] = {
+    BvcStrategy.name: BvcStrategy,
     GeodesicStrategy.name: GeodesicStrategy,
     LloydStrategy.name: LloydStrategy,
 }

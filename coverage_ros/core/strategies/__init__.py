@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from coverage_ros.core.strategies.acvt import AcvtStrategy
 from coverage_ros.core.strategies.base import (
     Decision,
     Neighbour,
@@ -19,6 +20,7 @@ from coverage_ros.core.strategies.lloyd import LloydStrategy
 from coverage_ros.errors import ConfigError
 
 STRATEGIES: dict[str, type[Strategy]] = {
+    AcvtStrategy.name: AcvtStrategy,
     BvcStrategy.name: BvcStrategy,
     GeodesicStrategy.name: GeodesicStrategy,
     LloydStrategy.name: LloydStrategy,

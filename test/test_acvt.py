@@ -367,6 +367,8 @@ def test_strategy_protocol_greedy_and_dropped_neighbours(two_targets):
         make_strategy("acvt", ctx, tau=2.0)
     with pytest.raises(ConfigError, match="filter_gain"):
         make_strategy("acvt", ctx, filter_gain=0.0)
+    with pytest.raises(ConfigError, match="gap_penalty: must be a number"):
+        make_strategy("acvt", ctx, gap_penalty="2")
 
 
 def test_core_does_not_import_ros():

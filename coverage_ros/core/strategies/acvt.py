@@ -68,6 +68,12 @@ from coverage_ros.errors import ConfigError
 REACH_TIME = 1.0
 
 
+def _number(key: str, value: Any) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float | np.number):
+        raise ConfigError.at(key, "must be a number", value)
+    return float(value)
+
+
 class AcvtStrategy(Strategy):
     """Alpha-CVT (iCVT + projection with agent dropout and reinsertion), decentralized."""
 
@@ -83,10 +89,13 @@ class AcvtStrategy(Strategy):
                           ("speed_weighted", speed_weighted)):
             if not isinstance(flag, bool | np.bool_):
                 raise ConfigError.at(key, "must be true or false", flag)
-        self.dropout = DropoutConfig(bool(dropout), float(epsilon), float(filter_gain),
-                                     None if drop_factor is None else float(drop_factor))
-        self.spec = CellSpec(bool(visibility), (float(scale_x), float(scale_y)),
-                             float(gap_penalty))
+        self.dropout = DropoutConfig(bool(dropout), _number("epsilon", epsilon),
+                                     _number("filter_gain", filter_gain),
+                                     None if drop_factor is None
+                                     else _number("drop_factor", drop_factor))
+        self.spec = CellSpec(bool(visibility), (_number("scale_x", scale_x),
+                                                _number("scale_y", scale_y)),
+                             _number("gap_penalty", gap_penalty))
         self.speed_weighted = bool(speed_weighted)
         self.reach = context.robot.v_max * REACH_TIME
         self.cells = MassCells(context.domain)

@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from coverage_ros.core.domain import CoverageDomain
+from coverage_ros.core.metrics import mass_deviation
 from coverage_ros.core.offline import OfflineConfig, run_offline
 from coverage_ros.core.strategies import STRATEGIES, StrategyContext
 from coverage_ros.core.tessellation import Generator, tessellate
@@ -117,6 +118,7 @@ def run(args: argparse.Namespace) -> dict:
         "grid": {"width": domain.shape[1], "height": domain.shape[0],
                  "resolution": domain.resolution},
         "masses": tess.masses.round(6).tolist(),
+        "mass_deviation_I": mass_deviation(tess.masses),
         "wall_time_s": round(time.perf_counter() - t0, 3),
     }
     say(f"  {'converged' if result.converged else 'stopped'} after {result.iterations} "

@@ -17,6 +17,7 @@ from coverage_ros.core.strategies.base import (
 from coverage_ros.core.strategies.bvc import BvcStrategy
 from coverage_ros.core.strategies.geodesic import GeodesicStrategy
 from coverage_ros.core.strategies.lloyd import LloydStrategy
+from coverage_ros.core.strategies.tangentbug import TangentBugStrategy
 from coverage_ros.errors import ConfigError
 
 STRATEGIES: dict[str, type[Strategy]] = {
@@ -24,6 +25,7 @@ STRATEGIES: dict[str, type[Strategy]] = {
     BvcStrategy.name: BvcStrategy,
     GeodesicStrategy.name: GeodesicStrategy,
     LloydStrategy.name: LloydStrategy,
+    TangentBugStrategy.name: TangentBugStrategy,
 }
 
 

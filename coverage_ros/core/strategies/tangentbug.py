@@ -13,7 +13,8 @@ with a group of networked robots" (ICRA 2010), Algorithms 1 and 2:
   at the robot's top speed. A goal inside an obstacle is found unreachable by circling the
   obstacle once; the robot then drives to the closest boundary position it recorded (section
   III-A). The completed loop is remembered, so later targets on its obstacle side are
-  projected onto it without circling again.
+  projected onto it without circling again. A goal in the band along walls that the robot's
+  clearance keeps it out of is projected where the robot gets closest to it, without a loop.
 * A new ``t_virt`` is computed when the robot has arrived at ``t_real`` and ``g_virt`` at
   ``t_virt``. When that Lloyd step is shorter than the convergence tolerance the robot has
   converged and reports its *final repartition*: the Voronoi cell of its real position among
@@ -24,9 +25,10 @@ robots actually achieve); ``info["cost_virtual"]`` is the virtual generator's. T
 the team are H of the real and of the virtual generators (Fig. 3); :func:`team_costs` computes
 both centrally.
 
-Scan returns on neighbours (within a robot radius plus ``NEIGHBOUR_MASK_MARGIN`` of a
-published position) are ignored: TangentBug's reachability test assumes static obstacles, and
-collisions between robots are the robot node's safety filter's job.
+Scan returns on neighbours (within their published ``extra["radius"]``, else the own radius,
+plus ``NEIGHBOUR_MASK_MARGIN`` of their published position) are ignored: TangentBug's
+reachability test assumes static obstacles, and collisions between robots are the robot node's
+safety filter's job.
 """
 
 from __future__ import annotations
@@ -240,8 +242,8 @@ class TangentBugStrategy(Strategy):
             "cost_virtual": cost_virtual,
             "partition": "real" if self.converged else "virtual",
             "virtual_generator": None if self.virtual is None else self.virtual.copy(),
-            "virtual_target": self.virtual_target,
-            "real_target": self.real_target,
+            "virtual_target": None if self.virtual_target is None else self.virtual_target.copy(),
+            "real_target": None if self.real_target is None else self.real_target.copy(),
             "projected": self.projected,
             "known_loops": len(self.loops),
         }

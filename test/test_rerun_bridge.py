@@ -4,6 +4,7 @@ world node's team (plus messages a test client publishes as the robots) into a .
 from __future__ import annotations
 
 import math
+import os
 import signal
 import subprocess
 import sys
@@ -367,8 +368,8 @@ def test_recording_has_every_layer(run):
 
     paths = set(RrdReader(run.rrd).store().schema().entity_paths())
     expected = {"/world/map", "/world/cells", "/world/robots", "/world/goals", "/metrics/H",
-                "/world/cell_polygons/robot_0", "/state/robot_0/weight",
-                "/status/robot_0/collisions", "/status/world/real_time_factor"}
+                "/world/cell_polygons/robot_0", "/state/robot_0", "/status/robot_0",
+                "/status/world"}
     for rid in (0, 1):
         expected |= {f"/world/{kind}/robot_{rid}" for kind in ("trajectories", "plans", "scans")}
         expected.add(f"/metrics/mass/robot_{rid}")
@@ -415,7 +416,12 @@ def test_published_cells_plans_and_goals_are_drawn(run):
     np.testing.assert_allclose(np.array(plan)[:, :2], PLAN_0, atol=1e-6)
     goals = [np.array(r["Points3D:positions"])[:, :2] for _, r in rows["/world/goals"]]
     assert any(len(g) == 2 and np.allclose(g, [GOAL[0], GOAL[1]], atol=1e-6) for g in goals)
-    assert rows["/state/robot_0/update_ms"][-1][1]["Scalars:scalars"] == [12.0]
+    names = [r for t, r in rows["/state/robot_0"] if t is None][-1]["SeriesLines:names"]
+    values = [r for t, r in rows["/state/robot_0"] if t is not None][-1]["Scalars:scalars"]
+    assert dict(zip(names, values, strict=True)) == {
+        "x": 1.0, "y": 1.0, "weight": 0.0, "mass": 2.5, "update_ms": 12.0}
+    names = [r for t, r in rows["/status/robot_0"] if t is None][-1]["SeriesLines:names"]
+    assert {"collisions", "path_length"} <= set(names) and "x" not in names
 
 
 @pytest.mark.integration
@@ -471,3 +477,67 @@ def test_metrics_cover_the_free_space(run):
                 masses[t] = masses.get(t, 0.0) + r["Scalars:scalars"][0]
     # The office is one connected free space: the cells of all robots cover all of it.
     assert all(m == pytest.approx(total, rel=1e-6) for m in masses.values())
+
+
+def free_port() -> int:
+    import socket
+
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return sock.getsockname()[1]
+
+
+def listening_addresses(port: int) -> set[str]:
+    """Local addresses with a listening TCP socket on ``port`` (from /proc/net/tcp and tcp6):
+    IPv4 dotted, IPv6 as ``ipv6:<hex>``."""
+    from pathlib import Path
+
+    found = set()
+    for table in ("tcp", "tcp6"):
+        path = Path("/proc/net") / table
+        for line in (path.read_text().splitlines()[1:] if path.exists() else []):
+            local, _, state = line.split()[1:4]
+            addr, hex_port = local.split(":")
+            if state != "0A" or int(hex_port, 16) != port:  # 0A: LISTEN
+                continue
+            found.add(".".join(str(int(addr[i:i + 2], 16)) for i in (6, 4, 2, 0))
+                      if table == "tcp" else f"ipv6:{addr}")
+    return found
+
+
+@pytest.mark.integration
+def test_web_viewer_listens_on_localhost_only_and_stops_with_the_bridge(tmp_path):
+    pytest.importorskip("rclpy")
+    import time
+    import urllib.request
+
+    web, grpc = free_port(), free_port()
+    rrd = tmp_path / "web.rrd"
+    cmd = [sys.executable, "-m", "coverage_ros.nodes.rerun_bridge", "--ros-args", "-p",
+           "serve_web:=true", "-p", f"web_port:={web}", "-p", f"grpc_port:={grpc}", "-p",
+           f"record_path:={rrd}"]
+    with NodeProcess(cmd, domain_id(21)) as bridge:
+        deadline = time.monotonic() + 60.0
+        while "web viewer http://127.0.0.1" not in bridge.output():
+            assert bridge.alive() and time.monotonic() < deadline, bridge.output()
+            time.sleep(0.1)
+        assert listening_addresses(web) == {"127.0.0.1"}
+        assert listening_addresses(grpc) == {"127.0.0.1"}
+        with urllib.request.urlopen(f"http://127.0.0.1:{web}/", timeout=10) as page:
+            assert page.status == 200
+        bridge.signal(signal.SIGINT)
+        assert bridge.proc.wait(timeout=20) == 0, bridge.output()
+    assert not listening_addresses(web) and not listening_addresses(grpc)  # server stopped
+    assert rerun_verify(rrd).returncode == 0
+
+
+def test_ros2_run_layout_has_the_console_script():
+    exe = REPO / "install" / "coverage_ros" / "lib" / "coverage_ros" / "rerun_bridge"
+    assert exe.exists(), "colcon's ros2 run layout has the console script"
+    out = subprocess.run([str(REPO / ".venv" / "bin" / "rerun_bridge")], capture_output=True,
+                         text=True, timeout=60,
+                         env={**os.environ, "ROS_DOMAIN_ID": str(domain_id(22)),
+                              "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"})
+    assert out.returncode == 2
+    assert out.stderr.strip() == ("rerun_bridge: error: record_path: no output: set "
+                                  "record_path, connect_url or serve_web (got '')")

@@ -50,6 +50,9 @@ from coverage_ros.worlds import resolve_world_path
 DISCOVERY_PERIOD = 1.0  # [s] wall time between looks at the ROS graph for robots
 VANISH_CHECKS = 2  # graph looks without any publisher before a robot counts as gone
 WARN_PERIOD = 5.0  # [s] wall time between two warnings of the same kind
+# [s] wall time rerun collects rows into one chunk: every chunk costs ~1 KB of schema, so the
+# default 0.2 s made most of a team's recording overhead; a viewer lags this much behind.
+BATCH_PERIOD = 1.0
 # Latched like map_server (the world node's and robot node's /map QoS).
 MAP_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -169,7 +172,8 @@ class RerunBridge(Node):
         from coverage_ros.viz.live_team import LiveTeam
         from coverage_ros.viz.recording import CoverageRecorder, WebViewerServer
 
-        self.rec = CoverageRecorder(cfg.recording_id or None)
+        self.rec = CoverageRecorder(cfg.recording_id or None, batch_period=BATCH_PERIOD)
+        self.rec.follow = True  # viewers show the newest data; a file opens at its end
         self.web = WebViewerServer(cfg.grpc_port, cfg.web_port) if cfg.serve_web else None
         urls = [u for u in (cfg.connect_url, self.web and self.web.grpc_url) if u]
         try:
@@ -321,6 +325,8 @@ class RerunBridge(Node):
             team.metrics.close()
         try:
             self.rec.close()
+        except Exception as exc:  # a viewer that went away must not cost the file
+            print(f"rerun_bridge: warning: {exc}", file=sys.stderr)
         finally:
             if self.web is not None:
                 self.web.stop()

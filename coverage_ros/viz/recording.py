@@ -13,8 +13,8 @@ Entity layout (all in the ``map`` frame, metres, z = 0 is the floor)::
     /world/cell_polygons/robot_<id>  LineStrips3D: cell outline (strategies that publish one)
     /metrics/H            Scalars: coverage cost
     /metrics/mass/robot_<id>         Scalars: cell masses
-    /state/robot_<id>/<name>         Scalars: a robot's published coverage_state values
-    /status/robot_<id>/<name>        Scalars: the simulator's per-robot counters
+    /state/robot_<id>     Scalars: a robot's coverage_state values, a series per name
+    /status/robot_<id>    Scalars: the simulator's per-robot counters (and /status/world)
 
 A live trajectory is logged in pieces: the growing tail at ``/world/trajectories/robot_<id>``
 and each finished piece once at ``/world/trajectories/robot_<id>/part_<k>`` (see
@@ -30,7 +30,6 @@ from __future__ import annotations
 import contextlib
 import signal
 import subprocess
-import sys
 import time
 import uuid
 from collections.abc import Iterable, Sequence
@@ -82,12 +81,20 @@ def cells_rgba(labels: np.ndarray, robot_ids=None) -> np.ndarray:
 class CoverageRecorder:
     """Writes the entities above to one rerun recording stream."""
 
-    def __init__(self, recording_id: str | None = None, application_id: str = APP_ID):
+    def __init__(self, recording_id: str | None = None, application_id: str = APP_ID,
+                 batch_period: float | None = None):
+        """``batch_period`` [s]: how long rows are collected into one chunk before they are
+        sent (None: rerun's default, 0.2 s); longer means fewer, larger chunks."""
         rr = _rr()
         self.rr = rr
         self.recording_id = recording_id or str(uuid.uuid4())
-        self.stream = rr.RecordingStream(application_id, recording_id=self.recording_id)
+        batcher = None if batch_period is None else rr.ChunkBatcherConfig(
+            flush_tick=float(batch_period))
+        self.stream = rr.RecordingStream(application_id, recording_id=self.recording_id,
+                                         batcher_config=batcher)
         self._grid: GridMap | None = None
+        self.follow = False  # blueprint: the time cursor follows the newest data (live runs)
+        self._series: dict[str, list[str]] = {}  # entity -> series names (log_values)
         self._last_cells: np.ndarray | None = None  # RGBA of the last cell layer logged
 
     # ------------------------------------------------------------------ sinks
@@ -114,9 +121,12 @@ class CoverageRecorder:
         self.stream.flush(timeout_sec=FLUSH_TIMEOUT)
 
     def close(self) -> None:
-        """Flush and close every sink (a file gets its footer and is complete)."""
-        self.flush()
-        self.stream.disconnect()
+        """Flush and close every sink (a file gets its footer and is complete); raises if a
+        sink failed (e.g. a viewer went away), after closing the others."""
+        try:
+            self.flush()
+        finally:
+            self.stream.disconnect()
 
     def blueprint(self):
         import rerun.blueprint as rrb
@@ -136,7 +146,9 @@ class CoverageRecorder:
                 rrb.Vertical(rrb.TimeSeriesView(origin="/metrics/H", name="coverage cost H"),
                              rrb.TimeSeriesView(origin="/metrics/mass", name="cell masses")),
                 column_shares=[3, 1]),
-            rrb.TimePanel(timeline=TIMELINE), collapse_panels=True)
+            rrb.TimePanel(timeline=TIMELINE, **({"play_state": "following"} if self.follow
+                                                else {})),
+            collapse_panels=True)
 
     # ------------------------------------------------------------------ static layers
     def _grid_map(self, grid: GridMap, rgb: np.ndarray, channels: str):
@@ -240,11 +252,16 @@ class CoverageRecorder:
             [np.column_stack([P, np.full(len(P), ROBOT_HEIGHT)])], radii=0.01,
             colors=[robot_color(robot_id)]))
 
-    def log_values(self, prefix: str, values: dict[str, float]) -> None:
-        """Each finite value as a time series ``<prefix>/<name>``."""
-        for name, value in values.items():
-            if np.isfinite(value):
-                self.stream.log(f"{prefix}/{name}", self.rr.Scalars(float(value)))
+    def log_values(self, entity: str, values: dict[str, float]) -> None:
+        """Named values as one plot ``entity`` with a series per name (one entity, not one
+        per value: every entity costs a chunk per batch). A name keeps its series; a value
+        missing this time is NaN."""
+        names = self._series.setdefault(entity, [])
+        if any(n not in names for n in values):
+            names.extend(n for n in values if n not in names)
+            self.stream.log(entity, self.rr.SeriesLines(names=names), static=True)
+        self.stream.log(entity, self.rr.Scalars(
+            np.array([values.get(n, np.nan) for n in names], dtype=np.float64)))
 
     def clear(self, entity_path: str, recursive: bool = False) -> None:
         """Hide an entity from the current time on (a robot that left)."""
@@ -261,7 +278,7 @@ class CoverageRecorder:
     def name_series(self, robot_ids) -> None:
         """Static series styling: names and robot colours for the mass plots."""
         rr = self.rr
-        self.stream.log("/metrics/H", rr.SeriesLines(names="H", colors=[[20, 20, 20]]),
+        self.stream.log("/metrics/H", rr.SeriesLines(names="H", colors=[[230, 230, 230]]),
                         static=True)
         for rid in robot_ids:
             self.stream.log(f"/metrics/mass/robot_{rid}",
@@ -273,6 +290,7 @@ class CoverageRecorder:
 LOCALHOST = "127.0.0.1"  # servers listen on loopback only: nothing is exposed to the network
 SERVER_START_TIMEOUT = 10.0  # [s] wall time for `rerun --serve-web` to open its ports
 SERVER_STOP_TIMEOUT = 3.0  # [s] wall time between SIGTERM and SIGKILL of the server
+PR_SET_PDEATHSIG = 1  # linux/prctl.h
 
 
 def rerun_executable() -> str:
@@ -292,13 +310,19 @@ def rerun_executable() -> str:
     return exe
 
 
+def _die_with_parent() -> None:  # runs in the child between fork and exec
+    with contextlib.suppress(Exception):
+        import ctypes
+
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
+
+
 class WebViewerServer:
     """A ``rerun --serve-web`` child process bound to 127.0.0.1: a gRPC proxy at
     :attr:`grpc_url` (log to it with a ``GrpcSink``) and the web viewer at :attr:`web_url`.
 
-    The server stays in the caller's process group (a Ctrl-C or group signal reaches it
-    too) and :meth:`stop` ends it by its PID. It keeps what was logged in memory, up to
-    ``memory_limit``, for viewers that connect late.
+    :meth:`stop` ends it by its PID (and it dies with its parent process). It keeps what was
+    logged in memory, up to ``memory_limit``, for viewers that connect late.
     """
 
     def __init__(self, grpc_port: int, web_port: int, memory_limit: str = "25%") -> None:
@@ -309,10 +333,13 @@ class WebViewerServer:
             with socket.socket() as sock:
                 if sock.connect_ex((LOCALHOST, port)) == 0:
                     raise OSError(f"port {port} on {LOCALHOST} is already in use")
+        # Its own session: a Ctrl-C meant for the caller must not end the server before the
+        # caller has flushed to it; the kernel ends it if the caller dies (PR_SET_PDEATHSIG).
         self.proc = subprocess.Popen(
             [rerun_executable(), "--serve-web", "--bind", LOCALHOST, "--port", str(grpc_port),
              "--web-viewer-port", str(web_port), "--server-memory-limit", memory_limit],
-            stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=sys.stderr)
+            stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+            start_new_session=True, preexec_fn=_die_with_parent)
         deadline = time.monotonic() + SERVER_START_TIMEOUT
         while not all(self._listening(p) for p in (grpc_port, web_port)):
             if self.proc.poll() is not None or time.monotonic() > deadline:

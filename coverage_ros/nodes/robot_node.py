@@ -301,8 +301,10 @@ class RobotNode(Node):
         self.cell_pub.publish(conv.cell_grid_msg(grid, d.cell, stamp))
         if d.cell_polygon is not None and len(d.cell_polygon):
             self.polygon_pub.publish(conv.polygon_msg(stamp, d.cell_polygon))
-        if d.goal is not None:
-            self.goal_pub.publish(conv.pose_stamped_msg(stamp, d.goal[0], d.goal[1],
+        # Self-steering strategies (tangentbug) have no goal for the planner, but a target.
+        goal = d.goal if d.goal is not None else d.info.get("real_target")
+        if goal is not None:
+            self.goal_pub.publish(conv.pose_stamped_msg(stamp, goal[0], goal[1],
                                                         float(c.pose[2])))
         if result.path is not None:
             self.plan_pub.publish(conv.path_msg(stamp, result.path))

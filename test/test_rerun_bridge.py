@@ -324,6 +324,14 @@ def run(tmp_path_factory):
             for rid, by_kind in pubs.items():
                 for kind, msg in robot_messages(rid, now).items():
                     by_kind[kind].publish(msg)
+            # Bad input is dropped with a warning: a goal in another frame, a torn cell grid.
+            bad_goal = robot_messages(0, now)["goal_pose"]
+            bad_goal.header.frame_id = "robot_0/odom"
+            pubs[0]["goal_pose"].publish(bad_goal)
+            bad_cell = robot_messages(0, now)["cell"]
+            bad_cell.info.width += 1
+            pubs[0]["cell"].publish(bad_cell)
+            pubs[0]["cell"].publish(robot_messages(0, now)["cell"])  # and a good one again
             start = np.array(truth[0][-1])
             cmd = client.publisher("/robot_0/cmd_vel", Twist)
             for _ in range(40):  # drive an arc for up to 4 s, until 0.15 m from the start
@@ -354,7 +362,12 @@ def run(tmp_path_factory):
 @pytest.mark.integration
 def test_bridge_exits_cleanly_with_a_complete_recording(run):
     assert run.exit_code == 0, run.output
-    assert "Traceback" not in run.output and "dropped a message" not in run.output, run.output
+    assert "Traceback" not in run.output, run.output
+    dropped = [line for line in run.output.splitlines() if "dropped a message" in line]
+    assert len(dropped) == 2, run.output
+    text = "\n".join(dropped)
+    assert "/robot_0/goal_pose: frame_id 'robot_0/odom', expected 'map'" in text
+    assert "/robot_0/cell: OccupancyGrid.data: size does not match" in text
     verify = rerun_verify(run.rrd)
     assert verify.returncode == 0, verify.stdout + verify.stderr
     from rerun.chunk import RrdReader

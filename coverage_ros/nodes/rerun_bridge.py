@@ -173,7 +173,6 @@ class RerunBridge(Node):
         from coverage_ros.viz.recording import CoverageRecorder, WebViewerServer
 
         self.rec = CoverageRecorder(cfg.recording_id or None, batch_period=BATCH_PERIOD)
-        self.rec.follow = True  # viewers show the newest data; a file opens at its end
         self.web = WebViewerServer(cfg.grpc_port, cfg.web_port) if cfg.serve_web else None
         urls = [u for u in (cfg.connect_url, self.web and self.web.grpc_url) if u]
         try:

@@ -93,7 +93,6 @@ class CoverageRecorder:
         self.stream = rr.RecordingStream(application_id, recording_id=self.recording_id,
                                          batcher_config=batcher)
         self._grid: GridMap | None = None
-        self.follow = False  # blueprint: the time cursor follows the newest data (live runs)
         self._series: dict[str, list[str]] = {}  # entity -> series names (log_values)
         self._last_cells: np.ndarray | None = None  # RGBA of the last cell layer logged
 
@@ -146,9 +145,7 @@ class CoverageRecorder:
                 rrb.Vertical(rrb.TimeSeriesView(origin="/metrics/H", name="coverage cost H"),
                              rrb.TimeSeriesView(origin="/metrics/mass", name="cell masses")),
                 column_shares=[3, 1]),
-            rrb.TimePanel(timeline=TIMELINE, **({"play_state": "following"} if self.follow
-                                                else {})),
-            collapse_panels=True)
+            rrb.TimePanel(timeline=TIMELINE), collapse_panels=True)
 
     # ------------------------------------------------------------------ static layers
     def _grid_map(self, grid: GridMap, rgb: np.ndarray, channels: str):

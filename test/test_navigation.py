@@ -116,7 +116,7 @@ def test_safety_filter_keeps_robots_apart():
 def test_safety_filter_uses_scan_points():
     d = room(wall=False)
     f = SafetyFilter(d, SafetyConfig(radius=RADIUS))
-    box = np.array([[1.2, y] for y in np.linspace(0.8, 1.2, 9)])  # not on the map, 9.5 cm
+    box = np.array([[1.2, y] for y in np.linspace(0.8, 1.2, 9)])  # not on the map, 9.5 cm ahead
     assert f.filter(np.array([1.0, 1.0, 0.0]), 0.22, 0.0, scan_points=box)[0] < 0.22
     assert f.filter(np.array([1.0, 1.0, math.pi]), 0.22, 0.0, scan_points=box)[0] == 0.22
 

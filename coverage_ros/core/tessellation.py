@@ -57,6 +57,12 @@ COLD_NEIGHBOURS = 4
 COLD_FACTOR = 0.6
 #: [cells] granularity of warm-start search radii.
 RADIUS_STEP_CELLS = 2.0
+#: A straight step to the virtual centroid that is blocked before this fraction of its length
+#: is replaced by a walk along the gradient through the free space, of at most WALK_CELLS.
+BLOCKED_FRACTION = 0.25
+WALK_CELLS = 20.0
+#: Walk steps must make progress along the gradient: cos of at most ~75 degrees off it.
+WALK_MIN_ALIGNMENT = 0.25
 #: [cells] look-ahead of tangent chords on non-Euclidean metrics.
 LOOKAHEAD_CELLS = 3.0
 
@@ -307,6 +313,13 @@ def _finish(domain: CoverageDomain, local: LocalGraph, base_node: int, own_grid:
     step_chart = u / mass if mass > 0 else np.zeros(2)
     step_grid = step_chart / domain.resolution
     goal_grid = _clip_reachable(domain, own_grid, own_grid + step_grid)
+    wanted = float(np.hypot(*step_grid))
+    if wanted > 1.0 and float(np.hypot(*(goal_grid - own_grid))) < BLOCKED_FRACTION * wanted:
+        # The straight step is blocked almost at once (a robot in a doorway heading for a
+        # centroid beyond the door frame): follow the gradient through the free space instead.
+        walk = _descent_walk(domain, base_node, covector, min(wanted, WALK_CELLS))
+        if float(np.hypot(*(walk - own_grid))) > float(np.hypot(*(goal_grid - own_grid))):
+            goal_grid = walk
     goal = domain.to_map(goal_grid[None])[0]
     control = domain.grid_vector_to_map(step_chart)
     nxt = _next_vertex(domain, base_node, covector)
@@ -361,6 +374,33 @@ def _clip_reachable(domain: CoverageDomain, start: np.ndarray, goal: np.ndarray)
         return start
     last = int(np.argmin(ok)) - 1
     return pts[max(last, 0)]
+
+
+def _descent_walk(domain: CoverageDomain, base: int, covector: np.ndarray,
+                  length_cells: float) -> np.ndarray:
+    """Grid point reached by walking from vertex ``base`` along graph edges, each step to the
+    neighbour best aligned with the covector (seed 000's next-vertex rule, repeated), for about
+    ``length_cells``; stops where no neighbour makes progress along it."""
+    graph = domain.graph
+    W = graph.shape[1]
+    direction = covector / max(float(np.hypot(*covector)), 1e-300)
+    dirs = graph.offsets[:, ::-1].astype(np.float64)  # (x, y) per offset, cells
+    lengths = np.hypot(dirs[:, 0], dirs[:, 1])
+    align = (dirs @ direction) / lengths
+    node, travelled, seen = base, 0.0, {base}
+    while travelled < length_cells:
+        r, c = divmod(node, W)
+        ok = np.isfinite(graph.cost[r, c]) & (align > WALK_MIN_ALIGNMENT)
+        if not ok.any():
+            break
+        k = int(np.argmax(np.where(ok, align, -np.inf)))
+        nxt = int(graph.neighbour_index(k)[r, c])
+        if nxt in seen:
+            break
+        seen.add(nxt)
+        node = nxt
+        travelled += float(lengths[k])
+    return domain.node_centers(np.array([node]))[0]
 
 
 def _next_vertex(domain: CoverageDomain, base: int, covector: np.ndarray) -> np.ndarray:

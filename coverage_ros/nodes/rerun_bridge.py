@@ -25,13 +25,9 @@ import time
 from dataclasses import dataclass
 from pathlib import Path as FilePath
 
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PolygonStamped, PoseStamped
 from nav_msgs.msg import OccupancyGrid, Odometry, Path
-from rcl_interfaces.msg import ParameterDescriptor
-from rclpy.exceptions import ParameterException
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import (
     DurabilityPolicy,
@@ -43,8 +39,9 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState, LaserScan
 
 from coverage_ros.core.world import RobotSpec, load_world
-from coverage_ros.errors import ConfigError, CoverageError
+from coverage_ros.errors import ConfigError
 from coverage_ros.nodes import conversions as conv
+from coverage_ros.nodes.runner import declare_parameters, run_node
 from coverage_ros.worlds import resolve_world_path
 
 DISCOVERY_PERIOD = 1.0  # [s] wall time between looks at the ROS graph for robots
@@ -163,10 +160,7 @@ class RerunBridge(Node):
 
     def __init__(self) -> None:
         super().__init__("rerun_bridge")
-        for name, (default, text) in _PARAMETERS.items():
-            self.declare_parameter(name, default, ParameterDescriptor(description=text))
-        self.config = cfg = BridgeConfig(
-            **{n: self.get_parameter(n).value for n in _PARAMETERS})
+        self.config = cfg = BridgeConfig(**declare_parameters(self, _PARAMETERS))
         world = load_world(resolve_world_path(cfg.world)) if cfg.world else None
         from coverage_ros.viz.live_metrics import LiveMetrics
         from coverage_ros.viz.live_team import LiveTeam
@@ -331,28 +325,14 @@ class RerunBridge(Node):
                 self.web.stop()
 
 
+def _close(node: RerunBridge) -> None:
+    node.close()
+    if node.config.record_path:
+        print(f"rerun_bridge: wrote {node.config.record_path}", file=sys.stderr)
+
+
 def main(args=None) -> int:
-    rclpy.init(args=args)
-    try:
-        node = RerunBridge()
-    except (CoverageError, ParameterException, OSError) as exc:
-        print(f"rerun_bridge: error: {exc}", file=sys.stderr)
-        rclpy.try_shutdown()
-        return 2
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except Exception:
-        if node.context.ok():  # SIGINT/SIGTERM mid-callback is a shutdown, not a crash
-            raise
-    finally:
-        node.close()
-        if node.config.record_path:
-            print(f"rerun_bridge: wrote {node.config.record_path}", file=sys.stderr)
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node("rerun_bridge", RerunBridge, args, cleanup=_close)
 
 
 if __name__ == "__main__":

@@ -13,21 +13,16 @@ period it sends a safe ``cmd_vel``. See README "Robot node" for parameters and t
 
 from __future__ import annotations
 
-import contextlib
 import math
 import re
 import sys
 import time
 from dataclasses import dataclass, field
 
-import rclpy
 import yaml
 from geometry_msgs.msg import PolygonStamped, PoseStamped, Twist, TwistStamped
 from nav_msgs.msg import OccupancyGrid, Odometry, Path
-from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.clock import Clock, ClockType
-from rclpy.exceptions import ParameterException
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from sensor_msgs.msg import JointState, LaserScan
@@ -39,6 +34,7 @@ from coverage_ros.core.strategies import Scan
 from coverage_ros.core.world import RobotSpec, load_world
 from coverage_ros.errors import ConfigError, CoverageError
 from coverage_ros.nodes import conversions as conv
+from coverage_ros.nodes.runner import FatalConfigError, declare_parameters, run_node
 from coverage_ros.worlds import resolve_world_path
 
 MAP_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
@@ -47,9 +43,6 @@ DISCOVERY_PERIOD = 1.0  # [s] wall time between looks at the ROS graph for new n
 WARN_PERIOD = 5.0  # [s] wall time between two warnings of the same kind
 STATE_TYPE = "sensor_msgs/msg/JointState"
 
-
-class FatalConfigError(CoverageError):
-    """A configuration error found after start-up (e.g. when the map arrives): ends the node."""
 
 _PARAMETERS = {  # name: (default, description)
     "robot_id": (-1, "this robot's id; -1: from the namespace /<robot_prefix><id>"),
@@ -119,9 +112,7 @@ class RobotNode(Node):
 
     def __init__(self) -> None:
         super().__init__("coverage_robot")
-        for name, (default, text) in _PARAMETERS.items():
-            self.declare_parameter(name, default, ParameterDescriptor(description=text))
-        p = {name: self.get_parameter(name).value for name in _PARAMETERS}
+        p = declare_parameters(self, _PARAMETERS)
         self.config = self._config(p)
         cc = self.config.controller
         self.frames = conv.RobotFrames.of(self.config.robot_prefix, cc.robot_id)
@@ -352,30 +343,7 @@ class RobotNode(Node):
 
 
 def main(args=None) -> int:
-    rclpy.init(args=args)
-    try:
-        node = RobotNode()
-    except (CoverageError, ParameterException) as exc:
-        print(f"robot_node: error: {exc}", file=sys.stderr)
-        rclpy.try_shutdown()
-        return 2
-    code = 0
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except FatalConfigError as exc:
-        print(f"robot_node: error: {exc}", file=sys.stderr)
-        code = 2
-    except Exception:
-        if node.context.ok():
-            raise
-    finally:
-        with contextlib.suppress(Exception):  # the context may already be gone
-            node.stop()
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return code
+    return run_node("robot_node", RobotNode, args, cleanup=RobotNode.stop)
 
 
 if __name__ == "__main__":

@@ -14,14 +14,10 @@ import sys
 import time
 from dataclasses import dataclass, field
 
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Twist, TwistStamped
 from nav_msgs.msg import OccupancyGrid, Odometry
-from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.event_handler import PublisherEventCallbacks
-from rclpy.exceptions import ParameterException
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import (
     DurabilityPolicy,
@@ -36,6 +32,7 @@ from std_msgs.msg import Int32, String
 from coverage_ros.core.world import load_world, parse_poses
 from coverage_ros.errors import ConfigError, CoverageError
 from coverage_ros.nodes import conversions as conv
+from coverage_ros.nodes.runner import declare_parameters, run_node
 from coverage_ros.sim.world import Scan, SimConfig, World
 from coverage_ros.worlds import resolve_world_path
 
@@ -118,9 +115,7 @@ class WorldNode(Node):
 
     def __init__(self) -> None:
         super().__init__("world")
-        for name, (default, text) in _PARAMETERS.items():
-            self.declare_parameter(name, default, ParameterDescriptor(description=text))
-        p = {name: self.get_parameter(name).value for name in _PARAMETERS}
+        p = declare_parameters(self, _PARAMETERS)
         scan_noise = p.pop("scan_noise_std")
         starts_text = p.pop("starts")
         sim = SimConfig(seed=p.pop("seed"), physics_rate_hz=p.pop("physics_rate_hz"),
@@ -321,26 +316,7 @@ class WorldNode(Node):
 
 
 def main(args=None) -> int:
-    rclpy.init(args=args)
-    try:
-        node = WorldNode()
-    except (CoverageError, ParameterException) as exc:
-        print(f"world_node: error: {exc}", file=sys.stderr)
-        rclpy.try_shutdown()
-        return 2
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except Exception:
-        # SIGINT/SIGTERM invalidate the context, possibly while a tick is publishing: that
-        # is a shutdown, not a crash.
-        if node.context.ok():
-            raise
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node("world_node", WorldNode, args)
 
 
 if __name__ == "__main__":

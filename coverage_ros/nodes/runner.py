@@ -1,0 +1,71 @@
+"""The life cycle all node executables share (``main`` of each node module).
+
+Start-up errors (bad parameters, world files, maps) end the process with one line
+``<name>: error: ...`` on stderr and exit code 2; so does a :class:`FatalConfigError` raised
+later from a callback (e.g. a map that arrives and does not fit the configuration). SIGINT and
+SIGTERM end it cleanly with code 0, also when they interrupt a callback mid-way.
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Callable
+
+import rclpy
+from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.exceptions import ParameterException
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+
+from coverage_ros.errors import CoverageError
+
+STARTUP_ERRORS = (CoverageError, ParameterException, OSError)
+
+
+class FatalConfigError(CoverageError):
+    """A configuration error found after start-up (e.g. when the map arrives): ends the node."""
+
+
+def declare_parameters(node: Node, table: dict[str, tuple[object, str]]) -> dict[str, object]:
+    """Declare ``{name: (default, description)}`` on ``node``; the values it was given.
+    A value of the wrong type raises ParameterException (a start-up error)."""
+    for name, (default, text) in table.items():
+        node.declare_parameter(name, default, ParameterDescriptor(description=text))
+    return {name: node.get_parameter(name).value for name in table}
+
+
+def run_node(name: str, make_node: Callable[[], Node], args=None,
+             cleanup: Callable[[Node], None] | None = None) -> int:
+    """Initialise rclpy, build the node, spin it until shutdown; the process exit code.
+
+    ``cleanup(node)`` runs before the node is destroyed, whatever ended the spin; an error in
+    it is reported on stderr and does not change the exit code."""
+    rclpy.init(args=args)
+    try:
+        node = make_node()
+    except STARTUP_ERRORS as exc:
+        print(f"{name}: error: {exc}", file=sys.stderr)
+        rclpy.try_shutdown()
+        return 2
+    code = 0
+    try:
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except FatalConfigError as exc:
+        print(f"{name}: error: {exc}", file=sys.stderr)
+        code = 2
+    except Exception:
+        # SIGINT/SIGTERM invalidate the context, possibly while a callback is publishing:
+        # that is a shutdown, not a crash.
+        if node.context.ok():
+            raise
+    finally:
+        if cleanup is not None:
+            try:
+                cleanup(node)
+            except Exception as exc:  # e.g. the context went away mid-publish
+                print(f"{name}: warning: while shutting down: {exc!r}", file=sys.stderr)
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return code

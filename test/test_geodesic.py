@@ -340,3 +340,13 @@ def test_torus_cells_cross_the_chart_seam():
     cols = np.flatnonzero(central.labels.ravel() == 0) % domain.shape[1]
     res = domain.resolution
     assert (cols * res < 0.5).any() and ((cols + 1) * res > period - 0.5).any()
+
+
+def test_vectorized_snap_equals_snap_point_by_point():
+    domain = l_domain()
+    pts = np.random.default_rng(0).uniform(-0.2, 4.2, (2000, 2))  # some off the map, on walls
+    for p, (nodes, costs, g) in zip(pts, domain.snap_many(pts), strict=True):
+        nodes1, costs1, g1 = domain.snap(p)
+        np.testing.assert_array_equal(nodes, nodes1)
+        np.testing.assert_allclose(costs, costs1, rtol=0, atol=1e-12)
+        np.testing.assert_array_equal(g, g1)

@@ -232,23 +232,26 @@ class CoverageDomain:
         ok[inside] = self.free[r[inside], c[inside]]
         dc = np.where(g[:, 0] - c >= 0.5, 1, -1)
         dr = np.where(g[:, 1] - r >= 0.5, 1, -1)
-        bits = self.graph.edge_bits
+        # Own cell, then the cells across the nearer column edge, row edge and corner.
+        odr = np.stack([np.zeros_like(dr), np.zeros_like(dr), dr, dr], axis=1)
+        odc = np.stack([np.zeros_like(dc), dc, np.zeros_like(dc), dc], axis=1)
+        base = np.where(ok, r * W + c, 0)
+        nodes = base[:, None] + odr * W + odc
+        has = np.zeros(nodes.shape, dtype=bool)
+        has[:, 0] = True
+        bits = self.graph.edge_bits[base]
+        for j in range(1, 4):
+            k = self._offset_indices(odr[:, j], odc[:, j])
+            has[:, j] = (k >= 0) & ((bits >> np.maximum(k, 0)) & 1).astype(bool)
+        centers = np.stack([nodes % W + 0.5, nodes // W + 0.5], axis=-1)
+        costs = np.hypot(*(centers - g[:, None, :]).transpose(2, 0, 1)) * self.resolution
         out = []
         for i in range(len(pts)):
             if not ok[i]:
                 out.append(self.snap(pts[i]))
                 continue
-            base = int(r[i] * W + c[i])
-            nodes = [base]
-            b = int(bits[base])
-            for odr, odc in ((0, dc[i]), (dr[i], 0), (dr[i], dc[i])):
-                k = self._offset_index(int(odr), int(odc))
-                if k is not None and (b >> k) & 1:
-                    nodes.append(base + int(odr) * W + int(odc))
-            nodes_arr = np.array(nodes, dtype=np.int64)
-            centers = np.stack([nodes_arr % W + 0.5, nodes_arr // W + 0.5], axis=-1)
-            costs = np.hypot(*(centers - g[i]).T) * self.resolution + tie_bias(g[i])
-            out.append((nodes_arr, costs, g[i]))
+            keep = has[i]
+            out.append((nodes[i, keep], costs[i, keep] + tie_bias(g[i]), g[i]))
         return out
 
     # ------------------------------------------------------------------ line of sight
@@ -319,6 +322,18 @@ class CoverageDomain:
                                   & (self.graph.offsets[:, 1] == dc))
             self._cache[key] = int(hits[0]) if hits.size else None
         return self._cache[key]
+
+    def _offset_indices(self, dr: np.ndarray, dc: np.ndarray) -> np.ndarray:
+        """:meth:`_offset_index` for arrays of offsets in -1..1; -1 where the graph has none."""
+        key = "offset_table"
+        if key not in self._cache:
+            table = np.full((3, 3), -1, dtype=np.int64)
+            for a in (-1, 0, 1):
+                for b in (-1, 0, 1):
+                    k = self._offset_index(a, b)
+                    table[a + 1, b + 1] = -1 if k is None else k
+            self._cache[key] = table
+        return self._cache[key][np.asarray(dr) + 1, np.asarray(dc) + 1]
 
     def is_free_point(self, point_map: np.ndarray) -> bool:
         g = self.to_grid(point_map)[0]

@@ -278,12 +278,16 @@ class WorldNode(Node):
             io = self.io[robot_id]
             twist = robot.body_twist()
             odom = robot.odom
-            io.odom_pub.publish(conv.odometry_msg(
-                stamp, io.frames.odom, io.frames.base_link, (odom.x, odom.y, odom.yaw), twist,
-                (odom.var_xy, odom.var_yaw), out=io.odom_msg))
-            io.truth_pub.publish(conv.odometry_msg(
-                stamp, conv.MAP_FRAME, io.frames.base_link, robot.pose(), twist,
-                out=io.truth_msg))
+            # Nobody listening (coverage robots use ground_truth; a team has 2 x N of these
+            # topics at 20 Hz): skip building the message.
+            if io.odom_pub.get_subscription_count():
+                io.odom_pub.publish(conv.odometry_msg(
+                    stamp, io.frames.odom, io.frames.base_link, (odom.x, odom.y, odom.yaw),
+                    twist, (odom.var_xy, odom.var_yaw), out=io.odom_msg))
+            if io.truth_pub.get_subscription_count():
+                io.truth_pub.publish(conv.odometry_msg(
+                    stamp, conv.MAP_FRAME, io.frames.base_link, robot.pose(), twist,
+                    out=io.truth_msg))
 
     def _publish_scan(self, scan: Scan) -> None:
         io = self.io.get(scan.robot_id)
@@ -310,7 +314,8 @@ class WorldNode(Node):
                     "id": robot_id, "x": x, "y": y, "yaw": yaw,
                     "collisions": robot.collisions, "robot_collisions": robot.robot_collisions,
                     "wall_collisions": robot.wall_collisions, "path_length": robot.path_length,
-                    "scans": robot.scans, "spawn_time": robot.spawn_time},
+                    "scans": robot.scans, "spawn_time": robot.spawn_time,
+                    "min_separation": robot.min_separation},
                 hardware_id=str(robot_id)))
         self.status_pub.publish(msg)
 

@@ -84,6 +84,7 @@ class Robot:
         self.path_length = 0.0  # [m] distance travelled by the true pose
         self.robot_collisions = 0  # contact begins with other robots
         self.wall_collisions = 0  # contact begins with static geometry
+        self.min_separation = math.inf  # [m] closest centre distance to another robot so far
         self.odom = OdomState()
         self.next_scan_time = math.inf  # [s] sim time of the next lidar scan
         self.scans = 0

@@ -227,8 +227,21 @@ class World:
         rng = self.rng_odom if noisy else None
         for robot in self.robots.values():
             robot.after_step(rng, self.config.odom_noise_trans, self.config.odom_noise_rot)
+        self._track_separation()
         due = [r for r in self.robots.values() if r.next_scan_time <= self.time + 1e-9]
         return self._scans(due) if due else []
+
+    def _track_separation(self) -> None:
+        """Update every robot's closest centre distance to another robot."""
+        if len(self.robots) < 2:
+            return
+        robots = list(self.robots.values())
+        P = np.array([r.body.position for r in robots])
+        d = np.hypot(P[:, None, 0] - P[None, :, 0], P[:, None, 1] - P[None, :, 1])
+        np.fill_diagonal(d, np.inf)
+        for robot, nearest in zip(robots, d.min(axis=1), strict=True):
+            if nearest < robot.min_separation:
+                robot.min_separation = float(nearest)
 
     def run(self, seconds: float) -> list[Scan]:
         """Step for ``seconds`` of sim time; return all scans."""

@@ -10,11 +10,17 @@ Two loops, as on the real robot:
 
 Neighbours are known only from what they published (:class:`NeighbourTable`): entries with
 non-finite values, positions off the map, or older than ``neighbour_timeout`` are ignored.
+
+The two loops may run in different threads (the robot node computes updates off its executor
+thread so that tracking never waits for a large cell): :meth:`update` works on a snapshot of
+the inputs and commits its result under a lock that :meth:`command` also takes; updates must
+not run concurrently with each other.
 """
 
 from __future__ import annotations
 
 import math
+import threading
 import time
 from dataclasses import dataclass, field
 from typing import Any
@@ -44,6 +50,9 @@ from coverage_ros.errors import ConfigError
 
 #: [m] a neighbour may be reported this far outside the map's extent (localisation noise).
 MAP_MARGIN = 0.5
+#: [s] neighbours' positions are grown by v_max x their age, up to this age (older ones
+#: are stale and dropped by the neighbour timeout anyway; the lidar sees them meanwhile).
+MAX_NEIGHBOUR_AGE = 0.5
 #: [m] goal changes smaller than this keep the current path (no replanning jitter).
 REPLAN_DISTANCE = 0.05
 STATE_KEYS = ("x", "y", "weight", "mass", "cost", "update_ms")
@@ -90,6 +99,7 @@ class NeighbourTable:
         self.extent = extent
         self.timeout = timeout
         self.entries: dict[int, _Entry] = {}
+        self._lock = threading.Lock()
 
     def receive(self, robot_id: int, values: dict[str, float], now: float) -> str:
         """Store a neighbour's published values; returns "" or why they were rejected."""
@@ -112,18 +122,21 @@ class NeighbourTable:
         extra = {k: v for k, v in values.items()
                  if k not in STATE_KEYS and k not in ("virtual_x", "virtual_y")}
         mass = values.get("mass")
-        self.entries[robot_id] = _Entry(SharedState(
+        entry = _Entry(SharedState(
             position=np.array([x, y]), weight=weight,
             mass=mass if mass is not None and math.isfinite(mass) else None,
             virtual=virtual, extra=extra), now)
+        with self._lock:
+            self.entries[robot_id] = entry
         return ""
 
     def current(self, now: float, own: np.ndarray | None = None, comm_range: float = 0.0,
                 ) -> list[Neighbour]:
         """Fresh neighbours (within ``comm_range`` of ``own`` if that is > 0), by id."""
+        with self._lock:
+            entries = sorted(self.entries.items())
         out = []
-        for rid in sorted(self.entries):
-            e = self.entries[rid]
+        for rid, e in entries:
             if now - e.received > self.timeout:
                 continue
             if comm_range > 0 and own is not None and \
@@ -133,7 +146,8 @@ class NeighbourTable:
         return out
 
     def forget(self, robot_id: int) -> None:
-        self.entries.pop(robot_id, None)
+        with self._lock:
+            self.entries.pop(robot_id, None)
 
 
 @dataclass
@@ -142,6 +156,7 @@ class UpdateResult:
     path: np.ndarray | None
     state: dict[str, float]  # the values to publish as coverage_state
     neighbours: list[int]
+    pose: np.ndarray  # (x, y, yaw) the update started from
 
 
 class RobotController:
@@ -168,6 +183,7 @@ class RobotController:
         self.velocity: tuple[float, float] | None = None
         self.last: UpdateResult | None = None
         self.safety_note = ""
+        self._lock = threading.Lock()
 
     @property
     def needs_scan(self) -> bool:
@@ -181,33 +197,46 @@ class RobotController:
 
     def update(self, now: float) -> UpdateResult | None:
         """One coverage period; None until the robot knows its pose."""
-        if self.pose is None:
-            return None
-        nbrs = self.neighbours.current(now, self.pose[:2], self.config.comm_range)
-        obs = Observation(self.config.robot_id, self.pose.copy(), now, self.scan)
+        with self._lock:
+            if self.pose is None:
+                return None
+            pose, scan, goal, path = self.pose.copy(), self.scan, self.goal, self.path
+        nbrs = self.neighbours.current(now, pose[:2], self.config.comm_range)
+        obs = Observation(self.config.robot_id, pose, now, scan)
         t0 = time.perf_counter()
         decision = self.strategy.update(obs, nbrs)
         update_ms = (time.perf_counter() - t0) * 1e3
-        self.velocity = decision.velocity
         if decision.velocity is None and decision.goal is not None:
-            goal = np.asarray(decision.goal, dtype=np.float64)
-            if (self.goal is None or self.path is None
-                    or float(np.hypot(*(goal - self.goal))) > REPLAN_DISTANCE):
-                self.goal = goal
-                self.path = plan_path(self.domain, self.pose[:2], goal)
+            new_goal = np.asarray(decision.goal, dtype=np.float64)
+            if goal is None or path is None or float(np.hypot(*(new_goal - goal))) > \
+                    REPLAN_DISTANCE:
+                goal, path = new_goal, plan_path(self.domain, pose[:2], new_goal)
         shared = decision.shared
         state = {"x": float(shared.position[0]), "y": float(shared.position[1]),
                  "weight": float(shared.weight), "mass": float(decision.mass),
                  "cost": float(decision.cost), "update_ms": update_ms,
-                 "radius": float(self.config.robot.radius)}
+                 "radius": float(self.config.robot.radius),
+                 "v_max": float(self.config.robot.v_max)}
         if shared.virtual is not None:
             state["virtual_x"], state["virtual_y"] = (float(v) for v in shared.virtual)
         state.update({k: float(v) for k, v in shared.extra.items()})
-        self.last = UpdateResult(decision, self.path, state, [n.robot_id for n in nbrs])
-        return self.last
+        result = UpdateResult(decision, path, state, [n.robot_id for n in nbrs], pose)
+        with self._lock:
+            self.velocity, self.goal, self.path = decision.velocity, goal, path
+            self.last = result
+        return result
+
+    def hold(self) -> None:
+        """Stop following anything (e.g. after a failed update)."""
+        with self._lock:
+            self.path, self.velocity = None, (0.0, 0.0)
 
     def command(self, now: float, dt: float) -> tuple[float, float]:
         """One tracking period: the safe (v, w) to send."""
+        with self._lock:
+            return self._command(now, dt)
+
+    def _command(self, now: float, dt: float) -> tuple[float, float]:
         if self.pose is None:
             return 0.0, 0.0
         if self.velocity is not None:
@@ -218,7 +247,12 @@ class RobotController:
             v, w, _ = self.tracker.command(self.pose, self.path, dt)
         nbrs = self.neighbours.current(now)
         positions = np.array([n.position for n in nbrs]).reshape(-1, 2)
-        radii = np.array([n.state.extra.get("radius", self.config.robot.radius) for n in nbrs])
+        # A neighbour may have moved since it published: grow it by how far it can have gone.
+        own = self.config.robot
+        radii = np.array([n.state.extra.get("radius", own.radius)
+                          + n.state.extra.get("v_max", own.v_max)
+                          * min(max(now - n.stamp, 0.0), MAX_NEIGHBOUR_AGE)
+                          for n in nbrs])
         v, w, self.safety_note = self.safety.filter(self.pose, v, w, positions, radii,
                                                     self.scan_points)
         self.tracker.override(v, w)

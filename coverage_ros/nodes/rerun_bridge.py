@@ -41,7 +41,7 @@ from sensor_msgs.msg import JointState, LaserScan
 from coverage_ros.core.world import RobotSpec, load_world
 from coverage_ros.errors import ConfigError
 from coverage_ros.nodes import conversions as conv
-from coverage_ros.nodes.runner import declare_parameters, run_node
+from coverage_ros.nodes.runner import declare_parameters, quiet_subscription, run_node
 from coverage_ros.worlds import resolve_world_path
 
 DISCOVERY_PERIOD = 1.0  # [s] wall time between looks at the ROS graph for robots
@@ -246,7 +246,7 @@ class RerunBridge(Node):
                 topic = f"/{self.config.robot_prefix}{robot_id}/{kind}"
                 subs[kind] = self.create_subscription(
                     msg_type, topic, self._guard(topic, getattr(self, f"_on_{kind}"), robot_id),
-                    qos)
+                    qos, event_callbacks=quiet_subscription())
         for robot_id in [r for r in self.subs if r not in found]:
             self._idle[robot_id] += 1
             if self._idle[robot_id] >= VANISH_CHECKS:

@@ -7,6 +7,11 @@ join or vanish at any time. Every coverage period it computes its own cell with 
 strategy, publishes ``goal_pose``, ``plan``, ``cell`` and ``coverage_state``; every tracking
 period it sends a safe ``cmd_vel``. See README "Robot node" for parameters and topics.
 
+Coverage updates run on a worker thread, so that tracking, the safety filter and incoming
+messages never wait for them; an update costs in proportion to the robot's own cell, which is
+large while a team is still bunched up, so updates are spaced out to keep their CPU time
+within ``update_load`` of one core (a robot far from its goal loses little by that).
+
     ros2 run coverage_ros robot_node --ros-args -r __ns:=/robot_3 -p robot_id:=3 \\
         -p use_sim_time:=true -p strategy:=geodesic
 """
@@ -16,6 +21,7 @@ from __future__ import annotations
 import math
 import re
 import sys
+import threading
 import time
 from dataclasses import dataclass, field
 
@@ -34,7 +40,13 @@ from coverage_ros.core.strategies import Scan
 from coverage_ros.core.world import RobotSpec, load_world
 from coverage_ros.errors import ConfigError, CoverageError
 from coverage_ros.nodes import conversions as conv
-from coverage_ros.nodes.runner import FatalConfigError, declare_parameters, run_node
+from coverage_ros.nodes.runner import (
+    FatalConfigError,
+    declare_parameters,
+    quiet_publisher,
+    quiet_subscription,
+    run_node,
+)
 from coverage_ros.worlds import resolve_world_path
 
 MAP_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
@@ -58,8 +70,12 @@ _PARAMETERS = {  # name: (default, description)
     "alpha_max": (RobotSpec().alpha_max, "[rad/s^2] angular acceleration limit"),
     "sensor_radius": (3.5, "[m] sensing radius (sensor-based strategies, coverage metrics)"),
     "power_weight": (0.0, "[m] power weight R of this robot (power Voronoi cells)"),
-    "control_rate": (2.0, "[Hz] coverage updates (cell, goal, state)"),
+    "control_rate": (2.0, "[Hz] coverage updates (cell, goal, state), at most"),
+    "update_load": (0.1, "largest fraction of one CPU core spent on coverage updates; "
+                    "costly updates are spaced out to keep within it"),
     "tracking_rate": (10.0, "[Hz] path tracking and cmd_vel"),
+    "state_rate": (2.5, "[Hz] coverage_state with the current position between updates "
+                   "(neighbours' safety filters); at most tracking_rate"),
     "comm_range": (0.0, "[m] neighbours farther than this are ignored; 0: no limit"),
     "neighbour_timeout": (2.0, "[s] a neighbour silent this long is ignored"),
     "pose_topic": ("ground_truth", "nav_msgs/Odometry with the robot pose in the map frame"),
@@ -79,7 +95,9 @@ class RobotNodeConfig:
     map_topic: str = "/map"
     density: str = ""
     control_rate: float = 2.0
+    update_load: float = 0.1
     tracking_rate: float = 10.0
+    state_rate: float = 2.5
     pose_topic: str = "ground_truth"
     scan_topic: str = "scan"
     use_scan: bool = True
@@ -89,10 +107,13 @@ class RobotNodeConfig:
     extra: dict = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        for name in ("control_rate", "tracking_rate"):
+        for name in ("control_rate", "tracking_rate", "state_rate"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
                 raise ConfigError.at(name, "must be a number > 0 [Hz]", v)
+        if not (math.isfinite(self.update_load) and 0 < self.update_load <= 1):
+            raise ConfigError.at("update_load", "must be a fraction in (0, 1]",
+                                 self.update_load)
         if not self.map_topic and not self.world:
             raise ConfigError.at("map_topic", "is empty and no 'world' gives the map", "")
         if self.connectivity not in (8, 16):
@@ -105,6 +126,53 @@ def robot_id_from_namespace(namespace: str, prefix: str) -> int:
         raise ConfigError.at("robot_id", f"not set and the namespace {namespace!r} is not "
                              f"/{prefix}<id>", -1, f"-p robot_id:=N or -r __ns:=/{prefix}N")
     return int(m.group(1))
+
+
+class UpdateWorker:
+    """Runs ``run(now)`` on its own thread when asked, one call at a time, and keeps the CPU
+    time of the calls within ``load`` of one core: after a call that took c seconds of CPU,
+    the next may start c / load seconds after the previous one started."""
+
+    def __init__(self, run, load: float) -> None:
+        self._run = run
+        self._load = load
+        self._wake = threading.Event()
+        self._closing = False
+        self._busy = False
+        self._now = 0.0
+        self._next_start = -math.inf  # [s] monotonic
+        self.calls = 0
+        self._thread = threading.Thread(target=self._loop, name="coverage-update", daemon=True)
+        self._thread.start()
+
+    def request(self, now: float) -> bool:
+        """Start a call for node time ``now``; False if one is running or it is too early."""
+        if self._busy or self._closing or time.monotonic() < self._next_start:
+            return False
+        self._busy, self._now = True, now
+        self._wake.set()
+        return True
+
+    def _loop(self) -> None:
+        while True:
+            self._wake.wait()
+            self._wake.clear()
+            if self._closing:
+                return
+            start, cpu0 = time.monotonic(), time.thread_time()
+            try:
+                self._run(self._now)
+            finally:
+                cpu = time.thread_time() - cpu0
+                self._next_start = start + cpu / self._load
+                self.calls += 1
+                self._busy = False
+
+    def close(self, timeout: float = 5.0) -> None:
+        """Stop the thread (waits for a running call up to ``timeout``)."""
+        self._closing = True
+        self._wake.set()
+        self._thread.join(timeout)
 
 
 class RobotNode(Node):
@@ -123,13 +191,17 @@ class RobotNode(Node):
         self._warned: dict[str, float] = {}
         self._subs: dict[int, object] = {}
         self._last_tick = None
-        self.cmd_pub = self.create_publisher(
-            TwistStamped if self.config.use_stamped_cmd_vel else Twist, "cmd_vel", 10)
-        self.goal_pub = self.create_publisher(PoseStamped, "goal_pose", 10)
-        self.plan_pub = self.create_publisher(Path, "plan", 10)
-        self.cell_pub = self.create_publisher(OccupancyGrid, "cell", 10)
-        self.polygon_pub = self.create_publisher(PolygonStamped, "cell_polygon", 10)
-        self.state_pub = self.create_publisher(JointState, "coverage_state", 10)
+        self._last_state = -math.inf
+        def publisher(msg_type, topic):
+            return self.create_publisher(msg_type, topic, 10, event_callbacks=quiet_publisher())
+
+        self.cmd_pub = publisher(TwistStamped if self.config.use_stamped_cmd_vel else Twist,
+                                 "cmd_vel")
+        self.goal_pub = publisher(PoseStamped, "goal_pose")
+        self.plan_pub = publisher(Path, "plan")
+        self.cell_pub = publisher(OccupancyGrid, "cell")
+        self.polygon_pub = publisher(PolygonStamped, "cell_polygon")
+        self.state_pub = publisher(JointState, "coverage_state")
         self.create_subscription(Odometry, self.config.pose_topic, self._on_pose, 10)
         self._scan_sub = None
         if self.config.map_topic:
@@ -138,6 +210,7 @@ class RobotNode(Node):
             self._build(self._file_grid)
         wall = Clock(clock_type=ClockType.STEADY_TIME)
         self.create_timer(DISCOVERY_PERIOD, self._discover, clock=wall)
+        self._worker = UpdateWorker(self._update, self.config.update_load)
         self.create_timer(1.0 / self.config.control_rate, self._on_control)
         self.create_timer(1.0 / self.config.tracking_rate, self._on_tracking)
         self.get_logger().info(
@@ -169,7 +242,9 @@ class RobotNode(Node):
         return RobotNodeConfig(
             controller=controller, world=p["world"], map_topic=p["map_topic"],
             density=p["density"], control_rate=p["control_rate"],
-            tracking_rate=p["tracking_rate"], pose_topic=p["pose_topic"],
+            update_load=p["update_load"],
+            tracking_rate=p["tracking_rate"], state_rate=p["state_rate"],
+            pose_topic=p["pose_topic"],
             scan_topic=p["scan_topic"], use_scan=p["use_scan"],
             use_stamped_cmd_vel=p["use_stamped_cmd_vel"], robot_prefix=prefix,
             connectivity=p["connectivity"])
@@ -193,8 +268,10 @@ class RobotNode(Node):
                                           self._density, connectivity=self.config.connectivity)
         self.controller = RobotController(domain, self.config.controller)
         if (self.config.use_scan or self.controller.needs_scan) and self._scan_sub is None:
+            # Best effort and volatile: compatible with every publisher, no QoS events to watch.
             self._scan_sub = self.create_subscription(
-                LaserScan, self.config.scan_topic, self._on_scan, qos_profile_sensor_data)
+                LaserScan, self.config.scan_topic, self._on_scan, qos_profile_sensor_data,
+                event_callbacks=quiet_subscription())
         self.get_logger().info(f"map {grid.width} x {grid.height} cells at "
                                f"{grid.resolution:g} m ready in {time.perf_counter() - t0:.2f} s")
 
@@ -251,7 +328,8 @@ class RobotNode(Node):
             if self.count_publishers(name) == 0:
                 continue  # only subscribers so far (e.g. a monitor): not a robot yet
             self._subs[rid] = self.create_subscription(
-                JointState, name, lambda msg, rid=rid: self._on_state(rid, msg), 10)
+                JointState, name, lambda msg, rid=rid: self._on_state(rid, msg), 10,
+                event_callbacks=quiet_subscription())
             self.get_logger().info(f"neighbour {rid} found on {name}")
 
     def _on_state(self, robot_id: int, msg: JointState) -> None:
@@ -271,20 +349,31 @@ class RobotNode(Node):
         return self.get_clock().now().nanoseconds * 1e-9
 
     def _on_control(self) -> None:
+        if self.controller is not None:
+            self._worker.request(self._now())
+
+    def _update(self, now: float) -> None:
+        """One coverage update and its messages (on the worker thread)."""
         c = self.controller
-        if c is None:
-            return
-        now = self._now()
         try:
             result = c.update(now)
         except Exception as exc:  # a strategy bug must not take the robot down: stop instead
+            if not self.context.ok():
+                return
             self._warn("update", f"coverage update failed ({type(exc).__name__}: {exc}); "
                        "holding position")
-            c.path, c.velocity = None, (0.0, 0.0)
+            c.hold()
             return
         if result is None:
             self._warn("nopose", f"no pose yet on {self.config.pose_topic}")
             return
+        try:
+            self._publish_update(c, result, now)
+        except Exception:
+            if self.context.ok():  # shutting down mid-publish is not an error
+                raise
+
+    def _publish_update(self, c: RobotController, result, now: float) -> None:
         stamp = conv.to_time_msg(now)
         self.state_pub.publish(conv.coverage_state_msg(stamp, result.state))
         d = result.decision
@@ -296,7 +385,7 @@ class RobotNode(Node):
         goal = d.goal if d.goal is not None else d.info.get("real_target")
         if goal is not None:
             self.goal_pub.publish(conv.pose_stamped_msg(stamp, goal[0], goal[1],
-                                                        float(c.pose[2])))
+                                                        float(result.pose[2])))
         if result.path is not None:
             self.plan_pub.publish(conv.path_msg(stamp, result.path))
         elif d.goal is not None and d.velocity is None:
@@ -312,9 +401,12 @@ class RobotNode(Node):
         self._last_tick = now
         v, w = c.command(now, dt)
         self._publish_cmd(v, w, now)
-        if c.last is not None:
-            # The state at the tracking rate with the current position: neighbours' safety
-            # filters need fresh positions (the coverage period is too slow for that).
+        if now < self._last_state:  # sim time went back (a restarted simulation)
+            self._last_state = -math.inf
+        if c.last is not None and now - self._last_state >= 0.999 / self.config.state_rate:
+            # The state with the current position between updates: neighbours' safety filters
+            # need fresh positions (the coverage period is too slow for that).
+            self._last_state = now
             state = dict(c.last.state)
             state["x"], state["y"] = float(c.pose[0]), float(c.pose[1])
             self.state_pub.publish(conv.coverage_state_msg(conv.to_time_msg(now), state))
@@ -331,7 +423,8 @@ class RobotNode(Node):
             self.cmd_pub.publish(twist)
 
     def stop(self) -> None:
-        """Best effort: leave the robot standing."""
+        """Best effort: finish the running update, leave the robot standing."""
+        self._worker.close()
         if self.context.ok():
             self._publish_cmd(0.0, 0.0, self._now())
 

@@ -1,14 +1,16 @@
 """The team launcher's monitor: a small rclpy node that follows a running team and scores it.
 
-It listens to ``/clock``, ``/world/robots`` (collisions, path lengths), every robot's
-``ground_truth`` and ``coverage_state``; shows progress; kills robots on schedule; and at the
-end computes the summary metrics (definitions in README "Team launcher"):
+It listens to ``/clock``, ``/world/robots`` (poses, collisions, path lengths, separations:
+a few messages a second for the whole team, so that the monitor takes little of the CPU the
+robots need) and every robot's ``coverage_state``; shows progress; kills robots on schedule;
+and at the end computes the summary metrics (definitions in README "Team launcher"):
 
 * ``H`` / ``H_start``: geodesic coverage cost (density-weighted, as ``coverage-plan``) of the
   final / start positions of the robots still running;
 * ``mass_deviation_I``: seed 003's I of the final geodesic cell masses;
 * ``coverage_ratio``: free area within ``sensor_radius`` and line of sight of some robot;
-* ``min_separation``: smallest distance between two robot centres seen during the run;
+* ``min_separation``: smallest distance between two robot centres during the run (the
+  simulator checks every physics step);
 * ``converged_at``: first sim time from which H stayed within 2 % of its final value.
 """
 
@@ -23,7 +25,6 @@ import time
 import numpy as np
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
-from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
@@ -32,6 +33,7 @@ from std_msgs.msg import Int32
 from coverage_ros.core.metrics import coverage_ratio, mass_deviation
 from coverage_ros.core.tessellation import Generator, tessellate
 from coverage_ros.nodes import conversions as conv
+from coverage_ros.nodes.runner import quiet_subscription
 
 CONVERGED_BAND = 0.02  # H within 2 % of its final value counts as converged
 
@@ -53,15 +55,13 @@ class TeamTracker:
         self.lost: dict[int, float] = {}
         self.H_samples: list[tuple[float, float]] = []
         self.proc_stats = ProcessStats(procs) if getattr(args, "stats", False) else None
-        self.min_sep = math.inf
         self.node.create_subscription(Clock, "/clock", self._on_clock, 10)
         self.node.create_subscription(DiagnosticArray, "/world/robots", self._on_status, 10)
         self.remove_pub = self.node.create_publisher(Int32, "/world/remove", 10)
-        for i in range(n):
-            self.node.create_subscription(Odometry, f"/robot_{i}/ground_truth",
-                                          lambda m, i=i: self._on_pose(i, m), 10)
-            self.node.create_subscription(JointState, f"/robot_{i}/coverage_state",
-                                          lambda m, i=i: self.states_seen.add(i), 10)
+        # Only to see every robot come up (dropped once the team is ready).
+        self.state_subs = [self.node.create_subscription(
+            JointState, f"/robot_{i}/coverage_state", lambda m, i=i: self.states_seen.add(i),
+            10, event_callbacks=quiet_subscription()) for i in range(n)]
 
     # ------------------------------------------------------------------ inputs
     def _on_clock(self, msg: Clock) -> None:
@@ -70,12 +70,17 @@ class TeamTracker:
     def _on_status(self, msg: DiagnosticArray) -> None:
         for st in msg.status:
             values = conv.diagnostic_values(st)
-            if "id" in values:
-                self.status[int(float(values["id"]))] = values
+            if "id" not in values:
+                continue
+            i = int(float(values["id"]))
+            self.status[i] = values
+            if i not in self.lost:
+                self.poses[i] = np.array([float(values[k]) for k in ("x", "y", "yaw")])
 
-    def _on_pose(self, i: int, msg: Odometry) -> None:
-        if i not in self.lost:
-            self.poses[i] = np.array(conv.odometry_to_pose(msg))
+    @property
+    def min_sep(self) -> float:
+        return min((float(st.get("min_separation", "inf")) for st in self.status.values()),
+                   default=math.inf)
 
     # ------------------------------------------------------------------ main loop
     def alive(self) -> list[int]:
@@ -94,6 +99,8 @@ class TeamTracker:
                 missing = sorted(set(range(n)) - self.states_seen)
                 raise RuntimeError(f"robots {missing} did not start within "
                                    f"{startup_timeout:g} s (see their logs)")
+        for sub in self.state_subs:
+            self.node.destroy_subscription(sub)
         self.say(f"  team ready at sim time {self.ready_at:.1f} s after "
                  f"{time.monotonic() - t0:.1f} s wall")
         self.H_samples.append((self.ready_at, self._cost()))
@@ -104,7 +111,6 @@ class TeamTracker:
         while self.sim_time < end:
             rclpy.spin_once(self.node, timeout_sec=0.05)
             self._check_children()
-            self._separation()
             while self.kills and self.sim_time - self.ready_at >= self.kills[0][0]:
                 _, rid = self.kills.pop(0)
                 self._kill(rid)
@@ -141,13 +147,6 @@ class TeamTracker:
         self.remove_pub.publish(Int32(data=rid))
         self.lost[rid] = self.sim_time
         self.poses.pop(rid, None)
-
-    def _separation(self) -> None:
-        P = np.array([self.poses[i][:2] for i in self.alive() if i in self.poses])
-        if len(P) > 1:
-            d = np.hypot(P[:, None, 0] - P[None, :, 0], P[:, None, 1] - P[None, :, 1])
-            d[np.diag_indices(len(P))] = np.inf
-            self.min_sep = min(self.min_sep, float(d.min()))
 
     def _positions(self) -> np.ndarray:
         return np.array([self.poses[i][:2] for i in self.alive() if i in self.poses])

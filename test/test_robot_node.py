@@ -136,3 +136,46 @@ def test_bad_parameters_exit_with_one_line(args, message):
     assert out.returncode == 2
     err = out.stderr.strip().splitlines()
     assert len(err) == 1 and message in err[0], out.stderr
+
+
+def test_update_worker_keeps_within_its_cpu_budget():
+    """Each call's CPU time c spaces the next start by at least c / load, busy requests are
+    refused, and an exception in a call does not stop the worker."""
+    import threading
+    import time
+
+    from coverage_ros.nodes.robot_node import UpdateWorker
+
+    started = threading.Event()
+    release = threading.Event()
+
+    def run(now):
+        if now < 0:
+            raise ValueError("bad update")
+        if now == 1:
+            started.set()
+            release.wait(5.0)
+        sum(range(100_000))
+
+    load = 0.25
+    errors = []
+    worker = UpdateWorker(run, load, on_error=errors.append)
+    try:
+        assert worker.request(1.0)
+        assert started.wait(5.0)
+        assert not worker.request(2.0)  # busy
+        release.set()
+        t0 = time.monotonic()
+        requests = 0
+        while len(worker.cpu_ms) < 8 and time.monotonic() - t0 < 20.0:
+            requests += worker.request(-1.0 if len(worker.cpu_ms) == 3 else 2.0)
+            time.sleep(0.0005)
+        assert len(worker.cpu_ms) >= 8
+        assert requests < 5000  # most requests were refused while waiting
+        gaps = np.diff(worker.starts)
+        assert np.all(gaps >= np.array(worker.cpu_ms[:-1]) / 1e3 / load - 1e-6)
+        assert len(errors) == 1 and isinstance(errors[0], ValueError)
+        assert "coverage updates" in worker.summary()
+    finally:
+        release.set()
+        worker.close()

@@ -25,6 +25,7 @@ import threading
 import time
 from dataclasses import dataclass, field
 
+import numpy as np
 import yaml
 from geometry_msgs.msg import PolygonStamped, PoseStamped, Twist, TwistStamped
 from nav_msgs.msg import OccupancyGrid, Odometry, Path
@@ -131,17 +132,20 @@ def robot_id_from_namespace(namespace: str, prefix: str) -> int:
 class UpdateWorker:
     """Runs ``run(now)`` on its own thread when asked, one call at a time, and keeps the CPU
     time of the calls within ``load`` of one core: after a call that took c seconds of CPU,
-    the next may start c / load seconds after the previous one started."""
+    the next may start c / load seconds after the previous one started. An exception raised
+    by a call goes to ``on_error`` and the worker carries on."""
 
-    def __init__(self, run, load: float) -> None:
+    def __init__(self, run, load: float, on_error=None) -> None:
         self._run = run
+        self._on_error = on_error
         self._load = load
         self._wake = threading.Event()
         self._closing = False
         self._busy = False
         self._now = 0.0
         self._next_start = -math.inf  # [s] monotonic
-        self.calls = 0
+        self.cpu_ms: list[float] = []  # CPU time of every call
+        self.starts: list[float] = []  # [s] monotonic start of every call
         self._thread = threading.Thread(target=self._loop, name="coverage-update", daemon=True)
         self._thread.start()
 
@@ -162,11 +166,26 @@ class UpdateWorker:
             start, cpu0 = time.monotonic(), time.thread_time()
             try:
                 self._run(self._now)
+            except Exception as exc:
+                if self._on_error is not None:
+                    self._on_error(exc)
             finally:
                 cpu = time.thread_time() - cpu0
                 self._next_start = start + cpu / self._load
-                self.calls += 1
+                self.cpu_ms.append(1e3 * cpu)
+                self.starts.append(start)
                 self._busy = False
+
+    def summary(self) -> str:
+        """One line on the calls so far: count, mean period, CPU per call."""
+        n = len(self.cpu_ms)
+        if n == 0:
+            return "no coverage updates"
+        period = (self.starts[-1] - self.starts[0]) / (n - 1) if n > 1 else math.nan
+        cpu = np.asarray(self.cpu_ms)
+        return (f"{n} coverage updates, one every {period:.2f} s wall; CPU per update "
+                f"median {np.median(cpu):.1f} ms, max {cpu.max():.1f} ms "
+                f"(update_load {self._load:g})")
 
     def close(self, timeout: float = 5.0) -> None:
         """Stop the thread (waits for a running call up to ``timeout``)."""
@@ -210,7 +229,9 @@ class RobotNode(Node):
             self._build(self._file_grid)
         wall = Clock(clock_type=ClockType.STEADY_TIME)
         self.create_timer(DISCOVERY_PERIOD, self._discover, clock=wall)
-        self._worker = UpdateWorker(self._update, self.config.update_load)
+        self._worker = UpdateWorker(
+            self._update, self.config.update_load,
+            on_error=lambda exc: self._warn("update", f"coverage update failed: {exc!r}"))
         self.create_timer(1.0 / self.config.control_rate, self._on_control)
         self.create_timer(1.0 / self.config.tracking_rate, self._on_tracking)
         self.get_logger().info(
@@ -425,6 +446,7 @@ class RobotNode(Node):
     def stop(self) -> None:
         """Best effort: finish the running update, leave the robot standing."""
         self._worker.close()
+        self.get_logger().info(self._worker.summary())
         if self.context.ok():
             self._publish_cmd(0.0, 0.0, self._now())
 

@@ -199,8 +199,11 @@ def test_live_team_layers_without_ros(tmp_path):
     from coverage_ros.core.domain import CoverageDomain
 
     total = CoverageDomain.from_grid(grid, 0.1).mass_element.sum()
+    # The cells of the robots posed at t cover the free space (robot 7 may miss the first
+    # request, made when only robot 3's pose had arrived).
+    assert len(set(m3) & set(m7)) >= 2
     for t in m3:
-        assert m3[t] + m7[t] == pytest.approx(total)  # the two cells cover the free space
+        assert m3[t] + m7.get(t, 0.0) == pytest.approx(total)
     assert rerun_verify(tmp_path / "team.rrd").returncode == 0
 
 

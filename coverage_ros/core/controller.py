@@ -226,6 +226,14 @@ class RobotController:
             self.last = result
         return result
 
+    def presence_state(self) -> dict[str, float]:
+        """What to publish before the first update: who and where this robot is, without a
+        cell (no mass or cost yet)."""
+        x, y = (float(v) for v in self.pose[:2])
+        return {"x": x, "y": y, "weight": float(self.config.power_weight),
+                "radius": float(self.config.robot.radius),
+                "v_max": float(self.config.robot.v_max)}
+
     def hold(self) -> None:
         """Stop following anything (e.g. after a failed update)."""
         with self._lock:

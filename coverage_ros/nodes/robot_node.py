@@ -53,6 +53,11 @@ from coverage_ros.worlds import resolve_world_path
 MAP_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
                      reliability=ReliabilityPolicy.RELIABLE)
 DISCOVERY_PERIOD = 1.0  # [s] wall time between looks at the ROS graph for new neighbours
+#: [s] CPU time an update may borrow ahead of update_load (see UpdateWorker).
+UPDATE_BURST = 1.0
+#: [s] wall time a robot listens for neighbours after its first pose before its first update
+#: (one look at the ROS graph and their states), so that it does not start with the whole map.
+LISTEN_FIRST = DISCOVERY_PERIOD + 0.5
 WARN_PERIOD = 5.0  # [s] wall time between two warnings of the same kind
 STATE_TYPE = "sensor_msgs/msg/JointState"
 
@@ -75,8 +80,9 @@ _PARAMETERS = {  # name: (default, description)
     "update_load": (0.1, "largest fraction of one CPU core spent on coverage updates; "
                     "costly updates are spaced out to keep within it"),
     "tracking_rate": (10.0, "[Hz] path tracking and cmd_vel"),
-    "state_rate": (2.5, "[Hz] coverage_state with the current position between updates "
-                   "(neighbours' safety filters); at most tracking_rate"),
+    "state_rate": (2.5, "[Hz] coverage_state: the last update's values with the current "
+                   "position (neighbours' tessellations and safety filters); at most "
+                   "tracking_rate"),
     "comm_range": (0.0, "[m] neighbours farther than this are ignored; 0: no limit"),
     "neighbour_timeout": (2.0, "[s] a neighbour silent this long is ignored"),
     "pose_topic": ("ground_truth", "nav_msgs/Odometry with the robot pose in the map frame"),
@@ -131,19 +137,28 @@ def robot_id_from_namespace(namespace: str, prefix: str) -> int:
 
 class UpdateWorker:
     """Runs ``run(now)`` on its own thread when asked, one call at a time, and keeps the CPU
-    time of the calls within ``load`` of one core: after a call that took c seconds of CPU,
-    the next may start c / load seconds after the previous one started. An exception raised
-    by a call goes to ``on_error`` and the worker carries on."""
+    time of the calls within ``load`` of one core on average.
 
-    def __init__(self, run, load: float, on_error=None) -> None:
+    A CPU-time credit (a token bucket) grows by ``load`` per wall second up to ``burst``
+    seconds and every call spends its CPU time; a call may start while the credit is not
+    negative. So by any start time t, the calls before it used at most
+    ``burst + load * (t - created)`` seconds of CPU, and a single costly call (the first,
+    cold one, or one in a very large cell) is absorbed by the credit instead of holding back
+    the next updates for c / load seconds. An exception raised by a call goes to ``on_error``
+    and the worker carries on."""
+
+    def __init__(self, run, load: float, on_error=None, burst: float = UPDATE_BURST) -> None:
         self._run = run
         self._on_error = on_error
         self._load = load
+        self.burst = burst
         self._wake = threading.Event()
         self._closing = False
         self._busy = False
         self._now = 0.0
-        self._next_start = -math.inf  # [s] monotonic
+        self.created = time.monotonic()
+        self._credit = burst  # [s] CPU time
+        self._credit_at = self.created
         self.cpu_ms: list[float] = []  # CPU time of every call
         self.starts: list[float] = []  # [s] monotonic start of every call
         self._thread = threading.Thread(target=self._loop, name="coverage-update", daemon=True)
@@ -151,7 +166,7 @@ class UpdateWorker:
 
     def request(self, now: float) -> bool:
         """Start a call for node time ``now``; False if one is running or it is too early."""
-        if self._busy or self._closing or time.monotonic() < self._next_start:
+        if self._busy or self._closing or self._refill(time.monotonic()) < 0:
             return False
         self._busy, self._now = True, now
         self._wake.set()
@@ -171,10 +186,17 @@ class UpdateWorker:
                     self._on_error(exc)
             finally:
                 cpu = time.thread_time() - cpu0
-                self._next_start = start + cpu / self._load
+                self._refill(start)
+                self._credit -= cpu
                 self.cpu_ms.append(1e3 * cpu)
                 self.starts.append(start)
                 self._busy = False
+
+    def _refill(self, now: float) -> float:
+        if now > self._credit_at:
+            self._credit = min(self.burst, self._credit + self._load * (now - self._credit_at))
+            self._credit_at = now
+        return self._credit
 
     def summary(self) -> str:
         """One line on the calls so far: count, mean period, CPU per call."""
@@ -210,6 +232,7 @@ class RobotNode(Node):
         self._warned: dict[str, float] = {}
         self._subs: dict[int, object] = {}
         self._last_tick = None
+        self._first_pose: float | None = None  # [s] monotonic
         self._last_state = -math.inf
         def publisher(msg_type, topic):
             return self.create_publisher(msg_type, topic, 10, event_callbacks=quiet_publisher())
@@ -322,6 +345,8 @@ class RobotNode(Node):
             self._warn("pose", f"dropped a non-finite pose {pose} on {self.config.pose_topic}")
             return
         self.controller.set_pose(pose)
+        if self._first_pose is None:
+            self._first_pose = time.monotonic()
 
     def _on_scan(self, msg: LaserScan) -> None:
         c = self.controller
@@ -370,8 +395,11 @@ class RobotNode(Node):
         return self.get_clock().now().nanoseconds * 1e-9
 
     def _on_control(self) -> None:
-        if self.controller is not None:
-            self._worker.request(self._now())
+        if self.controller is None:
+            return
+        if self._first_pose is not None and time.monotonic() - self._first_pose < LISTEN_FIRST:
+            return  # still listening for neighbours
+        self._worker.request(self._now())
 
     def _update(self, now: float) -> None:
         """One coverage update and its messages (on the worker thread)."""
@@ -395,8 +423,10 @@ class RobotNode(Node):
                 raise
 
     def _publish_update(self, c: RobotController, result, now: float) -> None:
+        # The state goes out at state_rate only (_on_tracking), with this update's values from
+        # now on: every state message wakes every neighbour, so their number must not grow
+        # with the update rate.
         stamp = conv.to_time_msg(now)
-        self.state_pub.publish(conv.coverage_state_msg(stamp, result.state))
         d = result.decision
         grid = c.domain.geometry
         self.cell_pub.publish(conv.cell_grid_msg(grid, d.cell, stamp))
@@ -424,11 +454,12 @@ class RobotNode(Node):
         self._publish_cmd(v, w, now)
         if now < self._last_state:  # sim time went back (a restarted simulation)
             self._last_state = -math.inf
-        if c.last is not None and now - self._last_state >= 0.999 / self.config.state_rate:
+        if now - self._last_state >= 0.999 / self.config.state_rate:
             # The state with the current position between updates: neighbours' safety filters
-            # need fresh positions (the coverage period is too slow for that).
+            # need fresh positions (the coverage period is too slow for that). Before the first
+            # update it has no mass or cost yet, but lets the neighbours see this robot.
             self._last_state = now
-            state = dict(c.last.state)
+            state = dict(c.last.state) if c.last is not None else c.presence_state()
             state["x"], state["y"] = float(c.pose[0]), float(c.pose[1])
             self.state_pub.publish(conv.coverage_state_msg(conv.to_time_msg(now), state))
 

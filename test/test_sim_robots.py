@@ -5,7 +5,6 @@ from __future__ import annotations
 import math
 import subprocess
 import sys
-import time
 
 import numpy as np
 import pytest
@@ -248,13 +247,11 @@ def test_config_validation_names_the_field():
         SimConfig(seed=-3)
 
 
-def test_warehouse_map_loads_quickly_into_few_shapes():
+def test_warehouse_map_becomes_few_shapes():
+    # How long it takes is a benchmark figure (scripts/bench_world: setup_seconds).
     path = shared_map("warehouse")
-    t0 = time.perf_counter()
     world = World(load_world(path), SimConfig())
-    elapsed = time.perf_counter() - t0
     cells = world.spec.base_map.occupancy.size
-    assert elapsed < 5.0
     assert world.geometry.shape_count < 0.01 * cells
     world.populate(8)
     world.run(1.0)

@@ -90,9 +90,10 @@ def main(argv: list[str] | None = None) -> int:
         config = SimConfig(seed=args.seed, physics_rate_hz=args.physics_hz)
         world = World(spec, config)
         world.populate(args.robots)
+        setup_s = time.perf_counter() - t
         _say(f"world {spec.name}: {len(world.geometry.segments)} lidar segments, "
              f"{world.geometry.shape_count} static shapes, {args.robots} robots, "
-             f"set up in {time.perf_counter() - t:.2f} s")
+             f"set up in {setup_s:.2f} s")
     except CoverageError as exc:
         print(f"bench_world: error: {exc}", file=sys.stderr)
         return 2
@@ -102,7 +103,9 @@ def main(argv: list[str] | None = None) -> int:
     result = {"rtf": round(fast["rtf"], 2), "robots": args.robots, "beams": lidar.beams,
               "scan_hz": lidar.rate_hz, "physics_hz": args.physics_hz, "world": spec.name,
               "sim_seconds": round(fast["sim_seconds"], 2),
-              "wall_seconds": round(fast["wall_seconds"], 3), "scans": fast["scans"]}
+              "wall_seconds": round(fast["wall_seconds"], 3), "scans": fast["scans"],
+              "map_cells": int(spec.grid.occupancy.size), "static_shapes":
+              world.geometry.shape_count, "setup_seconds": round(setup_s, 2)}
     if args.reference_seconds > 0:
         ref_world = World(spec, replace(config, lidar_caster="pymunk"))
         ref_world.populate(args.robots)

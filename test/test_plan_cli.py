@@ -95,3 +95,28 @@ def test_console_script_runs(tmp_path):
                          capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr
     assert json.loads((tmp_path / "e.json").read_text())["converged"]
+
+
+@pytest.mark.parametrize("strategy, max_ratio", [
+    ("tangentbug", 0.5), ("acvt", 0.5),
+    ("bvc", 1.0),  # drives to density peaks: under a uniform density a cluster stays put
+])
+def test_other_strategies_write_the_same_outputs(strategy, max_ratio, tmp_path):
+    from coverage_ros.core.domain import CoverageDomain
+    from coverage_ros.core.tessellation import Generator, tessellate
+
+    world_path = WORLDS / "l_shape.yaml"
+    code = main(["--map", str(world_path), "--robots", "3", "--strategy", strategy,
+                 "--json", str(tmp_path / "p.json"), "--png", str(tmp_path / "p.png"),
+                 "--quiet"])
+    assert code == 0
+    data = json.loads((tmp_path / "p.json").read_text())
+    assert data["strategy"] == strategy and data["robots"] == 3
+    assert isinstance(data["converged"], bool) and data["iterations"] >= 1
+    assert (tmp_path / "p.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    world = load_world(world_path)
+    domain = CoverageDomain.from_grid(world.grid, world.robot.radius, world.density)
+    cells = world.grid.world_to_cell(np.array(data["positions"]))
+    assert np.all(world.grid.occupancy[cells[:, 0], cells[:, 1]] == 0)  # ends in free space
+    H_start = tessellate(domain, [Generator(np.array(p)) for p in data["start_positions"]]).cost
+    assert 0 < data["H"] <= max_ratio * H_start, (data["H"], H_start)

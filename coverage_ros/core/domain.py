@@ -218,18 +218,25 @@ class CoverageDomain:
         costs = np.sqrt(np.einsum("ni,ij,nj->n", disp, metric, disp))
         return nodes_arr, costs + tie_bias(g), g
 
-    def snap_many(self, points_map: np.ndarray) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
-        """:meth:`snap` for ``(N, 2)`` points; vectorized for maps (Euclidean, no wrap)."""
-        pts = np.asarray(points_map, dtype=np.float64).reshape(-1, 2)
-        if not self.graph.euclidean or any(self.graph.wrap) or len(pts) == 0:
-            return [self.snap(p) for p in pts]
-        g = self.to_grid(pts)
+    def free_at_grid(self, g: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Rows, columns and free flags (False outside the grid) of the cells containing the
+        ``(N, 2)`` grid points ``g`` (x = column, y = row, in cells)."""
         H, W = self.shape
         c = np.floor(g[:, 0]).astype(np.int64)
         r = np.floor(g[:, 1]).astype(np.int64)
         inside = (r >= 0) & (r < H) & (c >= 0) & (c < W)
         ok = inside.copy()
         ok[inside] = self.free[r[inside], c[inside]]
+        return r, c, ok
+
+    def snap_many(self, points_map: np.ndarray) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+        """:meth:`snap` for ``(N, 2)`` points; vectorized for maps (Euclidean, no wrap)."""
+        pts = np.asarray(points_map, dtype=np.float64).reshape(-1, 2)
+        if not self.graph.euclidean or any(self.graph.wrap) or len(pts) == 0:
+            return [self.snap(p) for p in pts]
+        g = self.to_grid(pts)
+        W = self.shape[1]
+        r, c, ok = self.free_at_grid(g)
         dc = np.where(g[:, 0] - c >= 0.5, 1, -1)
         dr = np.where(g[:, 1] - r >= 0.5, 1, -1)
         # Own cell, then the cells across the nearer column edge, row edge and corner.

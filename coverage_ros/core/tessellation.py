@@ -362,12 +362,7 @@ def _clip_reachable(domain: CoverageDomain, start: np.ndarray, goal: np.ndarray)
         return goal
     t = np.linspace(0.0, 1.0, int(math.ceil(length * 4.0)) + 2)
     pts = start + t[:, None] * d
-    H, W = domain.shape
-    c = np.floor(pts[:, 0]).astype(np.int64)
-    r = np.floor(pts[:, 1]).astype(np.int64)
-    inside = (r >= 0) & (r < H) & (c >= 0) & (c < W)
-    ok = inside.copy()
-    ok[inside] = domain.free[r[inside], c[inside]]
+    _, _, ok = domain.free_at_grid(pts)
     if ok.all():
         return goal
     if not ok[0]:

@@ -30,6 +30,7 @@ setup(
             "coverage-plan = coverage_ros.cli.plan:main",
             "rerun_bridge = coverage_ros.nodes.rerun_bridge:main",
             "coverage-team = coverage_ros.cli.team:main",
+            "coverage-teleop = coverage_ros.cli.teleop:main",
         ],
     },
 )

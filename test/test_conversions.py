@@ -10,8 +10,8 @@ import pytest
 pytest.importorskip("nav_msgs")
 from geometry_msgs.msg import Twist
 
-from coverage_ros.core.grid import GridMap
 from coverage_ros.core.world import LidarSpec, RobotSpec
+from coverage_ros.core.world.grid import GridMap
 from coverage_ros.errors import ConfigError
 from coverage_ros.nodes import conversions as conv
 
@@ -94,3 +94,44 @@ def test_spawn_requests():
 def test_bad_spawn_requests_name_the_field(text, match):
     with pytest.raises(ConfigError, match=match):
         conv.parse_spawn_request(text, RobotSpec())
+
+
+def test_evidence_round_trip_on_a_rotated_lattice(rng):
+    from coverage_ros.core.exploration.belief import Evidence
+
+    lattice = GridMap(np.full((20, 30), -1, np.int8), 0.05, (1.0, -2.0, 0.4))
+    cells = rng.choice(600, size=50, replace=False)
+    ev = Evidence(3, cells, rng.integers(0, 400, 50).astype(np.uint16),
+                  rng.integers(0, 400, 50).astype(np.uint16))
+    msg = conv.evidence_msg(ev, lattice, conv.to_time_msg(2.0))
+    assert [f.name for f in msg.fields] == ["x", "y", "hits", "misses"]
+    assert msg.width == 50 and msg.point_step == 12 and msg.header.frame_id == "map"
+    back = conv.evidence_from_msg(msg, 3, lattice)
+    np.testing.assert_array_equal(back.cells, cells)
+    np.testing.assert_array_equal(back.hits, ev.hits)
+    np.testing.assert_array_equal(back.misses, ev.misses)
+
+
+def test_malformed_evidence_clouds_are_refused_with_the_reason():
+    from coverage_ros.core.exploration.belief import Evidence
+
+    lattice = GridMap(np.full((10, 10), -1, np.int8), 0.05)
+    ok = conv.evidence_msg(Evidence(1, np.array([5, 6]), np.array([1, 2], np.uint16),
+                                    np.array([0, 3], np.uint16)), lattice, conv.to_time_msg(0))
+    wrong_frame = conv.evidence_msg(Evidence(1, np.array([5]), np.array([1], np.uint16),
+                                             np.array([0], np.uint16)), lattice,
+                                    conv.to_time_msg(0))
+    wrong_frame.header.frame_id = "odom"
+    with pytest.raises(ConfigError, match="frame_id"):
+        conv.evidence_from_msg(wrong_frame, 1, lattice)
+    torn = conv.evidence_msg(Evidence(1, np.array([5, 6]), np.array([1, 2], np.uint16),
+                                      np.array([0, 3], np.uint16)), lattice, conv.to_time_msg(0))
+    torn.width = 3
+    with pytest.raises(ConfigError, match="size does not match"):
+        conv.evidence_from_msg(torn, 1, lattice)
+    small = GridMap(np.full((2, 2), -1, np.int8), 0.05)
+    with pytest.raises(ConfigError, match="outside the map"):
+        conv.evidence_from_msg(ok, 1, small)
+    ok.fields = ok.fields[:2]
+    with pytest.raises(ConfigError, match="fields"):
+        conv.evidence_from_msg(ok, 1, lattice)

@@ -1,4 +1,5 @@
-"""Geodesic power Voronoi tessellation and control (seed 000): correctness tests."""
+"""Geodesic power Voronoi tessellation and control (Bhattacharya et al. 2014): correctness
+tests."""
 
 from __future__ import annotations
 
@@ -8,17 +9,13 @@ import numpy as np
 import pytest
 from conftest import WORLDS
 
-from coverage_ros.core.domain import CoverageDomain
-from coverage_ros.core.graph import octile_bound
-from coverage_ros.core.grid import OCCUPIED, GridMap
-from coverage_ros.core.reference import obvious_cell, paper_cell
-from coverage_ros.core.tessellation import (
-    Generator,
-    SearchCache,
-    geodesic_cell,
-    tessellate,
-)
+from coverage_ros.core.geodesic.cell import SearchCache, geodesic_cell
+from coverage_ros.core.geodesic.domain import CoverageDomain
+from coverage_ros.core.geodesic.graph import octile_bound
+from coverage_ros.core.geodesic.reference import obvious_cell, paper_cell
+from coverage_ros.core.geodesic.tessellation import Generator, tessellate
 from coverage_ros.core.world import cluster_starts, load_world
+from coverage_ros.core.world.grid import OCCUPIED, GridMap
 
 RES = 0.1
 
@@ -206,6 +203,28 @@ def test_cache_and_search_growth_do_not_change_results():
     assert set(far.nodes.tolist()) == set(np.flatnonzero(full.labels.ravel() == 0))
 
 
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_whole_domain_search_shared_by_a_team_gives_each_robot_its_own_cell(seed):
+    """whole=True (one memoized multi-source search per domain and generator set, as an
+    exploring team in one process uses it) gives every robot the cell and control of the
+    pruned search, also on a curved metric."""
+    rng = np.random.default_rng(seed)
+    base = random_domain(rng, 40, 50)
+    zeta = rng.uniform(0.1, 0.7, base.shape)
+    domain = CoverageDomain.from_grid(base.geometry, 0.0, zeta=zeta)
+    gens = random_generators(domain, rng, 5)
+    for k in range(len(gens)):
+        own, others = gens[k], gens[:k] + gens[k + 1:]
+        shared = geodesic_cell(domain, own, others, whole=True)
+        alone = geodesic_cell(domain, own, others)
+        assert np.array_equal(np.sort(shared.nodes), np.sort(alone.nodes)), k
+        np.testing.assert_allclose(shared.covector, alone.covector, rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(shared.goal, alone.goal)
+        assert shared.neighbours == alone.neighbours
+    searches = [key for key in domain._cache if key[0] == "shared_search"]
+    assert len(searches) == 1  # one search served the five robots
+
+
 def test_larger_power_weight_gets_a_larger_cell():
     domain = empty_domain(30, 60)
     a, b = np.array([2.0, 1.5]), np.array([4.0, 1.5])
@@ -249,7 +268,7 @@ def test_goal_is_clipped_to_reachable_free_space():
 # ---------------------------------------------------------------------------- team behaviour
 @pytest.mark.parametrize("world", ["l_shape", "u_shape"])
 def test_coverage_cost_never_increases(world):
-    from coverage_ros.core.offline import OfflineConfig, run_offline
+    from coverage_ros.core.offline.runner import OfflineConfig, run_offline
 
     spec = load_world(WORLDS / f"{world}.yaml")
     domain = CoverageDomain.from_grid(spec.grid, 0.105, spec.density)
@@ -268,7 +287,7 @@ def test_coverage_cost_never_increases(world):
 
 
 def test_converges_to_lloyds_cvt_in_an_obstacle_free_square():
-    from coverage_ros.core.offline import OfflineConfig, run_offline
+    from coverage_ros.core.offline.runner import OfflineConfig, run_offline
     from coverage_ros.core.strategies import StrategyContext
 
     domain = CoverageDomain.from_grid(GridMap(np.zeros((80, 80), np.int8), 0.05), 0.0)
@@ -292,10 +311,10 @@ def _sphere_xyz(theta_phi: np.ndarray) -> np.ndarray:
 
 
 def test_sphere_four_robots_reach_the_regular_tetrahedron():
-    """Four robots on the unit sphere (seed 000's sphere chart) end where the centroidal
+    """Four robots on the unit sphere (Bhattacharya et al.'s sphere chart) end where the centroidal
     configuration is known: a regular tetrahedron, four cells of equal area pi."""
-    from coverage_ros.core.charts import sphere_domain
-    from coverage_ros.core.offline import OfflineConfig, run_offline
+    from coverage_ros.core.geodesic.charts import sphere_domain
+    from coverage_ros.core.offline.runner import OfflineConfig, run_offline
     from coverage_ros.core.strategies import StrategyContext
 
     domain = sphere_domain(48)
@@ -327,7 +346,7 @@ def test_sphere_four_robots_reach_the_regular_tetrahedron():
 
 
 def test_torus_cells_cross_the_chart_seam():
-    from coverage_ros.core.charts import torus_domain
+    from coverage_ros.core.geodesic.charts import torus_domain
 
     domain = torus_domain(48, obstacles=((2.0, 2.0, 2.6, 3.2),))
     period = 2 * math.pi

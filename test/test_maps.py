@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from conftest import shared_map
 
-from coverage_ros.core.grid import GridMap
-from coverage_ros.core.maps import load_map_yaml, write_map_yaml
+from coverage_ros.core.world.grid import GridMap
+from coverage_ros.core.world.map_server import load_map_yaml, write_map_yaml
 from coverage_ros.errors import MapError
 
 

@@ -7,19 +7,16 @@ import math
 
 import numpy as np
 import pytest
+from conftest import WORLDS
 
-from coverage_ros.core.controller import ControllerConfig, NeighbourTable, RobotController
-from coverage_ros.core.domain import CoverageDomain
-from coverage_ros.core.grid import OCCUPIED, GridMap
-from coverage_ros.core.navigation import (
-    PathTracker,
-    SafetyConfig,
-    SafetyFilter,
-    TrackerConfig,
-    plan_path,
-    segment_free,
-)
-from coverage_ros.core.world import RobotSpec
+from coverage_ros.core.control.controller import ControllerConfig, RobotController
+from coverage_ros.core.control.neighbours import NeighbourTable
+from coverage_ros.core.control.planning import plan_path, segment_free
+from coverage_ros.core.control.safety import SafetyConfig, SafetyFilter
+from coverage_ros.core.control.tracking import PathTracker, TrackerConfig
+from coverage_ros.core.geodesic.domain import CoverageDomain
+from coverage_ros.core.world import RobotSpec, load_world
+from coverage_ros.core.world.grid import OCCUPIED, GridMap
 
 RES = 0.05
 RADIUS = 0.105
@@ -148,3 +145,52 @@ def test_controller_update_and_command():
     v, w = c.command(0.6, 0.1)
     assert abs(v) <= 0.22 and abs(w) <= 2.84
 
+
+
+def test_vectorized_shortcut_equals_the_segment_by_segment_greedy():
+    """shortcut() checks candidates in batches; the result is the one-by-one greedy's."""
+    from coverage_ros.core.control.planning import PATH_MARGIN, SHORTCUT_REACH, shortcut
+
+    def slow(domain, path):
+        out, i = [path[0]], 0
+        while i < len(path) - 1:
+            j = min(len(path) - 1, i + SHORTCUT_REACH)
+            if j > i + 1 and not segment_free(domain, path[i], path[i + 2], PATH_MARGIN):
+                j = i + 1
+            while j > i + 1 and not segment_free(domain, path[i], path[j], PATH_MARGIN):
+                j -= 1
+            out.append(path[j])
+            i = j
+        return np.array(out)
+
+    world = load_world(WORLDS / "office.yaml")
+    domain = CoverageDomain.from_grid(world.grid, 0.105)
+    rng = np.random.default_rng(7)
+    free = np.argwhere(domain.free)
+    for _ in range(10):
+        a, b = domain.to_map(free[rng.integers(len(free), size=2)][:, ::-1] + 0.5)
+        path = plan_path(domain, a, b)
+        if path is None:
+            continue
+        # A dense path (every cell of a grid path) to shorten again.
+        dense = np.vstack([np.linspace(p, q, 6, endpoint=False) for p, q in
+                           itertools.pairwise(path)] + [path[-1:]])
+        np.testing.assert_array_equal(shortcut(domain, dense), slow(domain, dense))
+
+
+
+def test_a_self_steering_command_is_re_steered_towards_its_heading_between_updates():
+    """A turn rate held for a whole coverage period overshoots (saturated, the robot spins):
+    the tracking loop turns towards the strategy's heading instead."""
+    c = RobotController(room(wall=False), ControllerConfig(robot_id=0))
+    c.set_pose((1.0, 1.5, 0.0))
+    c.velocity, c.heading = (0.2, 2.84), 0.3  # what the strategy decided at yaw 0
+    v, w = c.command(0.0, 0.1)
+    assert w == pytest.approx(2.5 * 0.3) and v == pytest.approx(0.2)
+    c.set_pose((1.0, 1.5, 0.3))  # turned as far as wanted: stop turning
+    assert c.command(0.1, 0.1)[1] == pytest.approx(0.0, abs=1e-9)
+    c.set_pose((1.0, 1.5, 0.3 + 1.5))  # far off: turn back in place
+    v, w = c.command(0.2, 0.1)
+    assert v == 0.0 and w == pytest.approx(-2.84)
+    c.heading = None  # no heading: the command is held as it is
+    assert c.command(0.3, 0.1) == pytest.approx((0.2, 2.84))

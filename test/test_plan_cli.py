@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 from conftest import REPO, WORLDS
 
-from coverage_ros.cli.plan import main, parse_starts
-from coverage_ros.core.world import load_world
+from coverage_ros.cli.plan import main
+from coverage_ros.core.world import clearance, load_world, parse_poses
 from coverage_ros.errors import ConfigError
 
 
@@ -41,7 +41,7 @@ def test_json_summary(plan):
     assert data["H"] < 0.3 * data["H_start"]
     world = load_world(WORLDS / "l_shape.yaml")
     for x, y in final:
-        assert world.start_clearance(x, y) >= 0.105
+        assert clearance(world, x, y) >= 0.105
 
 
 def test_png_picture(plan):
@@ -67,7 +67,8 @@ def test_recording_holds_the_expected_entities(plan):
 @pytest.mark.parametrize("args, message", [
     (["--map", "/nonexistent/map.yaml", "--robots", "2"], "/nonexistent/map.yaml: file not found"),
     (["--map", "office", "--robots", "2", "--starts", "1,1;x,2"], r"--starts\[1\]"),
-    (["--map", "office", "--robots", "2", "--starts", "1,1"], "gives 1 positions for --robots 2"),
+    (["--map", "office", "--robots", "2", "--starts", "1,1"],
+     "--starts: gives 1 poses for 2 robots"),
     (["--map", "office", "--robots", "1", "--starts", "4.0,1.5"], r"--starts\[0\].*inside"),
     (["--map", "nosuchworld", "--robots", "1"], "no shipped world of that name"),
 ])
@@ -80,10 +81,10 @@ def test_errors_are_one_line_and_named(args, message, capsys):
     assert re.search(message, err), err
 
 
-def test_parse_starts():
-    assert parse_starts("1,2;3,4,0.5").tolist() == [[1, 2, 0], [3, 4, 0.5]]
+def test_parse_poses():
+    assert parse_poses("1,2;3,4,0.5").tolist() == [[1, 2, 0], [3, 4, 0.5]]
     with pytest.raises(ConfigError, match="nan"):
-        parse_starts("1,nan")
+        parse_poses("1,nan")
 
 
 def test_console_script_runs(tmp_path):
@@ -102,8 +103,8 @@ def test_console_script_runs(tmp_path):
     ("bvc", 1.0),  # drives to density peaks: under a uniform density a cluster stays put
 ])
 def test_other_strategies_write_the_same_outputs(strategy, max_ratio, tmp_path):
-    from coverage_ros.core.domain import CoverageDomain
-    from coverage_ros.core.tessellation import Generator, tessellate
+    from coverage_ros.core.geodesic.domain import CoverageDomain
+    from coverage_ros.core.geodesic.tessellation import Generator, tessellate
 
     world_path = WORLDS / "l_shape.yaml"
     code = main(["--map", str(world_path), "--robots", "3", "--strategy", strategy,

@@ -14,33 +14,17 @@ import numpy as np
 import pytest
 from conftest import REPO
 from rosutil import NodeProcess, RosClient, domain_id
+from rrdutil import read_rrd
 
-from coverage_ros.core.grid import GridMap
+from coverage_ros.core.control.pose_history import PoseHistory
+from coverage_ros.core.world.grid import GridMap
 from coverage_ros.viz.colors import robot_color
-from coverage_ros.viz.team import PoseHistory, Schedule, Trajectory, compose_cell_labels
+from coverage_ros.viz.team import Schedule, Trajectory, compose_cell_labels
 
 RERUN = REPO / ".venv" / "bin" / "rerun"
 
 
 # ---------------------------------------------------------------------------- reading a recording
-def read_rrd(path) -> dict[str, list[tuple[float | None, dict]]]:
-    """``{entity: [(sim_time [s] or None if static, {component: value}), ...]}``, time-sorted."""
-    from rerun.chunk import RrdReader
-
-    rows: dict[str, list] = {}
-    for chunk in RrdReader(path).store().stream():
-        batch = chunk.to_record_batch()
-        names = batch.schema.names
-        times = (batch.column("sim_time").cast("int64").to_pylist() if "sim_time" in names
-                 else [None] * batch.num_rows)
-        batch = batch.drop_columns([n for n in ("log_time", "sim_time") if n in names])
-        for t, row in zip(times, batch.to_pylist(), strict=True):
-            rows.setdefault(chunk.entity_path, []).append((None if t is None else t * 1e-9, row))
-    for entries in rows.values():
-        entries.sort(key=lambda e: -1.0 if e[0] is None else e[0])
-    return rows
-
-
 def cell_rgba(row: dict) -> np.ndarray:
     """``(H, W, 4)`` cell layer of a /world/cells row, flipped back to ROS row order."""
     fmt = row["GridMap:format"][0]
@@ -196,7 +180,7 @@ def test_live_team_layers_without_ros(tmp_path):
     assert len(H) >= 3 and all(h > 0 for h in H)
     m3 = {t: r["Scalars:scalars"][0] for t, r in rows["/metrics/mass/robot_3"] if t is not None}
     m7 = {t: r["Scalars:scalars"][0] for t, r in rows["/metrics/mass/robot_7"] if t is not None}
-    from coverage_ros.core.domain import CoverageDomain
+    from coverage_ros.core.geodesic.domain import CoverageDomain
 
     total = CoverageDomain.from_grid(grid, 0.1).mass_element.sum()
     # The cells of the robots posed at t cover the free space (robot 7 may miss the first
@@ -477,7 +461,7 @@ def test_scans_lie_on_walls_or_other_robots(run):
 
 @pytest.mark.integration
 def test_metrics_cover_the_free_space(run):
-    from coverage_ros.core.domain import CoverageDomain
+    from coverage_ros.core.geodesic.domain import CoverageDomain
     from coverage_ros.core.world import load_world
     from coverage_ros.worlds import resolve_world_path
 

@@ -132,6 +132,10 @@ def test_neighbours_are_discovered_and_bad_states_dropped(team):
     (["-p", "robot_id:=0", "-p", "world:=nowhere"], "no shipped world of that name"),
     (["-p", "robot_id:=0", "-p", "strategy_params:=justtext"], "strategy_params: must be a YAML"),
     (["-p", "robot_id:=0", "-p", "strategy_params:=[1, 2]"], "'strategy_params'"),
+    (["-p", "robot_id:=0", "-p", "map_free:=true", "-p", "world:=office"],
+     "map_free: strategy geodesic needs a map"),
+    (["-p", "robot_id:=0", "-p", "map_free:=true", "-p", "strategy:=bvc"],
+     "map_free: needs the area: 'world' or 'bounds'"),
 ])
 def test_bad_parameters_exit_with_one_line(args, message):
     env = ros_env(domain_id(11))
@@ -199,3 +203,40 @@ def test_update_worker_keeps_within_its_cpu_budget():
         assert worker.request(4.0)
     finally:
         worker.close()
+
+
+def test_coverage_teleop_takes_the_robot_over_and_hands_it_back(team):
+    """The terminal teleop in a real terminal (a pty): two presses of the left arrow turn the
+    robot in place at 2/5 of its turn rate; 'q' stops it and gives it back to its strategy."""
+    import os
+    import pty
+    import time
+
+    from geometry_msgs.msg import Twist
+
+    _world, robot, client = team
+    cmds = client.subscribe("/robot_0/cmd_vel", Twist)
+    master, slave = pty.openpty()
+    teleop = subprocess.Popen([str(REPO / ".venv" / "bin" / "coverage-teleop"), "--robot", "0",
+                               "--domain-id", str(domain_id(10))],
+                              stdin=slave, stdout=slave, stderr=slave, start_new_session=True,
+                              env=ros_env(domain_id(10)))
+    os.close(slave)
+    try:
+        client.spin_until(lambda: "manual: driven by teleop/cmd_vel" in robot.output(), 30,
+                          "the robot to be taken over")
+        os.write(master, b"\x1b[D\x1b[D")
+        cmds.clear()
+        client.spin_for(2.0)
+        turning = [(m.linear.x, m.angular.z) for m in cmds[-5:]]
+        assert all(v == 0.0 and w == pytest.approx(2 * 2.84 / 5) for v, w in turning), turning
+        os.write(master, b"q")
+        assert teleop.wait(timeout=20) == 0
+    finally:
+        if teleop.poll() is None:
+            teleop.kill()
+        os.close(master)
+    deadline = time.monotonic() + 10
+    while "robot 0: autonomous" not in robot.output() and time.monotonic() < deadline:
+        client.spin_for(0.2)
+    assert "robot 0: autonomous" in robot.output()

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from conftest import WORLDS, shared_map
 
-from coverage_ros.core.grid import GridMap
 from coverage_ros.core.world import LidarSpec, RobotSpec, load_world, parse_world
+from coverage_ros.core.world.grid import GridMap
 from coverage_ros.sim.lidar import SegmentIndex, beam_angles, ray_circle_ranges
 from coverage_ros.sim.static_geometry import grid_boundary_segments
 from coverage_ros.sim.world import SimConfig, World

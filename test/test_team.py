@@ -61,3 +61,42 @@ def test_a_lost_robots_area_is_absorbed_by_the_others(tmp_path):
     best = best_plan_cost(3, (2, 0), tmp_path)
     assert m["H"] <= 1.2 * best, (m["H"], best)
     assert all(robots[i]["collisions"] == 0 for i in (0, 2, 3))
+
+
+MIXED_WORLD = """\
+name: mixed
+bounds: [0, 0, 8, 6]
+obstacles:
+  - {type: box, center: [4.0, 3.0], size: [0.4, 2.0]}
+robots:
+  - {pose: [1.0, 1.0, 0.0]}
+  - {pose: [1.6, 1.0, 0.0], radius: 0.16, v_max: 0.3, sensor_radius: 2.0, power_weight: 0.2}
+  - {pose: [1.0, 1.7, 0.0], radius: 0.13, v_max: 0.15, w_max: 2.0, sensor_radius: 2.5}
+"""
+
+
+def test_each_robot_runs_with_its_own_spec_from_the_world_file(tmp_path):
+    """Robots that differ in radius, speed and sensing: each simulated body and each robot
+    node use that robot's own values (the world node's status, the robot's start-up log)."""
+    from coverage_ros.core.world import load_world
+
+    world_file = tmp_path / "mixed.yaml"
+    world_file.write_text(MIXED_WORLD)
+    out = tmp_path / "team"
+    proc = subprocess.run(
+        [str(REPO / ".venv" / "bin" / "coverage-team"), "--world", str(world_file), "--quiet",
+         "--robots", "3", "--duration", "8", "--out", str(out),
+         "--domain-id", str(domain_id(14))], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    summary = json.loads((out / "summary.json").read_text())
+    world = load_world(world_file)
+    for r in summary["robots"]:
+        want = world.robot_spec(r["id"]).numbers()
+        assert r["spec"] == pytest.approx(want), r["id"]
+        assert r["body"] == pytest.approx(want), r["id"]  # what the world node simulates
+        assert r["start"][:2] == pytest.approx([s for s in (world.starts[r["id"]].x,
+                                                            world.starts[r["id"]].y)])
+        log = (out / "logs" / f"robot_{r['id']}.log").read_text()
+        assert world.robot_spec(r["id"]).describe() in log, log[-2000:]
+    assert summary["robots"][1]["spec"]["radius"] == 0.16
+    assert summary["robots"][2]["spec"]["v_max"] == 0.15

@@ -1,15 +1,15 @@
 """Benchmark of one robot's decentralized geodesic update (``scripts/bench_core``).
 
-Scenario (seed 000, Fig. 13 style): an n x n grid at 5 cm with an L-shaped obstacle, 9 robots
-on a jittered 3 x 3 lattice; the centre robot updates its cell and control with its 8
-neighbours while all robots drift by about a centimetre per update, as they do between control
-periods. Timed, interleaved in one process so machine-speed drift affects all alike:
+Scenario (Bhattacharya et al. 2014, Fig. 13 style): an n x n grid at 5 cm with an L-shaped
+obstacle, 9 robots on a jittered 3 x 3 lattice; the centre robot updates its cell and control with
+its 8 neighbours while all robots drift by about a centimetre per update, as they do between
+control periods. Timed, interleaved in one process so machine-speed drift affects all alike:
 
 * ``update_ms`` - the fast update in ``paper`` mode (the pseudo-code's sources and first-edge
   tangents), with its per-robot search cache;
 * ``visibility_ms`` - the same in the default ``visibility`` mode;
 * ``reference_ms`` - the straightforward heapq implementation of the pseudo-code
-  (:func:`coverage_ros.core.reference.paper_cell`), on the same inputs.
+  (:func:`coverage_ros.core.geodesic.reference.paper_cell`), on the same inputs.
 
 A second table shows how the update time follows the robot's own cell area: k x k robots on
 n x n grids; equal n/k means equal cell area.
@@ -27,10 +27,11 @@ import time
 
 import numpy as np
 
-from coverage_ros.core.domain import CoverageDomain
-from coverage_ros.core.grid import OCCUPIED, GridMap
-from coverage_ros.core.reference import adjacency, paper_cell
-from coverage_ros.core.tessellation import Generator, SearchCache, geodesic_cell
+from coverage_ros.core.geodesic.cell import SearchCache, geodesic_cell
+from coverage_ros.core.geodesic.domain import CoverageDomain
+from coverage_ros.core.geodesic.reference import adjacency, paper_cell
+from coverage_ros.core.geodesic.tessellation import Generator
+from coverage_ros.core.world.grid import OCCUPIED, GridMap
 
 RESOLUTION = 0.05  # [m] per cell, as the shipped maps
 DRIFT = 0.01  # [m] std of each robot's motion between two updates

@@ -1,7 +1,7 @@
 """coverage-plan: run a coverage strategy offline on a map and report where the robots end.
 
 Every robot's decentralized update is run centrally, iteration after iteration, until the
-team converges (see :mod:`coverage_ros.core.offline`). Writes a JSON summary, a PNG picture
+team converges (see :mod:`coverage_ros.core.offline.runner`). Writes a JSON summary, a PNG picture
 and optionally a rerun recording; prints progress to stderr.
 
     coverage-plan --map ../shared/maps/tb3_sandbox.yaml --robots 6 --json plan.json --png plan.png
@@ -11,45 +11,23 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-from coverage_ros.core.domain import CoverageDomain
+from coverage_ros.cli.plan_explore import plan_exploration
+from coverage_ros.core.geodesic.domain import CoverageDomain
+from coverage_ros.core.geodesic.tessellation import Generator, tessellate
 from coverage_ros.core.metrics import mass_deviation
-from coverage_ros.core.offline import OfflineConfig, run_offline
-from coverage_ros.core.strategies import STRATEGIES, StrategyContext
-from coverage_ros.core.tessellation import Generator, tessellate
-from coverage_ros.core.world import (
-    RobotSpec,
-    WorldSpec,
-    cluster_starts,
-    load_world,
-    parse_poses,
-    validate_starts,
-)
+from coverage_ros.core.offline.runner import OfflineConfig, run_offline
+from coverage_ros.core.strategies import EXPLORERS, STRATEGIES, StrategyContext, strategy_choice
+from coverage_ros.core.world import WorldSpec, load_world
+from coverage_ros.core.world.placement import team_starts
+from coverage_ros.core.world.yaml_io import yaml_mapping
 from coverage_ros.errors import ConfigError, CoverageError
 from coverage_ros.worlds import resolve_world_path
-
-
-def parse_starts(text: str, where: str = "--starts") -> np.ndarray:
-    """``"x,y;x,y"`` or ``"x,y,yaw;..."`` -> ``(n, 3)`` (yaw 0 when omitted)."""
-    return parse_poses(text, where)
-
-
-def choose_starts(world: WorldSpec, n: int, radius: float, starts: str | None,
-                  seed: int) -> np.ndarray:
-    if starts is None:
-        return cluster_starts(world.grid, n, radius, np.random.default_rng(seed))
-    arr = parse_starts(starts)
-    if len(arr) != n:
-        raise ConfigError.at("--starts", f"gives {len(arr)} positions for --robots {n}",
-                             starts)
-    validate_starts(world, [(x, y, radius) for x, y, _ in arr], "--starts")
-    return arr
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -57,9 +35,14 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--map", required=True,
                     help="map_server YAML, package world YAML, or a shipped world name")
     ap.add_argument("--robots", type=int, required=True, help="team size")
-    ap.add_argument("--starts", help="start positions 'x,y;x,y;...' [m] (default: a compact "
-                    "seeded cluster, so the robots must spread)")
-    ap.add_argument("--strategy", default="geodesic", choices=sorted(STRATEGIES))
+    ap.add_argument("--starts", help="start positions 'x,y;x,y;...' [m] (default: the world's "
+                    "start poses if it lists one per robot, else a compact seeded cluster, so "
+                    "the robots must spread)")
+    ap.add_argument("--strategy", default="geodesic",
+                    choices=sorted(set(STRATEGIES) | set(EXPLORERS)),
+                    help="coverage strategy; exploring: geodesic or frontier")
+    ap.add_argument("--strategy-params", default="",
+                    help="YAML mapping of strategy parameters, e.g. '{method: paper}'")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--robot-radius", type=float, default=None,
                     help="[m] robot radius (default: the world's, TurtleBot3 0.105)")
@@ -67,6 +50,12 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--tolerance", type=float, default=0.02,
                     help="[m] converged when no robot moves more than this")
     ap.add_argument("--connectivity", type=int, default=8, choices=(8, 16))
+    ap.add_argument("--explore", action="store_true",
+                    help="the robots start with no map and explore it (simulated lidar)")
+    ap.add_argument("--duration", type=float, default=900.0,
+                    help="[s] with --explore: sim time at most")
+    ap.add_argument("--until-explored", type=float, default=None, metavar="F",
+                    help="with --explore: stop once this share of the free area is explored")
     ap.add_argument("--json", type=Path, help="write the JSON summary here")
     ap.add_argument("--png", type=Path, help="write a picture here")
     ap.add_argument("--record", type=Path, help="write a rerun recording (.rrd) here")
@@ -78,18 +67,31 @@ def run(args: argparse.Namespace) -> dict:
     say = (lambda *_: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
     if args.robots < 1:
         raise ConfigError.at("--robots", "must be >= 1", args.robots)
+    for out in (args.json, args.png, args.record):
+        if out is not None:
+            out.parent.mkdir(parents=True, exist_ok=True)
     path = resolve_world_path(args.map, "--map")
     world = load_world(path)
-    radius = world.robot.radius if args.robot_radius is None else args.robot_radius
-    if not (math.isfinite(radius) and radius > 0):
-        raise ConfigError.at("--robot-radius", "must be a number > 0", radius)
-    starts = choose_starts(world, args.robots, radius, args.starts, args.seed)
-    domain = CoverageDomain.from_grid(world.grid, radius, world.density,
-                                      connectivity=args.connectivity)
-    robot = RobotSpec(radius=radius, v_max=world.robot.v_max, w_max=world.robot.w_max,
-                      a_max=world.robot.a_max, alpha_max=world.robot.alpha_max,
-                      lidar=world.robot.lidar)
-    contexts = [StrategyContext(domain=domain, robot=robot, robot_id=i,
+    choice = strategy_choice(args.strategy,
+                             yaml_mapping(args.strategy_params, "--strategy-params"),
+                             "--strategy-params", explore=args.explore)
+    if args.until_explored is not None and not (args.explore and 0 < args.until_explored <= 1):
+        raise ConfigError.at("--until-explored", "needs --explore and a fraction in (0, 1]",
+                             args.until_explored)
+    specs = [world.robot_spec(i) for i in range(args.robots)]
+    if args.robot_radius is not None:
+        specs = [s.with_overrides({"radius": args.robot_radius}, "--robot-radius")
+                 for s in specs]
+    radius = max(s.radius for s in specs)
+    starts = team_starts(world, specs, args.starts, args.seed)
+    if args.explore:
+        summary = plan_exploration(args, world, path, choice, specs, starts, say)
+        if args.json:
+            args.json.write_text(json.dumps(summary, indent=2))
+            say(f"  wrote {args.json}")
+        return summary
+    domain = CoverageDomain.from_world(world, radius, connectivity=args.connectivity)
+    contexts = [StrategyContext(domain=domain, robot=specs[i], robot_id=i,
                                 convergence_tolerance=args.tolerance, seed=args.seed + i)
                 for i in range(args.robots)]
     say(f"coverage-plan: {args.strategy}, {args.robots} robots on {path} "
@@ -100,12 +102,14 @@ def run(args: argparse.Namespace) -> dict:
         if it == 1 or it % 10 == 0:
             say(f"  iteration {it:4d}: sum of cell costs {cost:.4g}")
 
-    result = run_offline(domain, args.strategy, starts, contexts=contexts,
+    result = run_offline(domain, choice, starts, contexts=contexts,
                          config=OfflineConfig(max_iterations=args.max_iterations),
                          progress=progress)
     final = result.positions[-1]
-    tess = tessellate(domain, [Generator(p) for p in final])
-    H0 = tessellate(domain, [Generator(p) for p in result.positions[0]]).cost
+    weights = [s.power_weight for s in specs]
+    tess = tessellate(domain, [Generator(p, w) for p, w in zip(final, weights, strict=True)])
+    H0 = tessellate(domain, [Generator(p, w) for p, w in
+                             zip(result.positions[0], weights, strict=True)]).cost
     ms = np.array(result.update_seconds) * 1e3
     summary = {
         "map": str(path), "strategy": args.strategy, "robots": args.robots,

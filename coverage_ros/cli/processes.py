@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
+import json
 import os
 import signal
 import subprocess
@@ -17,6 +18,8 @@ import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
+
+import yaml
 
 PACKAGE = "coverage_ros"
 PR_SET_PDEATHSIG = 1  # linux/prctl.h
@@ -44,18 +47,30 @@ def executable(name: str) -> list[str]:
 
 
 def ros_args(namespace: str | None = None, **params) -> list[str]:
+    """``--ros-args [-r __ns:=NS] -p name:=value ...``; values are written so that rcl's YAML
+    parser reads back exactly them (a string that YAML would read as something else, such as
+    ``{method: paper}``, is quoted)."""
     out = ["--ros-args"]
     if namespace:
         out += ["-r", f"__ns:={namespace}"]
     for key, value in params.items():
-        if isinstance(value, bool):
-            text = "true" if value else "false"
-        elif isinstance(value, str):
-            text = value if value else "''"
-        else:
-            text = repr(value)
-        out += ["-p", f"{key}:={text}"]
+        out += ["-p", f"{key}:={parameter_text(value)}"]
     return out
+
+
+def parameter_text(value) -> str:
+    """How a parameter value is written after ``-p name:=``."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        if not value:
+            return "''"
+        try:
+            plain = yaml.safe_load(value) == value
+        except yaml.YAMLError:
+            plain = False
+        return value if plain else json.dumps(value)
+    return repr(value)
 
 
 @dataclass
@@ -96,7 +111,7 @@ class ProcessSet:
     def stop(self, names: list[str] | None = None, timeout: float = 8.0) -> None:
         """SIGINT, wait; SIGTERM, wait; SIGKILL - for the given children (default all)."""
         names = [n for n in (names or list(self.children)) if n in self.children]
-        for sig, wait in ((signal.SIGINT, timeout), (signal.SIGTERM, 3.0),
+        for sig, wait in ((signal.SIGINT, timeout), (signal.SIGTERM, min(3.0, timeout)),
                           (signal.SIGKILL, 3.0)):
             alive = [n for n in names if self.children[n].alive]
             if not alive:

@@ -15,22 +15,29 @@ import contextlib
 import json
 import math
 import os
-import random
 import signal
 import sys
 import time
 from pathlib import Path
 
-import numpy as np
+import yaml
 
-from coverage_ros.cli.processes import ProcessSet, executable, ros_args
+from coverage_ros.cli.domains import acquire_domain
+from coverage_ros.cli.processes import ProcessSet, executable, parameter_text, ros_args
 from coverage_ros.cli.team_metrics import TeamTracker, summary_table
-from coverage_ros.core.domain import CoverageDomain
-from coverage_ros.core.strategies import STRATEGIES
-from coverage_ros.core.world import cluster_starts, load_world, parse_poses, validate_starts
+from coverage_ros.cli.team_setup import build_team
+from coverage_ros.core.geodesic.domain import CoverageDomain
+from coverage_ros.core.strategies import EXPLORERS, STRATEGIES, strategy_choice
+from coverage_ros.core.world import load_planar_world, write_team
+from coverage_ros.core.world.robot import RobotSpec
+from coverage_ros.core.world.yaml_io import yaml_mapping
 from coverage_ros.errors import ConfigError, CoverageError
+from coverage_ros.nodes.robot_config import SPEC_PARAMETERS
 from coverage_ros.worlds import resolve_world_path
 
+#: [s] wall time the children get to stop cleanly after an interrupt before SIGTERM, then SIGKILL
+#: (everything is gone within 10 s).
+INTERRUPT_GRACE = 4.0
 STARTUP_TIMEOUT = 90.0  # [s] wall time for the world and robots to come up (16 robots, 2 cores)
 PROGRESS_PERIOD = 0.5  # [s] wall time between progress refreshes
 #: [s] wall time between coverage cost evaluations for the progress bar (a tessellation of a
@@ -40,14 +47,36 @@ METRICS_PERIOD = 10.0
 
 def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="coverage-team", description=__doc__.split("\n")[0])
-    ap.add_argument("--robots", type=int, default=4, help="team size")
+    ap.add_argument("--robots", type=int, default=None,
+                    help="team size (default 4, or the team file's)")
+    ap.add_argument("--team", type=Path, metavar="TEAM.yaml",
+                    help="the robots: id, start, spec fields and role of each (see "
+                    "config/teams/); values not given come from the world")
+    ap.add_argument("--human", type=int, action="append", default=[], metavar="ID",
+                    help="robot ID is driven by a person (its teleop topic) from the start; "
+                    "repeatable")
     ap.add_argument("--world", default="office",
                     help="package world YAML, map_server YAML or a shipped world name")
-    ap.add_argument("--strategy", default="geodesic", choices=sorted(STRATEGIES))
+    ap.add_argument("--strategy", default="geodesic",
+                    choices=sorted(set(STRATEGIES) | set(EXPLORERS)),
+                    help="coverage strategy; exploring: geodesic or frontier")
+    ap.add_argument("--strategy-params", default="",
+                    help="YAML mapping of strategy settings for every robot, e.g. "
+                    "'{variant: nearest}' (robot_node's strategy_params)")
+    ap.add_argument("--explore", action="store_true",
+                    help="the robots start with no map and explore (the world's true map is "
+                    "only simulated and used for scoring)")
+    ap.add_argument("--map-free", action="store_true",
+                    help="the robots get no map (strategies that need none: bvc); the world "
+                    "node still simulates the world's")
+    ap.add_argument("--until-explored", type=float, default=None, metavar="F",
+                    help="with --explore: end the run once the team has explored this share "
+                    "of the reachable free area")
     ap.add_argument("--duration", type=float, default=60.0, help="[s] simulated time to run")
     ap.add_argument("--seed", type=int, default=0, help="start cluster and simulator seed")
-    ap.add_argument("--starts", help="start poses 'x,y,yaw;...' (default: a compact seeded "
-                    "cluster, so the robots must spread)")
+    ap.add_argument("--starts", help="start poses 'x,y,yaw;...' (default: the world's start "
+                    "poses if it lists one per robot, else a compact seeded cluster, so the "
+                    "robots must spread)")
     ap.add_argument("--rtf", type=float, default=1.0,
                     help="real-time factor of the simulation (0: as fast as possible)")
     ap.add_argument("--out", type=Path, help="output folder (default out/team-<time>)")
@@ -66,8 +95,9 @@ def build_parser() -> argparse.ArgumentParser:
                     "(0: every physics step)")
     ap.add_argument("--odom-rate", type=float, default=10.0,
                     help="[Hz, sim time] odom and ground_truth rate (Stage's 10 Hz)")
-    ap.add_argument("--sensor-radius", type=float, default=3.5,
-                    help="[m] sensing radius for coverage_ratio")
+    ap.add_argument("--sensor-radius", type=float, default=None,
+                    help="[m] every robot's sensing radius (coverage_ratio, sensor-based "
+                    "strategies); default: each robot's from the world (TurtleBot3: 3.5)")
     ap.add_argument("--robot-param", action="append", default=[], metavar="NAME:=VALUE",
                     help="extra robot_node parameter (repeatable), e.g. strategy_params:={...}")
     ap.add_argument("--kill", action="append", default=[], metavar="ID@SECONDS",
@@ -76,14 +106,6 @@ def build_parser() -> argparse.ArgumentParser:
                     help="sample CPU and memory of every process into summary.json")
     ap.add_argument("--quiet", action="store_true", help="no progress display")
     return ap
-
-
-def _domain_id(requested: int | None) -> int:
-    if requested is not None:
-        if not 0 <= requested <= 232:
-            raise ConfigError.at("--domain-id", "must be in 0..232", requested)
-        return requested
-    return random.SystemRandom().randint(100, 199)
 
 
 def _kills(specs: list[str], n: int) -> list[tuple[float, int]]:
@@ -100,12 +122,19 @@ def _kills(specs: list[str], n: int) -> list[tuple[float, int]]:
 
 
 def _robot_params(items: list[str]) -> dict[str, str]:
+    """``NAME:=VALUE`` items as robot_node parameters. VALUE is written as on a ``ros2 run``
+    command line, except that a YAML mapping (``strategy_params:={variant: nearest}``) is
+    passed as the string it is meant to be."""
     params = {}
     for item in items:
         if ":=" not in item:
             raise ConfigError.at("--robot-param", "must be NAME:=VALUE", item)
         k, v = item.split(":=", 1)
-        params[k.strip()] = v
+        try:
+            is_mapping = isinstance(yaml.safe_load(v), dict)
+        except yaml.YAMLError:
+            is_mapping = False
+        params[k.strip()] = parameter_text(v) if is_mapping else v
     return params
 
 
@@ -130,7 +159,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def run(args: argparse.Namespace) -> int:
-    if args.robots < 1:
+    if args.robots is not None and args.robots < 1:
         raise ConfigError.at("--robots", "must be >= 1", args.robots)
     if not (math.isfinite(args.duration) and args.duration > 0):
         raise ConfigError.at("--duration", "must be > 0 [s]", args.duration)
@@ -140,26 +169,35 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError.at("--odom-rate", "must be > 0 [Hz]", args.odom_rate)
     if not (math.isfinite(args.rtf) and args.rtf >= 0):
         raise ConfigError.at("--rtf", "must be >= 0 (0: as fast as possible)", args.rtf)
+    # The strategy and its settings are checked here, before any process starts.
+    choice = strategy_choice(args.strategy,
+                             yaml_mapping(args.strategy_params, "--strategy-params"),
+                             "--strategy-params", explore=args.explore)
+    if args.map_free and (args.explore or choice.needs_map):
+        raise ConfigError.at("--map-free", f"strategy {args.strategy} needs a map"
+                             if choice.needs_map else "and --explore exclude each other", True,
+                             "--strategy bvc without --explore")
+    if args.until_explored is not None and not (args.explore and 0 < args.until_explored <= 1):
+        raise ConfigError.at("--until-explored", "needs --explore and a fraction in (0, 1]",
+                             args.until_explored)
     world_path = resolve_world_path(args.world, "--world")
-    world = load_world(world_path)
-    radius = world.robot.radius
-    if args.starts:
-        starts = parse_poses(args.starts, "--starts")
-        if len(starts) != args.robots:
-            raise ConfigError.at("--starts", f"gives {len(starts)} poses for --robots "
-                                 f"{args.robots}", args.starts)
-        validate_starts(world, [(x, y, radius) for x, y, _ in starts], "--starts")
-    else:
-        starts = cluster_starts(world.grid, args.robots, radius, np.random.default_rng(args.seed))
+    world = load_planar_world(world_path, "--world")
+    team = build_team(world, args)  # refuses teams the map or the machine cannot hold
+    args.robots = len(team)
+    specs = [m.spec for m in team]
+    radius = max(s.radius for s in specs)
     kills = _kills(args.kill, args.robots)
     load = args.update_load if args.update_load is not None else default_update_load(args.robots)
     if not (math.isfinite(load) and 0 < load <= 1):
         raise ConfigError.at("--update-load", "must be a fraction in (0, 1]", load)
     extra = _robot_params(args.robot_param)
+    # One DDS domain per run, for sure: held until this process exits.
+    domain_lock = acquire_domain(args.domain_id)
+    domain_id = domain_lock.domain_id
     out = args.out or Path("out") / time.strftime("team-%Y%m%d-%H%M%S")
     out.mkdir(parents=True, exist_ok=True)
     (out / "logs").mkdir(exist_ok=True)
-    domain_id = _domain_id(args.domain_id)
+    write_team(out / "team.yaml", team)
     env = dict(os.environ)
     env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     env["ROS_DOMAIN_ID"] = str(domain_id)
@@ -173,56 +211,83 @@ def run(args: argparse.Namespace) -> int:
         f"{env['ROS_AUTOMATIC_DISCOVERY_RANGE']}); output in {out}")
 
     procs = ProcessSet(env, out / "logs")
-    # Robots first: they load while the world starts, then wait for /map and /clock.
-    for i in range(args.robots):
-        params = {"robot_id": i, "use_sim_time": True, "strategy": args.strategy,
-                  "world": str(world_path), "control_rate": float(args.control_rate),
-                  "robot_radius": radius, "sensor_radius": float(args.sensor_radius),
-                  "update_load": float(load)}
-        cmd = executable("robot_node") + ros_args(f"/robot_{i}", **params)
-        cmd += [a for k, v in extra.items() for a in ("-p", f"{k}:={v}")]
-        procs.start(f"robot_{i}", cmd)
-    start_text = ";".join(f"{x:.4f},{y:.4f},{yaw:.4f}" for x, y, yaw in starts)
-    procs.start("world", executable("world_node") + ros_args(
-        world=str(world_path), starts=start_text, num_robots=args.robots, seed=args.seed,
-        real_time_factor=float(args.rtf), clock_rate_hz=float(args.clock_rate),
-        odom_rate_hz=float(args.odom_rate), status_rate_hz=2.0))
-    viewer = _start_viz(args, procs, out, radius, world_path, say)
-
-    domain = CoverageDomain.from_grid(world.grid, radius, world.density)
+    domain = CoverageDomain.from_world(world, radius)
     interrupted = False
     failure = None
-    tracker = None
-    previous = signal.signal(signal.SIGTERM, _sigterm_as_interrupt)
+    tracker = viewer = None
+    # From the first process on, SIGINT and SIGTERM end the run the same way: children stopped
+    # (SIGKILL on their process groups at the end), a summary of what was measured, one line.
+    handlers = {sig: signal.signal(sig, _signal_as_interrupt)
+                for sig in (signal.SIGINT, signal.SIGTERM)}
     t_wall0 = time.monotonic()
     try:
-        tracker = TeamTracker(domain, world, starts, args, kills, procs, say)
+        tracker = TeamTracker(domain, world, team, args, kills, procs, say)
+        # Robots first: they load while the world starts, then wait for /map and /clock.
+        for member in team:
+            params = {"robot_id": member.id, "use_sim_time": True, "strategy": args.strategy,
+                      "world": str(world_path), "control_rate": float(args.control_rate),
+                      "update_load": float(load), "explore": bool(args.explore),
+                      "strategy_params": args.strategy_params,
+                      "manual": member.role == "human", "map_free": bool(args.map_free),
+                      **spec_parameters(member.spec)}
+            cmd = executable("robot_node") + ros_args(f"/robot_{member.id}", **params)
+            cmd += [a for k, v in extra.items() for a in ("-p", f"{k}:={v}")]
+            procs.start(f"robot_{member.id}", cmd)
+        procs.start("world", executable("world_node") + ros_args(
+            world=str(world_path), team=str((out / "team.yaml").resolve()), seed=args.seed,
+            real_time_factor=float(args.rtf), clock_rate_hz=float(args.clock_rate),
+            odom_rate_hz=float(args.odom_rate), status_rate_hz=2.0,
+            publish_map=not args.explore))
+        viewer = _start_viz(args, procs, out, radius, world_path, say)
         tracker.run(STARTUP_TIMEOUT, PROGRESS_PERIOD, METRICS_PERIOD)
     except KeyboardInterrupt:
         interrupted = True
-        say("\ncoverage-team: interrupted, stopping the team")
     except RuntimeError as exc:
         failure = str(exc)
     finally:
-        signal.signal(signal.SIGTERM, previous)
-        robots = [n for n in procs.children if n.startswith("robot_")]
-        procs.stop(robots)
-        procs.stop(["bridge"], timeout=15.0)  # let the recording be flushed and closed
-        procs.stop(["world"])
-        procs.stop()
+        # A second Ctrl-C must not cut the clean-up short.
+        for sig in handlers:
+            signal.signal(sig, signal.SIG_IGN)
+        if interrupted:
+            procs.stop(timeout=INTERRUPT_GRACE)  # all at once: nothing left within 10 s
+        else:
+            robots = [n for n in procs.children if n.startswith("robot_")]
+            procs.stop(robots)
+            procs.stop(["bridge"], timeout=15.0)  # let the recording be flushed and closed
+            procs.stop(["world"])
+            procs.stop()
+        for sig, previous in handlers.items():
+            signal.signal(sig, previous)
+    wall = time.monotonic() - t_wall0
+    try:
+        return _report(args, out, tracker, procs, viewer, wall, interrupted, failure, say)
+    finally:
         if tracker is not None:
             tracker.close()
-    wall = time.monotonic() - t_wall0
+        domain_lock.release()
+
+
+def _report(args, out: Path, tracker, procs: ProcessSet, viewer, wall: float,
+            interrupted: bool, failure: str | None, say) -> int:
+    """The summary and the lines that end a run (one line when interrupted)."""
     if failure is not None:
         print(f"coverage-team: error: {failure}", file=sys.stderr)
         return 1
-    if tracker is None or tracker.sim_time <= 0:
-        failed = procs.failed()
-        for child in failed:
+    if tracker is None:
+        print("coverage-team: interrupted before the team started", file=sys.stderr)
+        return 130
+    if tracker.sim_time <= 0 and not interrupted:
+        for child in procs.failed():
             say(f"  {child.name} exited with {child.popen.returncode}:\n{procs.tail(child)}")
         return 1
     summary = tracker.summary(wall, interrupted)
     (out / "summary.json").write_text(json.dumps(summary, indent=2))
+    if interrupted:
+        print(f"coverage-team: interrupted at sim time {tracker.sim_time:.1f} s; wrote "
+              f"{out / 'summary.json'} (\"interrupted\": true)", file=sys.stderr)
+        return 130
+    if tracker.exploration is not None:
+        say(f"  explored map: {tracker.exploration.write_map(out)}")
     if not args.quiet:
         print(summary_table(summary))
     say(f"coverage-team: wrote {out / 'summary.json'}; logs in {out / 'logs'}")
@@ -231,10 +296,16 @@ def run(args: argparse.Namespace) -> int:
     if viewer is not None:
         with contextlib.suppress(Exception):
             viewer.wait(timeout=0)
-    return 130 if interrupted else 0
+    return 0
 
 
-def _sigterm_as_interrupt(signum, frame) -> None:
+def spec_parameters(spec: RobotSpec) -> dict[str, float]:
+    """robot_node parameters that give it exactly ``spec`` (see nodes/robot_config.py)."""
+    values = spec.numbers()
+    return {param: values[field] for param, field in SPEC_PARAMETERS.items()}
+
+
+def _signal_as_interrupt(signum, frame) -> None:
     raise KeyboardInterrupt
 
 
@@ -244,7 +315,8 @@ def _start_viz(args, procs: ProcessSet, out: Path, radius: float, world_path: Pa
         return None
     import subprocess
 
-    params = {"robot_radius": radius, "world": str(world_path), "use_sim_time": True}
+    params = {"robot_radius": radius, "world": str(world_path), "use_sim_time": True,
+              "explore": bool(args.explore)}
     viewer = None
     if args.record:
         params["record_path"] = str((out / "recording.rrd").resolve())

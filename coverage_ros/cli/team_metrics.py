@@ -7,8 +7,8 @@ and at the end computes the summary metrics (definitions in README "Team launche
 
 * ``H`` / ``H_start``: geodesic coverage cost (density-weighted, as ``coverage-plan``) of the
   final / start positions of the robots still running;
-* ``mass_deviation_I``: seed 003's I of the final geodesic cell masses;
-* ``coverage_ratio``: free area within ``sensor_radius`` and line of sight of some robot;
+* ``mass_deviation_I``: Lee & Lee's I of the final geodesic cell masses;
+* ``coverage_ratio``: free area within its sensing radius and line of sight of some robot;
 * ``min_separation``: smallest distance between two robot centres during the run (the
   simulator checks every physics step);
 * ``converged_at``: first sim time from which H stayed within 2 % of its final value.
@@ -26,26 +26,34 @@ import numpy as np
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.node import Node
+from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Int32
+from std_srvs.srv import SetBool
 
+from coverage_ros.cli.team_exploration import TeamExploration
+from coverage_ros.core.geodesic.tessellation import Generator, tessellate
 from coverage_ros.core.metrics import coverage_ratio, mass_deviation
-from coverage_ros.core.tessellation import Generator, tessellate
+from coverage_ros.core.world.robot import NUMBER_FIELDS
 from coverage_ros.nodes import conversions as conv
-from coverage_ros.nodes.runner import quiet_subscription
+from coverage_ros.nodes.plumbing import quiet_subscription
 
 CONVERGED_BAND = 0.02  # H within 2 % of its final value counts as converged
+EXPLORE_PERIOD = 1.0  # [s] wall time between scores of an exploring team's merged belief
 
 
 class TeamTracker:
-    def __init__(self, domain, world, starts: np.ndarray, args, kills, procs, say) -> None:
+    def __init__(self, domain, world, team, args, kills, procs, say) -> None:
         self.domain, self.world, self.args = domain, world, args
-        self.starts = np.asarray(starts, dtype=np.float64)
+        self.team = {m.id: m for m in team}
+        self.starts = np.array([m.start for m in team], dtype=np.float64)
         self.kills = list(kills)
         self.procs, self.say = procs, say
         n = args.robots
-        rclpy.init()
+        # The launcher handles SIGINT itself (children stopped, a summary written): rclpy's
+        # handler would shut the context down under the tracker's spin instead.
+        rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
         self.node = Node("coverage_team")
         self.sim_time = 0.0
         self.ready_at: float | None = None
@@ -54,7 +62,7 @@ class TeamTracker:
         self.states_seen: set[int] = set()
         self.lost: dict[int, float] = {}
         self.H_samples: list[tuple[float, float]] = []
-        self.proc_stats = ProcessStats(procs) if getattr(args, "stats", False) else None
+        self.proc_stats: ProcessStats | None = None  # made in run(), once the children exist
         self.node.create_subscription(Clock, "/clock", self._on_clock, 10)
         self.node.create_subscription(DiagnosticArray, "/world/robots", self._on_status, 10)
         self.remove_pub = self.node.create_publisher(Int32, "/world/remove", 10)
@@ -62,6 +70,14 @@ class TeamTracker:
         self.state_subs = [self.node.create_subscription(
             JointState, f"/robot_{i}/coverage_state", lambda m, i=i: self.states_seen.add(i),
             10, event_callbacks=quiet_subscription()) for i in range(n)]
+        # Pause and resume the whole team: forwarded to every robot's own service.
+        self.pause_clients = {i: self.node.create_client(SetBool, f"/robot_{i}/pause")
+                              for i in range(n)}
+        self.node.create_service(SetBool, "/team/pause", self._on_pause)
+        self.exploration = None
+        if getattr(args, "explore", False):
+            self.exploration = TeamExploration(self.node, world, self.starts, list(range(n)),
+                                               max(m.spec.radius for m in team))
 
     # ------------------------------------------------------------------ inputs
     def _on_clock(self, msg: Clock) -> None:
@@ -77,6 +93,21 @@ class TeamTracker:
             if i not in self.lost:
                 self.poses[i] = np.array([float(values[k]) for k in ("x", "y", "yaw")])
 
+    def _on_pause(self, request, response):
+        asked = []
+        for i in self.alive():
+            client = self.pause_clients[i]
+            if client.service_is_ready():
+                client.call_async(SetBool.Request(data=request.data))
+                asked.append(i)
+        missing = sorted(set(self.alive()) - set(asked))
+        verb = "pausing" if request.data else "resuming"
+        response.success = not missing
+        response.message = f"{verb} robots {asked}" + (
+            f"; robots {missing} have no pause service yet" if missing else "")
+        self.say(f"\n  {response.message}")
+        return response
+
     @property
     def min_sep(self) -> float:
         return min((float(st.get("min_separation", "inf")) for st in self.status.values()),
@@ -89,6 +120,8 @@ class TeamTracker:
     def run(self, startup_timeout: float, progress_period: float, metrics_period: float) -> None:
         n = self.args.robots
         t0 = time.monotonic()
+        if getattr(self.args, "stats", False):
+            self.proc_stats = ProcessStats(self.procs)
         self.say("  waiting for the world and the robots ...")
         while self.ready_at is None:
             rclpy.spin_once(self.node, timeout_sec=0.1)
@@ -109,7 +142,8 @@ class TeamTracker:
                  f"{self.wall_start - t0:.1f} s wall")
         self.H_samples.append((self.ready_at, self._cost()))
         end = self.ready_at + self.args.duration
-        last_progress = last_metrics = 0.0
+        last_progress = last_metrics = last_explored = 0.0
+        until = getattr(self.args, "until_explored", None)
         try:
             while self.sim_time < end:
                 rclpy.spin_once(self.node, timeout_sec=0.05)
@@ -123,6 +157,13 @@ class TeamTracker:
                 if now - last_metrics >= metrics_period:
                     last_metrics = now
                     self.H_samples.append((self.sim_time, self._cost()))
+                if self.exploration is not None and now - last_explored >= EXPLORE_PERIOD:
+                    last_explored = now
+                    fraction = self.exploration.sample(self.sim_time - self.ready_at)
+                    if until is not None and fraction >= until:
+                        self.say(f"\n  explored {100 * fraction:.1f} % at sim time "
+                                 f"{self.sim_time - self.ready_at:.1f} s: stopping")
+                        break
                 if now - last_progress >= progress_period:
                     last_progress = now
                     self._progress(end)
@@ -155,14 +196,20 @@ class TeamTracker:
         self.lost[rid] = self.sim_time
         self.poses.pop(rid, None)
 
-    def _positions(self) -> np.ndarray:
-        return np.array([self.poses[i][:2] for i in self.alive() if i in self.poses])
+    def _present(self) -> list[int]:
+        return [i for i in self.alive() if i in self.poses]
+
+    def _generators(self, ids: list[int], positions: np.ndarray) -> list[Generator]:
+        """Each robot as the tessellation sees it: its position and its own power weight."""
+        return [Generator(p, self.team[i].spec.power_weight)
+                for i, p in zip(ids, positions, strict=True)]
 
     def _cost(self) -> float:
-        P = self._positions()
-        if len(P) == 0:
+        ids = self._present()
+        if not ids:
             return math.nan
-        return float(tessellate(self.domain, [Generator(p) for p in P]).cost)
+        P = np.array([self.poses[i][:2] for i in ids])
+        return float(tessellate(self.domain, self._generators(ids, P)).cost)
 
     def _progress(self, end: float, final: bool = False) -> None:
         if self.args.quiet:
@@ -174,8 +221,10 @@ class TeamTracker:
         H = self.H_samples[-1][1] if self.H_samples else math.nan
         bar = "#" * int(30 * frac) + "." * (30 - int(30 * frac))
         collisions = sum(int(float(s.get("collisions", 0))) for s in self.status.values())
+        explored = "" if self.exploration is None else \
+            f"  explored {100 * self.exploration.explored:5.1f} %"
         line = (f"  [{bar}] sim {self.sim_time - self.ready_at:6.1f}/{span:g} s  rtf {rtf:4.2f}"
-                f"  H {H:9.4g}  collisions {collisions}")
+                f"  H {H:9.4g}  collisions {collisions}{explored}")
         if sys.stderr.isatty():
             print("\r" + line, end="\n" if final else "", file=sys.stderr, flush=True)
         elif final or int(frac * 10) != getattr(self, "_decile", -1):
@@ -184,10 +233,12 @@ class TeamTracker:
 
     # ------------------------------------------------------------------ results
     def summary(self, wall_time: float, interrupted: bool) -> dict:
-        alive = [i for i in self.alive() if i in self.poses]
+        alive = self._present()
         P = np.array([self.poses[i][:2] for i in alive]).reshape(-1, 2)
-        tess = tessellate(self.domain, [Generator(p) for p in P]) if len(P) else None
-        H_start = float(tessellate(self.domain, [Generator(p) for p in self.starts[:, :2]]).cost)
+        tess = tessellate(self.domain, self._generators(alive, P)) if len(P) else None
+        H_start = float(tessellate(self.domain, self._generators(
+            list(range(self.args.robots)), self.starts[:, :2])).cost)
+        sensing = np.array([self.team[i].spec.sensor_radius for i in alive])
         robots = []
         for i in range(self.args.robots):
             st = self.status.get(i, {})
@@ -197,6 +248,8 @@ class TeamTracker:
                 "final": None if final is None else np.round(final, 4).tolist(),
                 "path_length": round(float(st.get("path_length", 0.0)), 4),
                 "collisions": int(float(st.get("collisions", 0))),
+                "spec": self.team[i].spec.numbers(), "role": self.team[i].role,
+                "body": self._body(st),
                 **({"lost_at": round(self.lost[i], 2)} if i in self.lost else {})})
         H = float(tess.cost) if tess is not None else math.nan
         return {
@@ -208,14 +261,21 @@ class TeamTracker:
             "ready_at": None if self.ready_at is None else round(self.ready_at, 3),
             "interrupted": interrupted, "robots": robots,
             "metrics": {
-                "H": H, "H_start": H_start,
+                "H": H if math.isfinite(H) else None, "H_start": H_start,
                 "mass_deviation_I": mass_deviation(tess.masses) if tess is not None else None,
-                "coverage_ratio": coverage_ratio(self.world.grid, P, self.args.sensor_radius),
+                "coverage_ratio": coverage_ratio(self.world.grid, P, sensing),
                 "min_separation": self.min_sep if math.isfinite(self.min_sep) else None,
                 "converged_at": self._converged_at(H),
             },
             **({"processes": self.proc_stats.report()} if self.proc_stats is not None else {}),
+            **({"exploration": self.exploration.summary()}
+               if self.exploration is not None else {}),
         }
+
+    @staticmethod
+    def _body(status: dict[str, str]) -> dict[str, float]:
+        """The simulated body's spec as the world node reports it (empty if it never did)."""
+        return {k: float(status[k]) for k in NUMBER_FIELDS if k in status}
 
     def _converged_at(self, H_final: float) -> float | None:
         if not self.H_samples or not math.isfinite(H_final):
@@ -293,6 +353,12 @@ def summary_table(summary: dict) -> str:
     lines.append(f"H {num(m['H'], 4)} (start {num(m['H_start'], 4)}, {drop:.0f} % lower), "
                  f"I {num(m['mass_deviation_I'])}, coverage {100 * m['coverage_ratio']:.0f} %, "
                  f"min separation {num(m['min_separation'])} m, converged at {conv_at}")
+    ex = summary.get("exploration")
+    if ex is not None:
+        at = ", ".join(f"{k}: {'-' if v is None else f'{v:g} s'}"
+                       for k, v in ex["explored_at"].items())
+        lines.append(f"explored {100 * ex['explored_fraction']:.1f} % (reached {at}); false "
+                     f"free {100 * ex['false_free']:.2f} %")
     lines.append(f"real-time factor {summary['rtf']:.2f} over the run; sim time "
                  f"{summary['sim_time']:.1f} s in {summary['wall_time']:.1f} s wall with start-up "
                  "and shutdown")

@@ -47,13 +47,6 @@ def polygon_edges(polygon: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return poly, np.roll(poly, -1, axis=0)
 
 
-def signed_distance_polygon(points: np.ndarray, polygon: np.ndarray) -> np.ndarray:
-    """``(N,)``: distance to the polygon boundary, negative inside."""
-    a, b = polygon_edges(polygon)
-    d = distance_to_segments(points, a, b)
-    return np.where(points_in_polygon(points, polygon), -d, d)
-
-
 def polygon_area(polygon: np.ndarray) -> float:
     """Signed area (shoelace formula; positive for counter-clockwise vertices)."""
     p = np.asarray(polygon, dtype=np.float64)

@@ -1,38 +1,30 @@
 """Coverage metrics.
 
-* Coverage cost H = sum_k sum_{q in V_k} (d(q, p_k)^2 - R_k^2) w(q) dA (seed 000, Eq. 1 with
-  f_k(x) = x^2 - R_k^2), with the geodesic distance (and cells) or the Euclidean one.
-* Cell masses M_k = sum_{q in V_k} w(q) dA and the mass deviation of seed 003, Eq. 9:
+* Coverage cost H = sum_k sum_{q in V_k} (d(q, p_k)^2 - R_k^2) w(q) dA (Bhattacharya et al. 2014,
+  Eq. 1 with f_k(x) = x^2 - R_k^2), with the geodesic distance (and cells) or the Euclidean one.
+* Cell masses M_k = sum_{q in V_k} w(q) dA and the mass deviation of Lee & Lee 2024, Eq. 9:
   I = 1/k sum_k |M_k / mean(M) - 1|.
 * Sensor coverage: the part of the free space (or of the density mass) within ``radius`` and in
-  line of sight of at least one robot; ``coverage_ratio`` and ``uncovered_mass``.
+  line of sight of at least one robot (``coverage_ratio``).
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial.distance import pdist
 
-from coverage_ros.core.domain import CoverageDomain
-from coverage_ros.core.euclidean import euclidean_labels
-from coverage_ros.core.grid import GridMap
-from coverage_ros.core.tangents import depth_bins, polar_depth, visible_from
-from coverage_ros.core.tessellation import Generator, tessellate
-
-
-@dataclass(frozen=True)
-class CoverageReport:
-    H: float  # geodesic coverage cost, density-weighted [m^2 * density * m^2]
-    H_euclidean: float
-    masses: np.ndarray  # (k,) geodesic cell masses
-    mass_deviation: float  # seed 003's I
-    unreached_mass: float  # density mass no robot can reach (other connected components)
+from coverage_ros.core.geodesic.domain import CoverageDomain
+from coverage_ros.core.geodesic.euclidean import euclidean_labels
+from coverage_ros.core.geodesic.tangents import depth_bins, polar_depth, visible_from
+from coverage_ros.core.geodesic.tessellation import Generator
+from coverage_ros.core.world.grid import GridMap
 
 
 def mass_deviation(masses: Sequence[float] | np.ndarray) -> float:
-    """Seed 003, Eq. 9: mean absolute relative deviation of the cell masses (0 = balanced)."""
+    """Lee & Lee 2024, Eq. 9: mean absolute relative deviation of the cell masses (0 =
+    balanced)."""
     m = np.asarray(masses, dtype=np.float64)
     if m.size == 0 or m.mean() <= 0:
         return 0.0
@@ -51,17 +43,9 @@ def euclidean_cost(domain: CoverageDomain, gens: Sequence[Generator]) -> float:
     return float((f * domain.mass_element.ravel()[ok]).sum())
 
 
-def coverage_report(domain: CoverageDomain, gens: Sequence[Generator]) -> CoverageReport:
-    tess = tessellate(domain, gens)
-    unreached = float(domain.mass_element[(tess.labels < 0) & domain.free].sum())
-    return CoverageReport(H=tess.cost, H_euclidean=euclidean_cost(domain, gens),
-                          masses=tess.masses, mass_deviation=mass_deviation(tess.masses),
-                          unreached_mass=unreached)
-
-
 def sensor_footprint(grid: GridMap, position: np.ndarray, radius: float) -> np.ndarray:
     """``(H, W) bool``: free cells within ``radius`` [m] of ``position`` and in line of sight
-    of it (walls modelled as in :func:`coverage_ros.core.tangents.polar_depth`)."""
+    of it (walls modelled as in :func:`coverage_ros.core.geodesic.tangents.polar_depth`)."""
     H, W = grid.shape
     out = np.zeros((H, W), dtype=bool)
     g = grid.world_to_grid(np.asarray(position, dtype=np.float64))
@@ -84,24 +68,24 @@ def sensor_footprint(grid: GridMap, position: np.ndarray, radius: float) -> np.n
     return out
 
 
-def covered_mask(grid: GridMap, positions: np.ndarray, radius: float) -> np.ndarray:
+def covered_mask(grid: GridMap, positions: np.ndarray,
+                 radius: float | np.ndarray) -> np.ndarray:
+    """``(H, W) bool``: the union of the robots' footprints (``radius`` [m]: one for all, or
+    ``(n,)`` one per robot)."""
+    P = np.asarray(positions, dtype=np.float64).reshape(-1, 2)
+    radii = np.broadcast_to(np.asarray(radius, dtype=np.float64), (len(P),))
     mask = np.zeros(grid.shape, dtype=bool)
-    for p in np.asarray(positions, dtype=np.float64).reshape(-1, 2):
-        mask |= sensor_footprint(grid, p, radius)
+    for p, r in zip(P, radii, strict=True):
+        mask |= sensor_footprint(grid, p, float(r))
     return mask
 
 
-def coverage_ratio(grid: GridMap, positions: np.ndarray, radius: float) -> float:
-    """Free area within sensor range and line of sight of some robot / all free area."""
+def coverage_ratio(grid: GridMap, positions: np.ndarray, radius: float | np.ndarray) -> float:
+    """Free area within sensor range and line of sight of some robot / all free area
+    (``radius``: one for all, or one per robot)."""
     free = grid.free_mask()
     total = int(free.sum())
     return float(covered_mask(grid, positions, radius).sum() / total) if total else 0.0
-
-
-def uncovered_mass(domain: CoverageDomain, positions: np.ndarray, radius: float) -> float:
-    """Density mass of the domain outside every robot's sensor footprint."""
-    covered = covered_mask(domain.geometry, positions, radius)
-    return float(domain.mass_element[~covered].sum())
 
 
 def min_separation(positions: np.ndarray) -> float:
@@ -109,6 +93,4 @@ def min_separation(positions: np.ndarray) -> float:
     P = np.asarray(positions, dtype=np.float64).reshape(-1, 2)
     if len(P) < 2:
         return float("inf")
-    from scipy.spatial.distance import pdist
-
     return float(pdist(P).min())

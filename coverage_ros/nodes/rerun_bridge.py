@@ -20,8 +20,6 @@ import contextlib
 import math
 import re
 import sys
-import threading
-import time
 from dataclasses import dataclass
 from pathlib import Path as FilePath
 
@@ -29,43 +27,42 @@ from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PolygonStamped, PoseStamped
 from nav_msgs.msg import OccupancyGrid, Odometry, Path
 from rclpy.node import Node
-from rclpy.qos import (
-    DurabilityPolicy,
-    QoSProfile,
-    ReliabilityPolicy,
-    qos_profile_sensor_data,
-)
 from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import JointState, LaserScan
+from sensor_msgs.msg import JointState, LaserScan, PointCloud2
 
 from coverage_ros.core.world import RobotSpec, load_world
 from coverage_ros.errors import ConfigError
 from coverage_ros.nodes import conversions as conv
-from coverage_ros.nodes.runner import declare_parameters, quiet_subscription, run_node
+from coverage_ros.nodes.plumbing import (
+    CLOCK_QOS,
+    MAP_QOS,
+    SCAN_QOS,
+    STREAM_QOS,
+    TEAM_QOS,
+    WarnThrottle,
+    quiet_subscription,
+)
+from coverage_ros.nodes.runner import declare_parameters, run_node
 from coverage_ros.worlds import resolve_world_path
 
 DISCOVERY_PERIOD = 1.0  # [s] wall time between looks at the ROS graph for robots
 VANISH_CHECKS = 2  # graph looks without any publisher before a robot counts as gone
-WARN_PERIOD = 5.0  # [s] wall time between two warnings of the same kind
 # [s] wall time rerun collects rows into one chunk: every chunk costs ~1 KB of schema, so the
 # default 0.2 s made most of a team's recording overhead; a viewer lags this much behind.
 BATCH_PERIOD = 1.0
-# Latched like map_server (the world node's and robot node's /map QoS).
-MAP_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
-                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
-# High-rate streams: best effort matches reliable and best-effort publishers alike.
-STREAM_QOS = QoSProfile(depth=5, reliability=ReliabilityPolicy.BEST_EFFORT)
-EVENT_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 TOPICS = {  # per-robot topic: (message type, QoS)
     "ground_truth": (Odometry, STREAM_QOS),
-    "scan": (LaserScan, qos_profile_sensor_data),
-    "goal_pose": (PoseStamped, EVENT_QOS),
-    "plan": (Path, EVENT_QOS),
-    "cell": (OccupancyGrid, EVENT_QOS),
-    "cell_polygon": (PolygonStamped, EVENT_QOS),
-    "coverage_state": (JointState, EVENT_QOS),
+    "scan": (LaserScan, SCAN_QOS),
+    "goal_pose": (PoseStamped, TEAM_QOS),
+    "plan": (Path, TEAM_QOS),
+    "cell": (OccupancyGrid, TEAM_QOS),
+    "cell_polygon": (PolygonStamped, TEAM_QOS),
+    "observations": (PointCloud2, TEAM_QOS),
+    "coverage_state": (JointState, TEAM_QOS),
 }
-STATUS_SKIP = {"id", "x", "y", "yaw"}  # /world/robots values already shown as robot positions
+#: /world/robots values not plotted: the robot positions (shown as robots) and the fixed spec.
+STATUS_SKIP = {"id", "x", "y", "yaw", "radius", "v_max", "w_max", "a_max", "alpha_max",
+               "sensor_radius", "power_weight", "lidar_range_max"}
 
 
 def type_name(msg_type: type) -> str:
@@ -93,6 +90,7 @@ class BridgeConfig:
     scan_period: float = 0.5
     scan_decimation: int = 2
     computed_cells: bool = True
+    explore: bool = False
 
     def __post_init__(self) -> None:
         if not (self.record_path or self.connect_url or self.serve_web):
@@ -121,6 +119,9 @@ class BridgeConfig:
                 raise ConfigError.at(name, "must be a number of seconds >= 0", value)
         if self.scan_decimation < 1:
             raise ConfigError.at("scan_decimation", "must be >= 1", self.scan_decimation)
+        if self.explore and not self.world:
+            raise ConfigError.at("explore", "needs 'world': the true map to score the team's "
+                                 "belief against", self.world)
 
     def rates(self):
         """The layers' settings (:class:`coverage_ros.viz.live_team.LiveRates`)."""
@@ -152,6 +153,8 @@ _PARAMETERS = {  # name: (default, description)
     "scan_decimation": (2, "log every n-th lidar hit"),
     "computed_cells": (True, "until a robot publishes a cell, show the cells of the "
                        "metrics' tessellation"),
+    "explore": (False, "the team explores: show the world's true map, the team's belief "
+                "entropy over it and the explored fraction (needs 'world')"),
 }
 
 
@@ -164,7 +167,8 @@ class RerunBridge(Node):
         world = load_world(resolve_world_path(cfg.world)) if cfg.world else None
         from coverage_ros.viz.live_metrics import LiveMetrics
         from coverage_ros.viz.live_team import LiveTeam
-        from coverage_ros.viz.recording import CoverageRecorder, WebViewerServer
+        from coverage_ros.viz.recording import CoverageRecorder
+        from coverage_ros.viz.web_viewer import WebViewerServer
 
         self.rec = CoverageRecorder(cfg.recording_id or None, batch_period=BATCH_PERIOD)
         self.web = WebViewerServer(cfg.grpc_port, cfg.web_port) if cfg.serve_web else None
@@ -175,20 +179,26 @@ class RerunBridge(Node):
         except Exception:
             self.close()
             raise
-        self._last_warn: dict[str, float] = {}
-        self._warn_lock = threading.Lock()
+        self._throttle = WarnThrottle(self.get_logger().warning)
         metrics = LiveMetrics(self.rec, cfg.robot_radius,
-                              world.density if world is not None else None, self._warn)
+                              world.density if world is not None else None, self._warn,
+                              world.metric if world is not None else None)
         self.team = LiveTeam(self.rec, cfg.rates(), metrics)
+        if cfg.explore and world is not None:
+            from coverage_ros.viz.live_exploration import ExplorationLayer
+
+            self.team.set_map(world.grid)  # no /map when exploring: the truth, for reference
+            self.team.exploration = ExplorationLayer(self.rec, world.grid, world.solid,
+                                                     cfg.robot_radius)
         self.subs: dict[int, dict] = {}  # robot id -> {topic kind: Subscription}
         self._idle: dict[int, int] = {}  # robot id -> graph looks without a publisher
         self._topic_re = re.compile(rf"^/{re.escape(cfg.robot_prefix)}(\d+)/(\w+)$")
         self.create_subscription(Clock, "/clock", self._guard("/clock", self._on_clock),
-                                 QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT))
+                                 CLOCK_QOS)
         self.create_subscription(OccupancyGrid, "/map", self._guard("/map", self._on_map),
                                  MAP_QOS)
         self.create_subscription(DiagnosticArray, "/world/robots",
-                                 self._guard("/world/robots", self._on_status), 10)
+                                 self._guard("/world/robots", self._on_status), TEAM_QOS)
         self.create_timer(DISCOVERY_PERIOD, self._discover)
         outputs = [f"{what} {where}" for what, where in (
             ("file", cfg.record_path), ("viewer", cfg.connect_url),
@@ -198,13 +208,7 @@ class RerunBridge(Node):
 
     # ------------------------------------------------------------------ helpers
     def _warn(self, key: str, text: str) -> None:
-        """Log a warning at most once per WARN_PERIOD per key (wall time; any thread)."""
-        now = time.monotonic()
-        with self._warn_lock:
-            if now - self._last_warn.get(key, -math.inf) < WARN_PERIOD:
-                return
-            self._last_warn[key] = now
-        self.get_logger().warning(text)
+        self._throttle.warn(key, text)
 
     def _guard(self, what: str, callback, *args):
         """``callback(*args, msg)``; a bad message is dropped with a throttled warning."""
@@ -305,6 +309,12 @@ class RerunBridge(Node):
 
     def _on_cell_polygon(self, robot_id: int, msg: PolygonStamped) -> None:
         self.team.polygon(robot_id, self._map_frame(msg.header), conv.polygon_to_points(msg))
+
+    def _on_observations(self, robot_id: int, msg: PointCloud2) -> None:
+        layer = self.team.exploration
+        if layer is not None:
+            evidence = conv.evidence_from_msg(msg, robot_id, layer.lattice)
+            self.team.observations(robot_id, self._map_frame(msg.header), evidence)
 
     def _on_coverage_state(self, robot_id: int, msg: JointState) -> None:
         values = conv.coverage_state_values(msg)  # checks the map frame

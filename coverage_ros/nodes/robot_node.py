@@ -21,199 +21,44 @@ from __future__ import annotations
 import math
 import re
 import sys
-import threading
 import time
-from dataclasses import dataclass, field
+from collections import deque
 
-import numpy as np
-import yaml
 from geometry_msgs.msg import PolygonStamped, PoseStamped, Twist, TwistStamped
 from nav_msgs.msg import OccupancyGrid, Odometry, Path
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from sensor_msgs.msg import JointState, LaserScan
+from std_srvs.srv import SetBool
 
-from coverage_ros.core.controller import ControllerConfig, RobotController
-from coverage_ros.core.density import parse_density
-from coverage_ros.core.domain import CoverageDomain
+from coverage_ros.core.control.controller import RobotController
+from coverage_ros.core.control.pose_history import PoseHistory
+from coverage_ros.core.exploration.belief import Belief
+from coverage_ros.core.geodesic.domain import CoverageDomain
 from coverage_ros.core.strategies import Scan
-from coverage_ros.core.world import RobotSpec, load_world
+from coverage_ros.core.world.metric import zeta_on_grid
 from coverage_ros.errors import ConfigError, CoverageError
 from coverage_ros.nodes import conversions as conv
-from coverage_ros.nodes.runner import (
-    FatalConfigError,
-    declare_parameters,
+from coverage_ros.nodes.belief_exchange import OBSERVATIONS, OBSERVATIONS_TYPE, BeliefExchange
+from coverage_ros.nodes.plumbing import (
+    MAP_QOS,
+    SCAN_QOS,
+    TEAM_QOS,
+    UpdateWorker,
+    WarnThrottle,
     quiet_publisher,
     quiet_subscription,
-    run_node,
 )
-from coverage_ros.worlds import resolve_world_path
+from coverage_ros.nodes.robot_config import PARAMETERS, load_robot_inputs
+from coverage_ros.nodes.runner import FatalConfigError, declare_parameters, run_node
 
-MAP_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
-                     reliability=ReliabilityPolicy.RELIABLE)
 DISCOVERY_PERIOD = 1.0  # [s] wall time between looks at the ROS graph for new neighbours
-#: [s] CPU time an update may borrow ahead of update_load (see UpdateWorker).
-UPDATE_BURST = 1.0
 #: [s] wall time a robot listens for neighbours after its first pose before its first update
 #: (one look at the ROS graph and their states), so that it does not start with the whole map.
 LISTEN_FIRST = DISCOVERY_PERIOD + 0.5
-WARN_PERIOD = 5.0  # [s] wall time between two warnings of the same kind
 STATE_TYPE = "sensor_msgs/msg/JointState"
-
-
-_PARAMETERS = {  # name: (default, description)
-    "robot_id": (-1, "this robot's id; -1: from the namespace /<robot_prefix><id>"),
-    "strategy": ("geodesic", "coverage strategy: geodesic, lloyd, tangentbug, bvc, acvt"),
-    "strategy_params": ("", "YAML mapping of strategy parameters, e.g. '{method: paper}'"),
-    "world": ("", "world name or YAML: importance density (and the map when map_topic is '')"),
-    "map_topic": ("/map", "nav_msgs/OccupancyGrid topic (transient local); '': map of 'world'"),
-    "density": ("", "YAML importance density overriding the world's (default uniform)"),
-    "robot_radius": (RobotSpec().radius, "[m] robot radius (inflates the map)"),
-    "v_max": (RobotSpec().v_max, "[m/s] maximum linear speed"),
-    "w_max": (RobotSpec().w_max, "[rad/s] maximum angular speed"),
-    "a_max": (RobotSpec().a_max, "[m/s^2] linear acceleration limit"),
-    "alpha_max": (RobotSpec().alpha_max, "[rad/s^2] angular acceleration limit"),
-    "sensor_radius": (3.5, "[m] sensing radius (sensor-based strategies, coverage metrics)"),
-    "power_weight": (0.0, "[m] power weight R of this robot (power Voronoi cells)"),
-    "control_rate": (2.0, "[Hz] coverage updates (cell, goal, state), at most"),
-    "update_load": (0.1, "largest fraction of one CPU core spent on coverage updates; "
-                    "costly updates are spaced out to keep within it"),
-    "tracking_rate": (10.0, "[Hz] path tracking and cmd_vel"),
-    "state_rate": (2.5, "[Hz] coverage_state: the last update's values with the current "
-                   "position (neighbours' tessellations and safety filters); at most "
-                   "tracking_rate"),
-    "comm_range": (0.0, "[m] neighbours farther than this are ignored; 0: no limit"),
-    "neighbour_timeout": (2.0, "[s] a neighbour silent this long is ignored"),
-    "pose_topic": ("ground_truth", "nav_msgs/Odometry with the robot pose in the map frame"),
-    "scan_topic": ("scan", "sensor_msgs/LaserScan of the robot's lidar"),
-    "use_scan": (True, "use the lidar in the safety filter (always on for sensor strategies)"),
-    "use_stamped_cmd_vel": (False, "publish geometry_msgs/TwistStamped instead of Twist"),
-    "goal_tolerance": (0.05, "[m] goal closer than this = arrived / converged"),
-    "robot_prefix": ("robot_", "namespace prefix of the team's robots (neighbour discovery)"),
-    "connectivity": (8, "grid graph neighbourhood: 8 (seed 000) or 16"),
-}
-
-
-@dataclass(frozen=True)
-class RobotNodeConfig:
-    controller: ControllerConfig
-    world: str = ""
-    map_topic: str = "/map"
-    density: str = ""
-    control_rate: float = 2.0
-    update_load: float = 0.1
-    tracking_rate: float = 10.0
-    state_rate: float = 2.5
-    pose_topic: str = "ground_truth"
-    scan_topic: str = "scan"
-    use_scan: bool = True
-    use_stamped_cmd_vel: bool = False
-    robot_prefix: str = "robot_"
-    connectivity: int = 8
-    extra: dict = field(default_factory=dict)
-
-    def __post_init__(self) -> None:
-        for name in ("control_rate", "tracking_rate", "state_rate"):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v > 0):
-                raise ConfigError.at(name, "must be a number > 0 [Hz]", v)
-        if not (math.isfinite(self.update_load) and 0 < self.update_load <= 1):
-            raise ConfigError.at("update_load", "must be a fraction in (0, 1]",
-                                 self.update_load)
-        if not self.map_topic and not self.world:
-            raise ConfigError.at("map_topic", "is empty and no 'world' gives the map", "")
-        if self.connectivity not in (8, 16):
-            raise ConfigError.at("connectivity", "must be 8 or 16", self.connectivity)
-
-
-def robot_id_from_namespace(namespace: str, prefix: str) -> int:
-    m = re.fullmatch(rf"/{re.escape(prefix)}(\d+)", namespace)
-    if not m:
-        raise ConfigError.at("robot_id", f"not set and the namespace {namespace!r} is not "
-                             f"/{prefix}<id>", -1, f"-p robot_id:=N or -r __ns:=/{prefix}N")
-    return int(m.group(1))
-
-
-class UpdateWorker:
-    """Runs ``run(now)`` on its own thread when asked, one call at a time, and keeps the CPU
-    time of the calls within ``load`` of one core on average.
-
-    A CPU-time credit (a token bucket) grows by ``load`` per wall second up to ``burst``
-    seconds and every call spends its CPU time; a call may start while the credit is not
-    negative. So by any start time t, the calls before it used at most
-    ``burst + load * (t - created)`` seconds of CPU, and a single costly call (the first,
-    cold one, or one in a very large cell) is absorbed by the credit instead of holding back
-    the next updates for c / load seconds. An exception raised by a call goes to ``on_error``
-    and the worker carries on."""
-
-    def __init__(self, run, load: float, on_error=None, burst: float = UPDATE_BURST) -> None:
-        self._run = run
-        self._on_error = on_error
-        self._load = load
-        self.burst = burst
-        self._wake = threading.Event()
-        self._closing = False
-        self._busy = False
-        self._now = 0.0
-        self.created = time.monotonic()
-        self._credit = burst  # [s] CPU time
-        self._credit_at = self.created
-        self.cpu_ms: list[float] = []  # CPU time of every call
-        self.starts: list[float] = []  # [s] monotonic start of every call
-        self._thread = threading.Thread(target=self._loop, name="coverage-update", daemon=True)
-        self._thread.start()
-
-    def request(self, now: float) -> bool:
-        """Start a call for node time ``now``; False if one is running or it is too early."""
-        if self._busy or self._closing or self._refill(time.monotonic()) < 0:
-            return False
-        self._busy, self._now = True, now
-        self._wake.set()
-        return True
-
-    def _loop(self) -> None:
-        while True:
-            self._wake.wait()
-            self._wake.clear()
-            if self._closing:
-                return
-            start, cpu0 = time.monotonic(), time.thread_time()
-            try:
-                self._run(self._now)
-            except Exception as exc:
-                if self._on_error is not None:
-                    self._on_error(exc)
-            finally:
-                cpu = time.thread_time() - cpu0
-                self._refill(start)
-                self._credit -= cpu
-                self.cpu_ms.append(1e3 * cpu)
-                self.starts.append(start)
-                self._busy = False
-
-    def _refill(self, now: float) -> float:
-        if now > self._credit_at:
-            self._credit = min(self.burst, self._credit + self._load * (now - self._credit_at))
-            self._credit_at = now
-        return self._credit
-
-    def summary(self) -> str:
-        """One line on the calls so far: count, mean period, CPU per call."""
-        n = len(self.cpu_ms)
-        if n == 0:
-            return "no coverage updates"
-        period = (self.starts[-1] - self.starts[0]) / (n - 1) if n > 1 else math.nan
-        cpu = np.asarray(self.cpu_ms)
-        return (f"{n} coverage updates, one every {period:.2f} s wall; CPU per update "
-                f"median {np.median(cpu):.1f} ms, max {cpu.max():.1f} ms "
-                f"(update_load {self._load:g})")
-
-    def close(self, timeout: float = 5.0) -> None:
-        """Stop the thread (waits for a running call up to ``timeout``)."""
-        self._closing = True
-        self._wake.set()
-        self._thread.join(timeout)
+#: Scans that wait for the pose after their stamp (a second of a 5 Hz lidar).
+PENDING_SCANS = 5
 
 
 class RobotNode(Node):
@@ -221,21 +66,23 @@ class RobotNode(Node):
 
     def __init__(self) -> None:
         super().__init__("coverage_robot")
-        p = declare_parameters(self, _PARAMETERS)
-        self.config = self._config(p)
+        inputs = load_robot_inputs(declare_parameters(self, PARAMETERS), self.get_namespace())
+        self.config = inputs.config
         cc = self.config.controller
         self.frames = conv.RobotFrames.of(self.config.robot_prefix, cc.robot_id)
         self.controller: RobotController | None = None
-        self._density = None
-        self._file_grid = None
-        self._load_world_inputs()
-        self._warned: dict[str, float] = {}
+        self._density = inputs.density
+        self._world = inputs.world
+        self._throttle = WarnThrottle(self.get_logger().warning)
         self._subs: dict[int, object] = {}
         self._last_tick = None
         self._first_pose: float | None = None  # [s] monotonic
         self._last_state = -math.inf
+        self._paused = False  # asked before the map came: applied when the controller is built
+
         def publisher(msg_type, topic):
-            return self.create_publisher(msg_type, topic, 10, event_callbacks=quiet_publisher())
+            return self.create_publisher(msg_type, topic, TEAM_QOS,
+                                         event_callbacks=quiet_publisher())
 
         self.cmd_pub = publisher(TwistStamped if self.config.use_stamped_cmd_vel else Twist,
                                  "cmd_vel")
@@ -244,12 +91,24 @@ class RobotNode(Node):
         self.cell_pub = publisher(OccupancyGrid, "cell")
         self.polygon_pub = publisher(PolygonStamped, "cell_polygon")
         self.state_pub = publisher(JointState, "coverage_state")
-        self.create_subscription(Odometry, self.config.pose_topic, self._on_pose, 10)
+        self.create_subscription(Odometry, self.config.pose_topic, self._on_pose, TEAM_QOS)
+        if self.config.teleop_topic:
+            self.create_subscription(Twist, self.config.teleop_topic, self._on_teleop, TEAM_QOS)
+        self.create_service(SetBool, "set_manual", self._on_set_manual)
+        self.create_service(SetBool, "pause", self._on_pause)
         self._scan_sub = None
-        if self.config.map_topic:
+        self.exchange: BeliefExchange | None = None
+        self._poses = PoseHistory()  # exploring: scans go into the belief from these
+        self._pending_scans: deque[tuple[float, Scan]] = deque(maxlen=PENDING_SCANS)
+        if self.config.explore is not None:
+            self._build(self.config.explore.lattice, Belief(self.config.explore.lattice,
+                                                            cc.robot_id))
+        elif self.config.map_free is not None:
+            self._build(self.config.map_free)  # the area, every cell free: the lidar decides
+        elif self.config.map_topic:
             self.create_subscription(OccupancyGrid, self.config.map_topic, self._on_map, MAP_QOS)
         else:
-            self._build(self._file_grid)
+            self._build(inputs.world.grid)
         wall = Clock(clock_type=ClockType.STEADY_TIME)
         self.create_timer(DISCOVERY_PERIOD, self._discover, clock=wall)
         self._worker = UpdateWorker(
@@ -257,64 +116,34 @@ class RobotNode(Node):
             on_error=lambda exc: self._warn("update", f"coverage update failed: {exc!r}"))
         self.create_timer(1.0 / self.config.control_rate, self._on_control)
         self.create_timer(1.0 / self.config.tracking_rate, self._on_tracking)
-        self.get_logger().info(
-            f"robot {cc.robot_id}: strategy {cc.strategy}, map from "
-            f"{self.config.map_topic or self.config.world}")
+        source = ("exploring (no map)" if self.config.explore is not None
+                  else "map-free (lidar only)" if self.config.map_free is not None
+                  else f"map from {self.config.map_topic or self.config.world}")
+        if self.config.manual:
+            source += f"; manual, driven by {self.config.teleop_topic}"
+        self.get_logger().info(f"robot {cc.robot_id}: strategy {cc.strategy.name}, {source}; "
+                               f"{cc.robot.describe()}")
 
-    # ------------------------------------------------------------------ configuration
-    def _config(self, p: dict) -> RobotNodeConfig:
-        prefix = p["robot_prefix"]
-        rid = p["robot_id"] if p["robot_id"] >= 0 else robot_id_from_namespace(
-            self.get_namespace(), prefix)
-        params = {}
-        if p["strategy_params"]:
-            try:
-                params = yaml.safe_load(p["strategy_params"]) or {}
-            except yaml.YAMLError as exc:
-                raise ConfigError.at("strategy_params", f"is not valid YAML ({exc})",
-                                     p["strategy_params"]) from None
-            if not isinstance(params, dict):
-                raise ConfigError.at("strategy_params", "must be a YAML mapping",
-                                     p["strategy_params"])
-        robot = RobotSpec(radius=p["robot_radius"], v_max=p["v_max"], w_max=p["w_max"],
-                          a_max=p["a_max"], alpha_max=p["alpha_max"])
-        controller = ControllerConfig(
-            robot_id=rid, strategy=p["strategy"], strategy_params=params, robot=robot,
-            sensor_radius=p["sensor_radius"], power_weight=p["power_weight"],
-            comm_range=p["comm_range"], neighbour_timeout=p["neighbour_timeout"],
-            goal_tolerance=p["goal_tolerance"])
-        return RobotNodeConfig(
-            controller=controller, world=p["world"], map_topic=p["map_topic"],
-            density=p["density"], control_rate=p["control_rate"],
-            update_load=p["update_load"],
-            tracking_rate=p["tracking_rate"], state_rate=p["state_rate"],
-            pose_topic=p["pose_topic"],
-            scan_topic=p["scan_topic"], use_scan=p["use_scan"],
-            use_stamped_cmd_vel=p["use_stamped_cmd_vel"], robot_prefix=prefix,
-            connectivity=p["connectivity"])
-
-    def _load_world_inputs(self) -> None:
-        if self.config.world:
-            spec = load_world(resolve_world_path(self.config.world))
-            self._density = spec.density
-            self._file_grid = spec.grid
-        if self.config.density:
-            try:
-                data = yaml.safe_load(self.config.density)
-            except yaml.YAMLError as exc:
-                raise ConfigError.at("density", f"is not valid YAML ({exc})",
-                                     self.config.density) from None
-            self._density = parse_density(data, "density")
-
-    def _build(self, grid) -> None:
+    # ------------------------------------------------------------------ set-up
+    def _build(self, grid, belief: Belief | None = None) -> None:
         t0 = time.perf_counter()
+        # The world's travel metric on whatever lattice the map came on (exploring: the
+        # entropy metric of the strategy instead).
+        metric = self._world.metric if self._world is not None else None
+        zeta = None if belief is not None else zeta_on_grid(metric, grid)
         domain = CoverageDomain.from_grid(grid, self.config.controller.robot.radius,
-                                          self._density, connectivity=self.config.connectivity)
-        self.controller = RobotController(domain, self.config.controller)
+                                          self._density, connectivity=self.config.connectivity,
+                                          unknown_is_free=belief is not None, zeta=zeta)
+        self.controller = RobotController(domain, self.config.controller, belief)
+        self.controller.set_manual(self.config.manual)
+        self.controller.set_paused(self._paused)
+        if belief is not None:
+            self.exchange = BeliefExchange(self, belief, self.config.explore, self._throttle,
+                                           self._now)
         if (self.config.use_scan or self.controller.needs_scan) and self._scan_sub is None:
             # Best effort and volatile: compatible with every publisher, no QoS events to watch.
             self._scan_sub = self.create_subscription(
-                LaserScan, self.config.scan_topic, self._on_scan, qos_profile_sensor_data,
+                LaserScan, self.config.scan_topic, self._on_scan, SCAN_QOS,
                 event_callbacks=quiet_subscription())
         self.get_logger().info(f"map {grid.width} x {grid.height} cells at "
                                f"{grid.resolution:g} m ready in {time.perf_counter() - t0:.2f} s")
@@ -347,6 +176,9 @@ class RobotNode(Node):
         self.controller.set_pose(pose)
         if self._first_pose is None:
             self._first_pose = time.monotonic()
+        if self.exchange is not None:
+            self._poses.add(conv.from_time_msg(msg.header.stamp), pose)
+            self._map_pending_scans()
 
     def _on_scan(self, msg: LaserScan) -> None:
         c = self.controller
@@ -360,11 +192,70 @@ class RobotNode(Node):
                     angle_increment=float(msg.angle_increment), range_min=float(msg.range_min),
                     range_max=float(msg.range_max))
         c.set_scan(scan, conv.scan_to_points(msg, tuple(c.pose)))
+        if self.exchange is not None:
+            self._pending_scans.append((conv.from_time_msg(msg.header.stamp), scan))
+            self._map_pending_scans()
+
+    def _map_pending_scans(self) -> None:
+        """Add the waiting scans to the belief, each from the pose at its stamp (a scan newer
+        than the newest pose waits for the next one; one older than the pose history is
+        dropped - a map drawn from a wrong pose is worse than a scan less)."""
+        while self._pending_scans:
+            stamp, scan = self._pending_scans[0]
+            newest = self._poses.latest_time
+            if newest is None or stamp > newest:
+                return
+            self._pending_scans.popleft()
+            pose = self._poses.at(stamp)
+            if pose is None:
+                self._warn("scanpose", f"dropped a scan at t={stamp:.2f} s: no pose near it")
+                continue
+            self.controller.integrate_scan(scan, pose, self._now())
+
+    def _on_teleop(self, msg: Twist) -> None:
+        c = self.controller
+        if c is None or not c.manual:
+            return
+        v, w = float(msg.linear.x), float(msg.angular.z)
+        if not (math.isfinite(v) and math.isfinite(w)):
+            self._warn("teleop", f"dropped a non-finite teleop command ({v}, {w}) on "
+                       f"{self.config.teleop_topic}")
+            return
+        c.teleop(v, w, self._now())
+
+    def _on_set_manual(self, request, response):
+        c = self.controller
+        if c is None:
+            response.success, response.message = False, "no map yet"
+            return response
+        c.set_manual(bool(request.data))
+        response.success = True
+        response.message = ("manual: driven by " + self.config.teleop_topic if request.data
+                            else "autonomous")
+        self.get_logger().info(f"robot {self.config.controller.robot_id}: {response.message}")
+        return response
+
+    def _on_pause(self, request, response):
+        self._paused = bool(request.data)
+        if self.controller is not None:
+            self.controller.set_paused(self._paused)
+        response.success = True
+        response.message = "paused" if self._paused else "resumed"
+        self.get_logger().info(f"robot {self.config.controller.robot_id}: {response.message}")
+        return response
 
     def _discover(self) -> None:
-        """Subscribe to every new /<prefix><k>/coverage_state topic (k != own id)."""
-        pattern = re.compile(rf"/{re.escape(self.config.robot_prefix)}(\d+)/coverage_state")
+        """Subscribe to every new /<prefix><k>/coverage_state topic (k != own id), and when
+        exploring to every /<prefix><k>/observations."""
+        prefix = re.escape(self.config.robot_prefix)
+        pattern = re.compile(rf"/{prefix}(\d+)/coverage_state")
+        evidence = re.compile(rf"/{prefix}(\d+)/{OBSERVATIONS}")
+        own = self.config.controller.robot_id
         for name, types in self.get_topic_names_and_types():
+            m = evidence.fullmatch(name)
+            if m and self.exchange is not None and OBSERVATIONS_TYPE in types and \
+                    int(m.group(1)) != own:
+                self.exchange.listen(int(m.group(1)), name)
             m = pattern.fullmatch(name)
             if not m or STATE_TYPE not in types:
                 continue
@@ -374,7 +265,7 @@ class RobotNode(Node):
             if self.count_publishers(name) == 0:
                 continue  # only subscribers so far (e.g. a monitor): not a robot yet
             self._subs[rid] = self.create_subscription(
-                JointState, name, lambda msg, rid=rid: self._on_state(rid, msg), 10,
+                JointState, name, lambda msg, rid=rid: self._on_state(rid, msg), TEAM_QOS,
                 event_callbacks=quiet_subscription())
             self.get_logger().info(f"neighbour {rid} found on {name}")
 
@@ -433,7 +324,9 @@ class RobotNode(Node):
         if d.cell_polygon is not None and len(d.cell_polygon):
             self.polygon_pub.publish(conv.polygon_msg(stamp, d.cell_polygon))
         # Self-steering strategies (tangentbug) have no goal for the planner, but a target.
-        goal = d.goal if d.goal is not None else d.info.get("real_target")
+        goal = d.target
+        if c.manual or c.paused:
+            return  # a person drives it, or it holds: no goal or plan to show
         if goal is not None:
             self.goal_pub.publish(conv.pose_stamped_msg(stamp, goal[0], goal[1],
                                                         float(result.pose[2])))
@@ -478,14 +371,22 @@ class RobotNode(Node):
         """Best effort: finish the running update, leave the robot standing."""
         self._worker.close()
         self.get_logger().info(self._worker.summary())
+        c = self.controller
+        if c is not None and c.last is not None and c.pose is not None:
+            d = c.last.decision
+            goal = "none" if d.target is None else f"({d.target[0]:.2f}, {d.target[1]:.2f})"
+            path = "no path" if c.path is None else f"path of {len(c.path)} points"
+            self.get_logger().info(
+                f"last decision: mode {d.mode or '-'}, heading for {goal} ({path}) from "
+                f"({c.pose[0]:.2f}, {c.pose[1]:.2f}); safety: {c.safety_note or 'clear'}")
+        if self.exchange is not None:
+            self.get_logger().info(f"sent the evidence of {self.exchange.sent_cells} cells, "
+                                   f"heard {len(self.exchange.heard)} robots")
         if self.context.ok():
             self._publish_cmd(0.0, 0.0, self._now())
 
     def _warn(self, key: str, text: str) -> None:
-        now = time.monotonic()
-        if now - self._warned.get(key, -math.inf) >= WARN_PERIOD:
-            self._warned[key] = now
-            self.get_logger().warning(text)
+        self._throttle.warn(key, text)
 
 
 def main(args=None) -> int:

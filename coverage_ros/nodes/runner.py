@@ -13,7 +13,6 @@ from collections.abc import Callable
 
 import rclpy
 from rcl_interfaces.msg import ParameterDescriptor
-from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
@@ -25,22 +24,6 @@ STARTUP_ERRORS = (CoverageError, ParameterException, OSError)
 
 class FatalConfigError(CoverageError):
     """A configuration error found after start-up (e.g. when the map arrives): ends the node."""
-
-
-def quiet_publisher() -> PublisherEventCallbacks:
-    """``event_callbacks`` for a publisher without rclpy's default QoS event handlers.
-
-    Every handler is a waitable that the Python executor adds to its wait set on every
-    wake-up; with a team's dozens of topics per process that was most of an idle robot's
-    CPU (measured: 13 % -> ~5 % of a core). Incompatible QoS is still reported by the
-    subscribing side where it matters (map, pose and scan inputs keep their handlers)."""
-    return PublisherEventCallbacks(use_default_callbacks=False)
-
-
-def quiet_subscription() -> SubscriptionEventCallbacks:
-    """``event_callbacks`` for a subscription without the default QoS event handlers (see
-    :func:`quiet_publisher`); for topics of the team's own nodes, whose QoS match by design."""
-    return SubscriptionEventCallbacks(use_default_callbacks=False)
 
 
 def declare_parameters(node: Node, table: dict[str, tuple[object, str]]) -> dict[str, object]:

@@ -17,31 +17,29 @@ from dataclasses import dataclass, field
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Twist, TwistStamped
 from nav_msgs.msg import OccupancyGrid, Odometry
-from rclpy.event_handler import PublisherEventCallbacks
 from rclpy.node import Node
-from rclpy.qos import (
-    DurabilityPolicy,
-    QoSProfile,
-    ReliabilityPolicy,
-    qos_profile_sensor_data,
-)
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import LaserScan
 from std_msgs.msg import Int32, String
 
-from coverage_ros.core.world import load_world, parse_poses
+from coverage_ros.core.world import load_planar_world, load_team, parse_poses
 from coverage_ros.errors import ConfigError, CoverageError
 from coverage_ros.nodes import conversions as conv
+from coverage_ros.nodes.plumbing import (
+    MAP_QOS,
+    SCAN_QOS,
+    TEAM_QOS,
+    WarnThrottle,
+    quiet_publisher,
+)
 from coverage_ros.nodes.runner import declare_parameters, run_node
 from coverage_ros.sim.world import Scan, SimConfig, World
 from coverage_ros.worlds import resolve_world_path
 
 DEFAULT_NUM_ROBOTS = 4  # robots when the world lists no start poses
-WARN_PERIOD = 2.0  # [s] wall time between repeats of a throttled warning
+WARN_PERIOD = 2.0  # [s] wall time between repeats of a throttled warning (the sim's inputs)
 TICK_BUDGET = 0.05  # [s] wall time one pacing tick may step before serving callbacks again
 MAX_LAG = 0.25  # [s] sim time behind schedule before the pacer gives up catching up
-MAP_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
-                     durability=DurabilityPolicy.TRANSIENT_LOCAL)  # latched, like map_server
 
 
 @dataclass(frozen=True)
@@ -56,6 +54,7 @@ class WorldNodeConfig:
     clock_rate_hz: float = 0.0  # [Hz] sim time; 0: every physics step
     status_rate_hz: float = 1.0  # [Hz] wall time
     robot_prefix: str = "robot_"
+    publish_map: bool = True
     sim: SimConfig = field(default_factory=SimConfig)
 
     def __post_init__(self) -> None:
@@ -82,6 +81,8 @@ _PARAMETERS = {  # name: (default, description)
     "num_robots": (-1, "robots at start-up; -1: one per start pose of the world, else 4"),
     "starts": ("", "start poses 'x,y,yaw;x,y,yaw;...' [m, rad] overriding the world's; "
                "num_robots -1 then means one robot per pose"),
+    "team": ("", "team YAML (each robot's id, start and spec, e.g. coverage-team's "
+             "<out>/team.yaml); overrides starts and num_robots"),
     "seed": (0, "seed of placement, odometry noise and lidar noise (same seed, same run)"),
     "real_time_factor": (1.0, "sim seconds per wall second; 0: as fast as possible"),
     "physics_rate_hz": (50.0, "[Hz] fixed physics steps per simulated second"),
@@ -94,6 +95,8 @@ _PARAMETERS = {  # name: (default, description)
     "clock_rate_hz": (0.0, "[Hz] sim time rate of /clock; 0: every physics step"),
     "status_rate_hz": (1.0, "[Hz] wall time rate of /world/robots"),
     "robot_prefix": ("robot_", "robot namespaces and frame prefixes are <prefix><id>"),
+    "publish_map": (True, "publish the true map on /map (false: the robots explore an unknown "
+                    "map)"),
 }
 
 
@@ -118,25 +121,30 @@ class WorldNode(Node):
         p = declare_parameters(self, _PARAMETERS)
         scan_noise = p.pop("scan_noise_std")
         starts_text = p.pop("starts")
+        team_path = p.pop("team")
         sim = SimConfig(seed=p.pop("seed"), physics_rate_hz=p.pop("physics_rate_hz"),
                         cmd_timeout=p.pop("cmd_timeout"),
                         odom_noise_trans=p.pop("odom_noise_trans"),
                         odom_noise_rot=p.pop("odom_noise_rot"),
                         scan_noise_std=scan_noise if scan_noise >= 0 else None)
         self.config = WorldNodeConfig(sim=sim, **p)
-        self.spec = load_world(resolve_world_path(self.config.world))
+        self.spec = load_planar_world(resolve_world_path(self.config.world), "world")
         self.sim = World(self.spec, self.config.sim)
         count = self.config.num_robots
         if count < 0:
             count = len(self.spec.starts) or DEFAULT_NUM_ROBOTS
         self.io: dict[int, RobotIO] = {}
-        self._last_warn: dict[str, float] = {}
-        self.clock_pub = self.create_publisher(Clock, "/clock", 10)
+        self._throttle = WarnThrottle(self.get_logger().warning, WARN_PERIOD)
+        self.clock_pub = self.create_publisher(Clock, "/clock", TEAM_QOS)
         self.map_pub = self.create_publisher(OccupancyGrid, "/map", MAP_QOS)
-        self.status_pub = self.create_publisher(DiagnosticArray, "/world/robots", 10)
-        self.create_subscription(String, "/world/spawn", self._on_spawn, 10)
-        self.create_subscription(Int32, "/world/remove", self._on_remove, 10)
-        if starts_text:
+        self.status_pub = self.create_publisher(DiagnosticArray, "/world/robots", TEAM_QOS)
+        self.create_subscription(String, "/world/spawn", self._on_spawn, TEAM_QOS)
+        self.create_subscription(Int32, "/world/remove", self._on_remove, TEAM_QOS)
+        if team_path:
+            for member in load_team(team_path, self.spec):
+                self.sim.add_robot(member.id, member.start, member.spec)
+                self._open_io(member.id)
+        elif starts_text:
             poses = parse_poses(starts_text, "starts")
             if self.config.num_robots < 0:
                 count = len(poses)
@@ -150,7 +158,9 @@ class WorldNode(Node):
         else:
             for robot_id in self.sim.populate(count):
                 self._open_io(robot_id)
-        self.map_pub.publish(conv.grid_to_occupancy_grid(self.spec.grid, conv.to_time_msg(0.0)))
+        if self.config.publish_map:
+            self.map_pub.publish(conv.grid_to_occupancy_grid(self.spec.grid,
+                                                             conv.to_time_msg(0.0)))
         self._publish_clock()
         dt = self.config.sim.dt
         self._next_odom = 0.0
@@ -167,33 +177,29 @@ class WorldNode(Node):
 
     # ------------------------------------------------------------------ helpers
     def _warn(self, key: str, text: str) -> None:
-        """Log a warning at most once per WARN_PERIOD per key (wall time)."""
-        now = time.monotonic()
-        if now - self._last_warn.get(key, -math.inf) >= WARN_PERIOD:
-            self._last_warn[key] = now
-            self.get_logger().warning(text)
+        self._throttle.warn(key, text)
 
     def _open_io(self, robot_id: int) -> None:
         frames = conv.RobotFrames.of(self.config.robot_prefix, robot_id)
         if self.config.use_stamped_cmd_vel:
             sub = self.create_subscription(
                 TwistStamped, frames.topic("cmd_vel"),
-                lambda msg, rid=robot_id: self._on_cmd_vel(rid, msg.twist), 10)
+                lambda msg, rid=robot_id: self._on_cmd_vel(rid, msg.twist), TEAM_QOS)
         else:
             sub = self.create_subscription(
                 Twist, frames.topic("cmd_vel"),
-                lambda msg, rid=robot_id: self._on_cmd_vel(rid, msg), 10)
+                lambda msg, rid=robot_id: self._on_cmd_vel(rid, msg), TEAM_QOS)
         # No QoS event handlers on per-robot publishers: rclpy's executor walks every handler
         # on every wake-up: 31 % -> 22 % CPU for 16 robots at real time (subscribers
         # still report incompatible QoS).
-        quiet = PublisherEventCallbacks(use_default_callbacks=False)
         self.io[robot_id] = RobotIO(
             frames, sub,
-            self.create_publisher(Odometry, frames.topic("odom"), 10, event_callbacks=quiet),
-            self.create_publisher(Odometry, frames.topic("ground_truth"), 10,
-                                  event_callbacks=quiet),
-            self.create_publisher(LaserScan, frames.topic("scan"), qos_profile_sensor_data,
-                                  event_callbacks=quiet))
+            self.create_publisher(Odometry, frames.topic("odom"), TEAM_QOS,
+                                  event_callbacks=quiet_publisher()),
+            self.create_publisher(Odometry, frames.topic("ground_truth"), TEAM_QOS,
+                                  event_callbacks=quiet_publisher()),
+            self.create_publisher(LaserScan, frames.topic("scan"), SCAN_QOS,
+                                  event_callbacks=quiet_publisher()))
 
     def _close_io(self, robot_id: int) -> None:
         io = self.io.pop(robot_id)
@@ -315,7 +321,8 @@ class WorldNode(Node):
                     "collisions": robot.collisions, "robot_collisions": robot.robot_collisions,
                     "wall_collisions": robot.wall_collisions, "path_length": robot.path_length,
                     "scans": robot.scans, "spawn_time": robot.spawn_time,
-                    "min_separation": robot.min_separation},
+                    "min_separation": robot.min_separation, **robot.spec.numbers(),
+                    "lidar_range_max": robot.spec.lidar.range_max},
                 hardware_id=str(robot_id)))
         self.status_pub.publish(msg)
 

@@ -22,8 +22,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from coverage_ros.core.geometry import polygon_area
-from coverage_ros.core.grid import GridMap
 from coverage_ros.core.world import WorldSpec
+from coverage_ros.core.world.grid import GridMap
 
 ARENA_WALL_THICKNESS = 0.5  # [m] boxes outside the arena; far thicker than a physics step's travel
 

@@ -25,9 +25,9 @@ import numpy as np
 import pymunk
 
 from coverage_ros.core.world import LidarSpec, RobotSpec, WorldSpec, cluster_starts
+from coverage_ros.core.world.placement import FreePlacer, check_pose
 from coverage_ros.errors import ConfigError, WorldError
 from coverage_ros.sim.lidar import SegmentIndex, cast_scans, finish_ranges, pymunk_scan
-from coverage_ros.sim.placement import FreePlacer
 from coverage_ros.sim.robots import ROBOT_FRICTION, Robot
 from coverage_ros.sim.static_geometry import StaticGeometry, build_static_geometry
 
@@ -189,7 +189,7 @@ class World:
         if pose is None:
             pose = self._placer.place(spec.radius, others, self.rng_place)
         else:
-            pose = self._placer.check(tuple(float(v) for v in pose), spec.radius, others,
+            pose = check_pose(self.spec, tuple(float(v) for v in pose), spec.radius, others,
                                       f"robot {robot_id}: pose")
         robot = Robot(robot_id, spec, pose, group=self._next_group, collision_type=ROBOT_TYPE,
                       spawn_time=self.time)

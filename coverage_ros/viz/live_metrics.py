@@ -1,9 +1,10 @@
 """Coverage metrics of a live team, computed with the core off the caller's thread.
 
 The coverage cost H and the cell masses of the robots' positions come from the centralized
-tessellation (:func:`coverage_ros.core.tessellation.tessellate`), as ``coverage-plan`` reports
-them. With visibility-based distances one tessellation takes ~0.05 s on a 12 m x 8 m office and
-~0.1-0.5 s on large maps, so it runs on one worker thread: a viewer keeps taking messages
+tessellation (:func:`coverage_ros.core.geodesic.tessellation.tessellate`), as
+``coverage-plan`` reports them. With visibility-based distances one tessellation takes ~0.05 s on a
+12 m x 8 m office and ~0.1-0.5 s on large maps, so it runs on one worker thread: a viewer keeps
+taking messages
 meanwhile, and a new request while one is running is simply skipped (see :attr:`busy`).
 """
 
@@ -14,8 +15,9 @@ from concurrent.futures import Future, ThreadPoolExecutor
 
 import numpy as np
 
-from coverage_ros.core.density import Density, UniformDensity
-from coverage_ros.core.grid import GridMap
+from coverage_ros.core.world.density import Density, UniformDensity
+from coverage_ros.core.world.grid import GridMap
+from coverage_ros.core.world.metric import WorldMetric, zeta_on_grid
 from coverage_ros.viz.recording import CoverageRecorder
 
 #: ``(robot_id, (x, y) [m] map frame, power weight R [m])`` of one robot.
@@ -31,10 +33,12 @@ class LiveMetrics:
     """
 
     def __init__(self, recorder: CoverageRecorder, robot_radius: float,
-                 density: Density | None, warn: Callable[[str, str], None]) -> None:
+                 density: Density | None, warn: Callable[[str, str], None],
+                 metric: WorldMetric | None = None) -> None:
         self.rec = recorder
         self.robot_radius = robot_radius
         self.density = density
+        self.metric = metric  # the world's travel metric (zeta), None: Euclidean
         self.warn = warn
         self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="metrics")
         self._job: Future | None = None
@@ -66,10 +70,11 @@ class LiveMetrics:
     def _domain_of(self, grid: GridMap):
         if self._domain is not None and self._domain[0] is grid:
             return self._domain[1]
-        from coverage_ros.core.domain import CoverageDomain
+        from coverage_ros.core.geodesic.domain import CoverageDomain
 
         try:
-            domain = CoverageDomain.from_grid(grid, self.robot_radius, self.density)
+            zeta = zeta_on_grid(self.metric, grid)
+            domain = CoverageDomain.from_grid(grid, self.robot_radius, self.density, zeta=zeta)
             if self.density is not None and not isinstance(self.density, UniformDensity):
                 self.rec.log_density(grid, domain.density)
         except Exception as exc:  # a map the core cannot use must not end the viewer
@@ -80,7 +85,7 @@ class LiveMetrics:
 
     def _compute(self, grid: GridMap, t: float, robots: list[RobotSample],
                  log_cells: Callable[[], bool] | None) -> None:
-        from coverage_ros.core.tessellation import Generator, tessellate
+        from coverage_ros.core.geodesic.tessellation import Generator, tessellate
 
         domain = self._domain_of(grid)
         if domain is None:

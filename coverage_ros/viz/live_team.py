@@ -23,17 +23,19 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from coverage_ros.core.grid import GridMap
+from coverage_ros.core.control.pose_history import TIME_JUMP_BACK, PoseHistory
+from coverage_ros.core.exploration.belief import Evidence
+from coverage_ros.core.world.grid import GridMap
+from coverage_ros.viz.live_exploration import ExplorationLayer
 from coverage_ros.viz.live_metrics import LiveMetrics
 from coverage_ros.viz.recording import CoverageRecorder
-from coverage_ros.viz.team import PoseHistory, Schedule, Trajectory, compose_cell_labels
+from coverage_ros.viz.team import Schedule, Trajectory, compose_cell_labels
 
 TRAJECTORY_SEGMENT = 100  # [points] trajectory piece size (see viz.team.Trajectory)
 # Scans newer than the robot's latest pose wait for the pose at their stamp (poses and scans
 # travel on separate topics, so a scan may overtake the pose of its own time step); at most
 # this many per robot, then the oldest is placed with the nearest pose known.
 MAX_PENDING_SCANS = 4
-TIME_JUMP_BACK = 1.0  # [s] a clock going back further than this is a restarted simulation
 
 Pose = tuple[float, float, float]  # (x [m], y [m], yaw [rad]) in the map frame
 
@@ -85,6 +87,8 @@ class LiveTeam:
         self._metrics_due = Schedule(rates.metrics_period)
         self._cells_dirty = False
         self._cell_count = 0  # cells received so far
+        #: Exploring: the team's merged belief, logged over time (set by the front end).
+        self.exploration: ExplorationLayer | None = None
 
     # ------------------------------------------------------------------ time and map
     def advance(self, t: float) -> None:
@@ -229,6 +233,12 @@ class LiveTeam:
         self.rec.set_time(self.seen(t))
         self.rec.log_values(f"/state/robot_{robot_id}", values)
 
+    def observations(self, robot_id: int, t: float, evidence: Evidence) -> None:
+        """An exploring robot's evidence (merged into the viewer's belief)."""
+        if self.exploration is not None:
+            self.seen(t)
+            self.exploration.evidence(evidence)
+
     def status(self, where: str, t: float, values: dict[str, float]) -> None:
         """Counters of the world or of a robot, as time series under ``/status/<where>``."""
         self.rec.set_time(self.seen(t))
@@ -259,6 +269,9 @@ class LiveTeam:
             self.rec.set_time(t)
             self.rec.log_cells(labels, [v.robot_id for v in views])
             self._cells_dirty = False
+        if self.exploration is not None:
+            self.exploration.tick(t, np.array([v.poses.latest[:2] for v in self.robots.values()
+                                               if v.poses.latest is not None]).reshape(-1, 2))
         if (self.metrics is not None and self.rates.metrics_period > 0
                 and self.grid is not None and not self.metrics.busy
                 and self._metrics_due.due(t)):

@@ -1,5 +1,6 @@
-"""PNG pictures of a coverage plan: the map, each robot's cell in its colour, start and final
-positions, and trajectories. Image row 0 is the top of the map (north up)."""
+"""PNG pictures of a coverage plan: the map, an importance density or a belief's entropy under
+each robot's cell in its colour, start and final positions, and trajectories. Image row 0 is
+the top of the map (north up)."""
 
 from __future__ import annotations
 
@@ -7,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from coverage_ros.core.grid import GridMap
+from coverage_ros.core.world.grid import GridMap
 from coverage_ros.viz.colors import robot_colors
 
 #: [px] target size of the longer image side.
@@ -16,12 +17,17 @@ FREE_RGB = (255, 255, 255)
 OBSTACLE_RGB = (40, 40, 40)
 UNKNOWN_RGB = (190, 190, 190)
 CELL_ALPHA = 0.45  # how strongly a cell's colour tints the free space
+UNDERLAY_RGB = (70, 110, 220)  # density / entropy tint, strongest where the underlay is 1
+UNDERLAY_ALPHA = 0.6
 
 
 def render_plan(grid: GridMap, labels: np.ndarray | None, trajectories: np.ndarray,
-                path: str | Path, robot_ids=None, title: str | None = None) -> Path:
+                path: str | Path, robot_ids=None, title: str | None = None,
+                underlay: np.ndarray | None = None) -> Path:
     """Write the picture; ``labels (H, W)`` robot index per cell (-1 none), ``trajectories
-    (T, n, 2)`` map-frame positions (first row: starts, last row: finals)."""
+    (T, n, 2)`` map-frame positions (first row: starts, last row: finals); ``underlay (H, W)``
+    in [0, 1] - an importance density, or a belief's entropy - tints the free space under the
+    cells."""
     from PIL import Image, ImageDraw
 
     H, W = grid.shape
@@ -31,6 +37,11 @@ def render_plan(grid: GridMap, labels: np.ndarray | None, trajectories: np.ndarr
     rgb[:] = FREE_RGB
     rgb[occ < 0] = UNKNOWN_RGB
     rgb[occ >= 65] = OBSTACLE_RGB
+    if underlay is not None:
+        u = np.clip(np.asarray(underlay, dtype=np.float64), 0.0, 1.0)[..., None]
+        free = occ < 65
+        rgb[free] = ((1 - UNDERLAY_ALPHA * u) * rgb + UNDERLAY_ALPHA * u
+                     * np.array(UNDERLAY_RGB))[free]
     n = trajectories.shape[1]
     ids = np.arange(n) if robot_ids is None else np.asarray(robot_ids)
     colors = robot_colors(ids).astype(np.float64)

@@ -4,6 +4,7 @@ Entity layout (all in the ``map`` frame, metres, z = 0 is the floor)::
 
     /world/map            GridMap, static: free white, obstacles dark, unknown grey
     /world/density        GridMap, static: importance density (viridis), under the cells
+    /world/entropy        GridMap: exploring, the team's belief entropy (white: unknown)
     /world/cells          GridMap: every robot's cell in the robot's colour
     /world/robots         Points3D: robot positions (labels "robot_<id>", robot colours)
     /world/goals          Points3D: current goals
@@ -13,6 +14,7 @@ Entity layout (all in the ``map`` frame, metres, z = 0 is the floor)::
     /world/cell_polygons/robot_<id>  LineStrips3D: cell outline (strategies that publish one)
     /metrics/H            Scalars: coverage cost
     /metrics/mass/robot_<id>         Scalars: cell masses
+    /metrics/explored     Scalars: exploring, explored fraction and false free share
     /state/robot_<id>     Scalars: a robot's coverage_state values, a series per name
     /status/robot_<id>    Scalars: the simulator's per-robot counters (and /status/world)
 
@@ -27,24 +29,21 @@ views; the default blueprint looks at the floor from above.
 
 from __future__ import annotations
 
-import contextlib
-import signal
-import subprocess
-import time
 import uuid
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 
 import numpy as np
 
-from coverage_ros.core.grid import GridMap
+from coverage_ros.core.world.grid import GridMap
 from coverage_ros.viz.colors import robot_color, robot_colors
 
 APP_ID = "coverage_ros"
 TIMELINE = "sim_time"
 CELL_OPACITY = 0.45  # cells tint the map without hiding it
 DENSITY_OPACITY = 0.35
-Z_MAP, Z_DENSITY, Z_CELLS = 0.0, 0.001, 0.002  # [m] draw order along z as well
+Z_MAP, Z_DENSITY, Z_ENTROPY, Z_CELLS = 0.0, 0.001, 0.0015, 0.002  # [m] draw order along z
+ENTROPY_OPACITY = 0.6  # over the true map: unknown shows white, explored shows the map
 ROBOT_HEIGHT = 0.05  # [m] robots and paths float just above the map
 FLUSH_TIMEOUT = 10.0  # [s] wall time to hand buffered data to the sinks at the end
 
@@ -95,13 +94,11 @@ class CoverageRecorder:
         self._grid: GridMap | None = None
         self._series: dict[str, list[str]] = {}  # entity -> series names (log_values)
         self._last_cells: np.ndarray | None = None  # RGBA of the last cell layer logged
+        self.exploring = False  # an entropy layer was logged: show the explored plot
 
     # ------------------------------------------------------------------ sinks
     def save(self, path: str | Path) -> None:
         self.stream.save(str(path), default_blueprint=self.blueprint())
-
-    def connect(self, url: str) -> None:
-        self.stream.connect_grpc(url, default_blueprint=self.blueprint())
 
     def set_outputs(self, record_path: str | Path | None = None,
                     connect_urls: Iterable[str] = ()) -> None:
@@ -139,12 +136,12 @@ class CoverageRecorder:
                                     eye_up=(0.0, 1.0, 0.0))
         view = rrb.Spatial3DView(origin="/world", name="map and cells",
                                  **({"eye_controls": eye} if eye is not None else {}))
+        plots = [rrb.TimeSeriesView(origin="/metrics/H", name="coverage cost H"),
+                 rrb.TimeSeriesView(origin="/metrics/mass", name="cell masses")]
+        if self.exploring:
+            plots.insert(0, rrb.TimeSeriesView(origin="/metrics/explored", name="explored"))
         return rrb.Blueprint(
-            rrb.Horizontal(
-                view,
-                rrb.Vertical(rrb.TimeSeriesView(origin="/metrics/H", name="coverage cost H"),
-                             rrb.TimeSeriesView(origin="/metrics/mass", name="cell masses")),
-                column_shares=[3, 1]),
+            rrb.Horizontal(view, rrb.Vertical(*plots), column_shares=[3, 1]),
             rrb.TimePanel(timeline=TIMELINE), collapse_panels=True)
 
     # ------------------------------------------------------------------ static layers
@@ -180,6 +177,27 @@ class CoverageRecorder:
                 cell_size=grid.resolution, translation=[x0, y0, Z_DENSITY],
                 colormap=rr.components.Colormap.Viridis, opacity=DENSITY_OPACITY),
                 static=True)
+
+    def log_entropy(self, grid: GridMap, entropy: np.ndarray) -> None:
+        """The ``(H, W)`` belief entropy [nats] on ``grid`` at the current time: white where
+        nothing is known (ln 2), transparent where the map is decided."""
+        rr = self.rr
+        if not self.exploring:
+            self.exploring = True
+            self.send_blueprint()  # with the explored-fraction plot
+        e = np.clip(np.asarray(entropy, dtype=np.float64) / np.log(2.0), 0.0, 1.0)
+        rgba = np.zeros(e.shape + (4,), np.uint8)
+        rgba[..., :3] = 255
+        rgba[..., 3] = (255.0 * ENTROPY_OPACITY * e).astype(np.uint8)
+        data, fmt = self._grid_map(grid, rgba, "RGBA")
+        self.stream.log("/world/entropy", rr.GridMap(
+            data=data.tobytes(), format=fmt, cell_size=grid.resolution,
+            translation=[grid.origin[0], grid.origin[1], Z_ENTROPY]))
+
+    def log_exploration(self, explored: float, false_free: float) -> None:
+        rr = self.rr
+        self.stream.log("/metrics/explored/fraction", rr.Scalars(float(explored)))
+        self.stream.log("/metrics/explored/false_free", rr.Scalars(float(false_free)))
 
     # ------------------------------------------------------------------ time-varying
     def set_time(self, seconds: float) -> None:
@@ -281,92 +299,3 @@ class CoverageRecorder:
             self.stream.log(f"/metrics/mass/robot_{rid}",
                             rr.SeriesLines(names=f"robot_{rid}", colors=[robot_color(rid)]),
                             static=True)
-
-
-# ---------------------------------------------------------------------------- web viewer
-LOCALHOST = "127.0.0.1"  # servers listen on loopback only: nothing is exposed to the network
-SERVER_START_TIMEOUT = 10.0  # [s] wall time for `rerun --serve-web` to open its ports
-SERVER_STOP_TIMEOUT = 3.0  # [s] wall time between SIGTERM and SIGKILL of the server
-PR_SET_PDEATHSIG = 1  # linux/prctl.h
-
-
-def rerun_executable() -> str:
-    """Path of the ``rerun`` binary shipped with rerun-sdk (not the Python wrapper script: a
-    signal to the wrapper would not reach the server it starts)."""
-    import shutil
-
-    with contextlib.suppress(ImportError):
-        import rerun_cli
-
-        exe = Path(rerun_cli.__file__).with_name("rerun")
-        if exe.is_file():
-            return str(exe)
-    exe = shutil.which("rerun")
-    if exe is None:
-        raise FileNotFoundError("the rerun binary (pip install rerun-sdk)")
-    return exe
-
-
-def _die_with_parent() -> None:  # runs in the child between fork and exec
-    with contextlib.suppress(Exception):
-        import ctypes
-
-        ctypes.CDLL("libc.so.6", use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
-
-
-class WebViewerServer:
-    """A ``rerun --serve-web`` child process bound to 127.0.0.1: a gRPC proxy at
-    :attr:`grpc_url` (log to it with a ``GrpcSink``) and the web viewer at :attr:`web_url`.
-
-    :meth:`stop` ends it by its PID (and it dies with its parent process). It keeps what was
-    logged in memory, up to ``memory_limit``, for viewers that connect late.
-    """
-
-    def __init__(self, grpc_port: int, web_port: int, memory_limit: str = "25%") -> None:
-        import socket
-
-        self.grpc_port, self.web_port = grpc_port, web_port
-        for port in (grpc_port, web_port):  # fail here, with the port named, not in the child
-            with socket.socket() as sock:
-                if sock.connect_ex((LOCALHOST, port)) == 0:
-                    raise OSError(f"port {port} on {LOCALHOST} is already in use")
-        # Its own session: a Ctrl-C meant for the caller must not end the server before the
-        # caller has flushed to it; the kernel ends it if the caller dies (PR_SET_PDEATHSIG).
-        self.proc = subprocess.Popen(
-            [rerun_executable(), "--serve-web", "--bind", LOCALHOST, "--port", str(grpc_port),
-             "--web-viewer-port", str(web_port), "--server-memory-limit", memory_limit],
-            stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-            start_new_session=True, preexec_fn=_die_with_parent)
-        deadline = time.monotonic() + SERVER_START_TIMEOUT
-        while not all(self._listening(p) for p in (grpc_port, web_port)):
-            if self.proc.poll() is not None or time.monotonic() > deadline:
-                self.stop()
-                raise OSError(f"rerun --serve-web did not open ports {grpc_port} and "
-                              f"{web_port} on {LOCALHOST} within {SERVER_START_TIMEOUT:g} s")
-            time.sleep(0.05)
-
-    @staticmethod
-    def _listening(port: int) -> bool:
-        import socket
-
-        with socket.socket() as sock:
-            return sock.connect_ex((LOCALHOST, port)) == 0
-
-    @property
-    def grpc_url(self) -> str:
-        return f"rerun+http://{LOCALHOST}:{self.grpc_port}/proxy"
-
-    @property
-    def web_url(self) -> str:
-        from urllib.parse import quote
-
-        return f"http://{LOCALHOST}:{self.web_port}/?url={quote(self.grpc_url, safe='')}"
-
-    def stop(self) -> None:
-        if self.proc.poll() is None:
-            self.proc.send_signal(signal.SIGTERM)
-            try:
-                self.proc.wait(timeout=SERVER_STOP_TIMEOUT)
-            except subprocess.TimeoutExpired:
-                self.proc.kill()
-                self.proc.wait()

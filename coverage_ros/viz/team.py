@@ -2,8 +2,8 @@
 
 * :func:`compose_cell_labels` merges the robots' cropped cell grids into one label grid on the
   map's lattice (what :meth:`CoverageRecorder.log_cells` draws).
-* :class:`PoseHistory` keeps a robot's recent poses so a scan is placed with the pose at the
-  scan's stamp, not the latest one.
+* :class:`~coverage_ros.core.control.pose_history.PoseHistory` (from the core) keeps a robot's
+  recent poses so a scan is placed with the pose at the scan's stamp, not the latest one.
 * :class:`Trajectory` grows a driven path in bounded segments: re-logging a whole path every
   time would make a recording grow with the square of its length.
 * :class:`Schedule` says when a periodic job is due on the (simulation) time of the messages.
@@ -15,23 +15,17 @@ Points are ``(N, 2) float64`` arrays of ``(x, y)`` [m] in the ``map`` frame; pos
 from __future__ import annotations
 
 import math
-from collections import deque
 from collections.abc import Sequence
 
 import numpy as np
 
-from coverage_ros.core.grid import GridMap
+from coverage_ros.core.control.pose_history import TIME_JUMP_BACK
+from coverage_ros.core.world.grid import GridMap
 
 #: [percent] a cell-grid value at or above this is part of the robot's cell (cells publish 100).
 CELL_THRESHOLD = 50
-#: [s] pose history kept per robot (scans arrive at 5 Hz, poses at 20 Hz).
-POSE_HISTORY = 2.0
-#: [s] how far a scan stamp may lie outside the pose history and still use its nearest pose.
-POSE_TOLERANCE = 0.5
 #: [m] trajectory points closer than this to the previous one are skipped (a robot at rest).
 TRAJECTORY_MIN_STEP = 0.01
-#: [s] a time step back larger than this restarts a schedule (the simulation was restarted).
-TIME_JUMP_BACK = 1.0
 
 
 def compose_cell_labels(grid: GridMap, cells: Sequence[GridMap],
@@ -45,7 +39,7 @@ def compose_cell_labels(grid: GridMap, cells: Sequence[GridMap],
     Where cells overlap (one robot's message is newer than its neighbour's), the later entry
     of ``cells`` wins.
 
-    >>> from coverage_ros.core.grid import GridMap
+    >>> from coverage_ros.core.world.grid import GridMap
     >>> m = GridMap(np.zeros((3, 4)), 1.0)
     >>> c = GridMap(np.full((1, 2), 100), 1.0, (1.0, 1.0, 0.0))
     >>> compose_cell_labels(m, [c]).tolist()
@@ -80,50 +74,6 @@ def _overlap(grid: GridMap, cell: GridMap) -> tuple[int, int, int, int] | None:
     if r0 >= r1 or c0 >= c1:
         return None
     return r0, r1, c0, c1
-
-
-class PoseHistory:
-    """A robot's recent ``(t, x, y, yaw)`` samples (stamps in seconds, increasing)."""
-
-    def __init__(self, span: float = POSE_HISTORY) -> None:
-        self.span = span
-        self._samples: deque[tuple[float, float, float, float]] = deque()
-
-    def add(self, t: float, pose: tuple[float, float, float]) -> None:
-        if self._samples and t < self._samples[-1][0]:
-            if t < self._samples[-1][0] - TIME_JUMP_BACK:
-                self._samples.clear()  # time went back: a new run
-            else:
-                return  # out of order: keep the history sorted
-        self._samples.append((t, *pose))
-        while self._samples[-1][0] - self._samples[0][0] > self.span:
-            self._samples.popleft()
-
-    @property
-    def latest(self) -> tuple[float, float, float] | None:
-        return self._samples[-1][1:] if self._samples else None
-
-    @property
-    def latest_time(self) -> float | None:
-        return self._samples[-1][0] if self._samples else None
-
-    def at(self, t: float) -> tuple[float, float, float] | None:
-        """The pose at ``t``: interpolated between samples (yaw along the short way), the
-        nearest sample within POSE_TOLERANCE outside them, else None."""
-        if not self._samples:
-            return None
-        first, last = self._samples[0], self._samples[-1]
-        if t <= first[0]:
-            return first[1:] if first[0] - t <= POSE_TOLERANCE else None
-        if t >= last[0]:
-            return last[1:] if t - last[0] <= POSE_TOLERANCE else None
-        stamps = np.fromiter((s[0] for s in self._samples), dtype=np.float64)
-        k = int(np.searchsorted(stamps, t))
-        (t0, x0, y0, a0), (t1, x1, y1, a1) = self._samples[k - 1], self._samples[k]
-        f = (t - t0) / (t1 - t0) if t1 > t0 else 1.0
-        da = math.remainder(a1 - a0, 2.0 * math.pi)
-        return (x0 + f * (x1 - x0), y0 + f * (y1 - y0),
-                math.remainder(a0 + f * da, 2.0 * math.pi))
 
 
 class Trajectory:

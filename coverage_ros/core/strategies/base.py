@@ -1,12 +1,15 @@
 """The strategy interface shared by the robot node and the offline planner.
 
 A strategy is one robot's coverage brain. It is built once from a :class:`StrategyContext`
-(the domain, the robot's body and sensing, its parameters) and then called every control
-period with what a real robot has: its own :class:`Observation` (pose, time, optionally a lidar
-scan) and the :class:`Neighbour` states its neighbours published. It returns a
-:class:`Decision`: where to go (a goal for the robot's navigation) or, for strategies that steer
-themselves (TangentBug), a velocity command; its own cell; and the :class:`SharedState` to
-publish for the others.
+(the domain, the robot's :class:`RobotSpec`) and its own settings - a frozen dataclass, the
+strategy's :attr:`Strategy.Params`, validated once where the user gave them (node parameters,
+CLI, YAML; see :func:`coverage_ros.core.strategies.strategy_choice`). It is then called every
+control period with what a real robot has: its own :class:`Observation` (pose, time,
+optionally a lidar scan) and the :class:`Neighbour` states its neighbours published. It returns
+a :class:`Decision`: where to go (a goal for the robot's navigation) or, for strategies that
+steer themselves (TangentBug), a velocity command; the point it is heading for; its own cell
+and cost; what it is doing (``mode``); the :class:`SharedState` to publish for the others; and
+its own typed :class:`StrategyDetails`.
 
 Strategies keep their own state between calls (caches, virtual generators, modes) but never
 touch ROS, the simulator or the viewer.
@@ -18,16 +21,15 @@ import math
 from abc import ABC, abstractmethod
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from types import MappingProxyType
 from typing import Any, ClassVar
 
 import numpy as np
 
-from coverage_ros.core.domain import CoverageDomain
-from coverage_ros.core.world import RobotSpec
+from coverage_ros.core.exploration.belief import BeliefSnapshot
+from coverage_ros.core.geodesic.domain import CoverageDomain
+from coverage_ros.core.world.robot import RobotSpec
 from coverage_ros.errors import ConfigError
-
-#: [m] default sensing radius for coverage metrics: the LDS-01 lidar's range.
-DEFAULT_SENSOR_RADIUS = 3.5
 
 
 @dataclass(frozen=True)
@@ -56,6 +58,27 @@ class Scan:
             pts = pts + np.asarray(pose[:2])
         return pts
 
+    def sees(self, points: np.ndarray, pose: np.ndarray) -> np.ndarray:
+        """``(N,) bool``: which map-frame ``points (N, 2)`` the scan taken at ``pose`` saw as
+        free - no nearer than its nearest beam's return (no return: free up to
+        ``range_max``, REP 117; an invalid return shows nothing)."""
+        pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+        rel = pts - np.asarray(pose[:2], dtype=np.float64)
+        dist = np.hypot(rel[:, 0], rel[:, 1])
+        beams = len(self.ranges)
+        k = np.rint((np.arctan2(rel[:, 1], rel[:, 0]) - pose[2] - self.angle_min)
+                    / self.angle_increment).astype(np.int64)
+        if abs(beams * self.angle_increment - 2.0 * np.pi) < 1e-6:
+            k %= beams  # a full circle wraps
+        inside = (k >= 0) & (k < beams)
+        r = np.asarray(self.ranges, dtype=np.float64)
+        depth = np.where(np.isnan(r) | (r < self.range_min), 0.0,
+                         np.where(np.isinf(r) & (r > 0), self.range_max,
+                                  np.minimum(r, self.range_max)))
+        out = np.zeros(len(pts), dtype=bool)
+        out[inside] = dist[inside] <= depth[k[inside]]
+        return out
+
 
 @dataclass(frozen=True)
 class Observation:
@@ -63,6 +86,8 @@ class Observation:
     pose: np.ndarray  # (3,) x [m], y [m], yaw [rad] in the map frame
     time: float  # [s]
     scan: Scan | None = None
+    #: What the robot believes of the map, when it explores an unknown one (else None).
+    belief: BeliefSnapshot | None = None
 
     @property
     def position(self) -> np.ndarray:
@@ -76,8 +101,13 @@ class SharedState:
     position: np.ndarray  # (2,) [m] generator position
     weight: float = 0.0  # power weight R [m]
     mass: float | None = None  # own cell mass
-    virtual: np.ndarray | None = None  # (2,) virtual generator (seed 001), if any
+    virtual: np.ndarray | None = None  # (2,) virtual generator (Breitenmoser et al.), if any
+    #: Further named values of the strategy's protocol, published as they are (e.g. ``reach``);
+    #: read-only.
     extra: Mapping[str, float] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "extra", MappingProxyType(dict(self.extra)))
 
 
 @dataclass(frozen=True)
@@ -94,16 +124,35 @@ class Neighbour:
 
 
 @dataclass(frozen=True)
+class StrategyDetails:
+    """Base of each strategy's own typed account of an update (subclassed per strategy)."""
+
+
+@dataclass(frozen=True)
 class Decision:
-    goal: np.ndarray | None  # (2,) [m] map frame, or None to stay
+    """What a strategy decided in one update."""
+
+    goal: np.ndarray | None  # (2,) [m] map frame, for the robot's navigation; None: stay
     velocity: tuple[float, float] | None  # (v [m/s], w [rad/s]) for self-steering strategies
     cell: np.ndarray  # (n,) node ids of the own cell (may be empty)
     shared: SharedState
     converged: bool
     cost: float  # own cell's coverage cost
     mass: float  # own cell's mass
+    #: (2,) [m] the point the robot is heading for: the goal, or a self-steering strategy's
+    #: own target (None: the goal).
+    target: np.ndarray | None = None
+    mode: str = ""  # what the strategy is doing, in a word (e.g. "lloyd", "guided", "greedy")
     cell_polygon: np.ndarray | None = None  # (M, 2) [m] for polygonal cells (BVC)
-    info: Mapping[str, Any] = field(default_factory=dict)
+    details: StrategyDetails = field(default_factory=StrategyDetails)
+    #: [rad] map frame: the heading a self-steering strategy's ``velocity`` steers for, so that
+    #: a robot's tracking loop (faster than the strategy's updates) turns towards it between
+    #: updates instead of holding a turn rate (None: hold ``velocity`` as it is).
+    heading: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.target is None and self.goal is not None:
+            object.__setattr__(self, "target", self.goal)
 
 
 @dataclass(frozen=True)
@@ -111,34 +160,50 @@ class StrategyContext:
     """What a strategy is built from (fixed for the robot's lifetime)."""
 
     domain: CoverageDomain
-    robot: RobotSpec = field(default_factory=RobotSpec)
+    robot: RobotSpec = field(default_factory=RobotSpec)  # body, limits, sensing, power weight
     robot_id: int = 0
-    sensor_radius: float = DEFAULT_SENSOR_RADIUS  # [m]
-    weight: float = 0.0  # power weight R [m]
     convergence_tolerance: float = 0.05  # [m] goal closer than this = converged
     seed: int = 0
 
     def __post_init__(self) -> None:
-        for name in ("sensor_radius", "convergence_tolerance"):
-            v = getattr(self, name)
-            if not (isinstance(v, int | float) and math.isfinite(v) and v > 0):
-                raise ConfigError.at(name, "must be a finite number > 0", v)
-        if not (math.isfinite(self.weight) and self.weight >= 0):
-            raise ConfigError.at("power_weight", "must be a finite number >= 0", self.weight)
+        v = self.convergence_tolerance
+        if not (isinstance(v, int | float) and math.isfinite(v) and v > 0):
+            raise ConfigError.at("convergence_tolerance", "must be a finite number > 0", v)
+
+    @property
+    def weight(self) -> float:
+        """[m] this robot's power weight R."""
+        return self.robot.power_weight
+
+
+@dataclass(frozen=True)
+class NoParams:
+    """Settings of a strategy that has none."""
 
 
 class Strategy(ABC):
-    """Base class; subclasses set :attr:`name` and implement :meth:`update`."""
+    """Base class; subclasses set :attr:`name` and :attr:`Params` and implement
+    :meth:`update`."""
 
     name: ClassVar[str]
+    #: The strategy's settings: a frozen dataclass validated in its ``__post_init__``.
+    Params: ClassVar[type] = NoParams
     #: Whether the strategy needs lidar scans in its observations.
     needs_scan: ClassVar[bool] = False
+    #: Whether the strategy explores an unknown map (it then needs ``Observation.belief``).
+    explores: ClassVar[bool] = False
+    #: Whether the strategy needs the map of the area; one that does not works from its
+    #: lidar alone on a domain where every cell is free (robot_node ``map_free``).
+    needs_map: ClassVar[bool] = True
 
-    def __init__(self, context: StrategyContext, **params: Any) -> None:
+    def __init__(self, context: StrategyContext, params: Any = None) -> None:
+        if params is None:
+            params = self.Params()
+        if not isinstance(params, self.Params):
+            raise ConfigError.at(f"strategy {self.name}", "settings of the wrong kind",
+                                 type(params).__name__, self.Params.__name__)
         self.context = context
-        if params:
-            raise ConfigError.at(f"strategy {self.name}", "unknown parameters",
-                                 sorted(params), "none")
+        self.params = params
 
     @abstractmethod
     def update(self, obs: Observation, neighbours: Sequence[Neighbour]) -> Decision:
@@ -147,3 +212,9 @@ class Strategy(ABC):
     def shared_state(self, obs: Observation) -> SharedState:
         """What to publish before the first update (default: the own position)."""
         return SharedState(position=obs.position.copy(), weight=self.context.weight)
+
+    def cost_about(self, decision: Decision, point: np.ndarray) -> float | None:
+        """Coverage cost of ``decision``'s own cell about another position ``point`` (2,) [m],
+        or None when the strategy has no such cost. The offline runner's monotone step rule
+        uses it: a step that raises it is shortened."""
+        return None

@@ -1,22 +1,29 @@
-"""Classic Lloyd: go to the centroid of the own Euclidean (power) Voronoi cell."""
+"""Classic Lloyd (Cortes et al. 2004): go to the centroid of the own Euclidean (power) Voronoi
+cell; the cells are in :mod:`coverage_ros.core.geodesic.euclidean`."""
 
 from __future__ import annotations
 
-import time
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
 
-from coverage_ros.core.euclidean import euclidean_cell
+from coverage_ros.core.geodesic.euclidean import cell_cost_about, euclidean_cell
+from coverage_ros.core.geodesic.tessellation import Generator
 from coverage_ros.core.strategies.base import (
     Decision,
     Neighbour,
     Observation,
     SharedState,
     Strategy,
+    StrategyDetails,
 )
-from coverage_ros.core.tessellation import Generator
+
+
+@dataclass(frozen=True)
+class LloydDetails(StrategyDetails):
+    centroid: np.ndarray  # (2,) [m] mass centroid of the own cell (before projection)
 
 
 class LloydStrategy(Strategy):
@@ -27,14 +34,18 @@ class LloydStrategy(Strategy):
     def update(self, obs: Observation, neighbours: Sequence[Neighbour]) -> Decision:
         own = Generator(obs.position, self.context.weight)
         others = [Generator(n.position, n.state.weight) for n in neighbours]
-        t0 = time.perf_counter()
         cell = euclidean_cell(self.context.domain, own, others)
-        elapsed = time.perf_counter() - t0
         step = float(np.hypot(*(cell.goal - obs.position)))
         return Decision(
             goal=cell.goal, velocity=None, cell=cell.nodes,
             shared=SharedState(position=obs.position.copy(), weight=self.context.weight,
                                mass=cell.mass),
             converged=step < self.context.convergence_tolerance, cost=cell.cost,
-            mass=cell.mass, cell_polygon=cell.polygon,
-            info={"update_s": elapsed, "centroid": cell.centroid})
+            mass=cell.mass, mode="lloyd", cell_polygon=cell.polygon,
+            details=LloydDetails(centroid=cell.centroid))
+
+    def cost_about(self, decision: Decision, point: np.ndarray) -> float | None:
+        if len(decision.cell) == 0:
+            return None
+        return cell_cost_about(self.context.domain, decision.cell,
+                               np.asarray(point, dtype=np.float64), self.context.weight)

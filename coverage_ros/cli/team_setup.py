@@ -1,0 +1,81 @@
+"""What coverage-team runs, decided before any process starts: the robots (team file, world,
+options) and whether the machine and the map can hold them at all."""
+
+from __future__ import annotations
+
+import argparse
+import math
+from dataclasses import replace
+
+from coverage_ros.core.world import TeamMember, load_team
+from coverage_ros.core.world.placement import CLUSTER_GAP, team_starts
+from coverage_ros.core.world.spec import WorldSpec
+from coverage_ros.errors import ConfigError
+
+#: [MB] memory of one robot process (measured 230-305 MB with 16 robots, bench_team), the world
+#: node and the rerun bridge: what a team is estimated to need before it starts.
+ROBOT_MB = 300.0
+WORLD_MB = 150.0
+BRIDGE_MB = 300.0
+
+
+def build_team(world: WorldSpec, args: argparse.Namespace) -> list[TeamMember]:
+    """The robots to run, from ``--team`` (else ``--robots`` robots of the world), with the
+    launcher's options applied: ``--sensor-radius``, ``--starts`` (or the team file's starts,
+    else the world's or a seeded cluster) and ``--human``."""
+    if args.team is not None:
+        members = list(load_team(args.team, world))
+        if args.robots is not None and args.robots != len(members):
+            raise ConfigError.at("--robots", f"differs from the {len(members)} robots of "
+                                 f"{args.team}", args.robots)
+        ids = sorted(m.id for m in members)
+        if ids != list(range(len(members))):
+            raise ConfigError.at(f"{args.team}: robots", "ids must be 0..N-1, each once", ids,
+                                 f"0..{len(members) - 1}")
+        members.sort(key=lambda m: m.id)
+        given = [m.start is not None for m in members]
+        if any(given) and not all(given):
+            raise ConfigError.at(f"{args.team}: robots", "give every robot a start or none",
+                                 [m.id for m in members if m.start is None])
+    else:
+        n = 4 if args.robots is None else args.robots
+        members = [TeamMember(i, None, world.robot_spec(i)) for i in range(n)]
+    if args.sensor_radius is not None:
+        members = [replace(m, spec=m.spec.with_overrides(
+            {"sensor_radius": args.sensor_radius}, "--sensor-radius")) for m in members]
+    check_room(world, len(members), max(m.spec.radius for m in members), bool(args.record))
+    if args.starts or any(m.start is None for m in members):
+        starts = team_starts(world, [m.spec for m in members], args.starts, args.seed)
+        members = [replace(m, start=tuple(float(v) for v in starts[i]))
+                   for i, m in enumerate(members)]
+    for rid in args.human:
+        if not 0 <= rid < len(members):
+            raise ConfigError.at("--human", f"robot id out of range 0..{len(members) - 1}", rid)
+        members[rid] = replace(members[rid], role="human")
+    return members
+
+
+def check_room(world: WorldSpec, robots: int, radius: float, bridge: bool,
+               available_mb: float | None = None) -> None:
+    """Refuse a team that cannot work: more robots than the free area holds at their radius
+    and spacing (hexagonal packing, CLUSTER_GAP apart), or more memory than the machine has
+    available (``available_mb``: default, what psutil says)."""
+    free = world.grid.inflated_free_mask(radius)
+    area = float(free.sum()) * world.grid.resolution ** 2
+    spacing = 2.0 * radius + CLUSTER_GAP
+    per_robot = spacing * spacing * math.sqrt(3.0) / 2.0
+    if robots * per_robot > area:
+        raise ConfigError.at("--robots", f"{robots} robots of radius {radius:g} m need about "
+                             f"{robots * per_robot:.1f} m^2 packed {CLUSTER_GAP:g} m apart; "
+                             f"{world.name} has {area:.1f} m^2 of free space for them",
+                             expected=f"at most {int(area // per_robot)}")
+    need = robots * ROBOT_MB + WORLD_MB + (BRIDGE_MB if bridge else 0.0)
+    if available_mb is None:
+        import psutil
+
+        available_mb = psutil.virtual_memory().available / 2**20
+    if need > available_mb:
+        raise ConfigError.at("--robots", f"{robots} robots need about {need / 1024:.1f} GB of "
+                             f"memory ({ROBOT_MB:g} MB per robot process); the machine has "
+                             f"{available_mb / 1024:.1f} GB available",
+                             expected=f"at most {int((available_mb - WORLD_MB) // ROBOT_MB)}")

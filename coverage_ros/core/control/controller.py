@@ -1,0 +1,279 @@
+"""One robot's coverage controller, independent of ROS (the robot node only feeds it).
+
+Two loops, as on the real robot:
+
+* :meth:`RobotController.update` (the coverage period, a few Hz): the strategy computes the own
+  cell from the robot's pose, scan and the neighbours it currently trusts, and decides a goal
+  (then a path is planned to it) or a velocity; also returns the state to publish.
+* :meth:`RobotController.command` (the tracking period, ~10 Hz): the tracker follows the path
+  (or the strategy's velocity is used), and the safety filter has the last word.
+
+Neighbours are known only from what they published (:class:`NeighbourTable`): entries with
+non-finite values, positions off the map, or older than ``neighbour_timeout`` are ignored.
+
+Exploring an unknown map, the controller also holds the robot's :class:`Belief`: every scan is
+added to it (:meth:`RobotController.integrate_scan`), every update plans on the map the belief
+gives at that moment (:func:`~coverage_ros.core.exploration.maps.navigation_domain`: unknown
+space traversable at a cost, walls seen so far inflated by the radius), and the safety filter
+checks commands against that map and the lidar points.
+
+The two loops may run in different threads (the robot node computes updates off its executor
+thread so that tracking never waits for a large cell): :meth:`update` works on a snapshot of
+the inputs and commits its result under a lock that :meth:`command` also takes; updates must
+not run concurrently with each other.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from coverage_ros.core.control.neighbours import NeighbourTable
+from coverage_ros.core.control.planning import plan_path
+from coverage_ros.core.control.safety import SafetyConfig, SafetyFilter
+from coverage_ros.core.control.tracking import PathTracker, TrackerConfig
+from coverage_ros.core.exploration.belief import Belief
+from coverage_ros.core.exploration.maps import navigation_domain
+from coverage_ros.core.exploration.sensor_model import scan_cells
+from coverage_ros.core.geodesic.domain import CoverageDomain
+from coverage_ros.core.geometry import wrap_angle
+from coverage_ros.core.strategies import (
+    Decision,
+    Observation,
+    Scan,
+    StrategyChoice,
+    StrategyContext,
+    make_strategy,
+    strategy_choice,
+)
+from coverage_ros.core.world.robot import RobotSpec
+from coverage_ros.errors import ConfigError
+
+#: [s] neighbours' positions are grown by v_max x their age, up to this age (older ones
+#: are stale and dropped by the neighbour timeout anyway; the lidar sees them meanwhile).
+MAX_NEIGHBOUR_AGE = 0.5
+#: [m] goal changes smaller than this keep the current path (no replanning jitter).
+REPLAN_DISTANCE = 0.05
+
+
+@dataclass(frozen=True)
+class ControllerConfig:
+    robot_id: int
+    strategy: StrategyChoice = field(default_factory=lambda: strategy_choice("geodesic"))
+    robot: RobotSpec = field(default_factory=RobotSpec)  # body, limits, sensing, power weight
+    comm_range: float = 0.0  # [m] 0 = unlimited
+    neighbour_timeout: float = 2.0  # [s]
+    goal_tolerance: float = 0.05  # [m]
+    teleop_timeout: float = 0.5  # [s] a manual robot stops when its person sends nothing
+
+    def __post_init__(self) -> None:
+        if self.robot_id < 0:
+            raise ConfigError.at("robot_id", "must be >= 0", self.robot_id)
+        if not isinstance(self.strategy, StrategyChoice):
+            raise ConfigError.at("strategy", "must be a validated strategy choice",
+                                 self.strategy)
+        if not (math.isfinite(self.comm_range) and self.comm_range >= 0):
+            raise ConfigError.at("comm_range", "must be a finite number >= 0", self.comm_range)
+        for name in ("neighbour_timeout", "goal_tolerance", "teleop_timeout"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0):
+                raise ConfigError.at(name, "must be a finite number > 0", v)
+
+
+@dataclass
+class UpdateResult:
+    decision: Decision
+    path: np.ndarray | None
+    state: dict[str, float]  # the values to publish as coverage_state
+    neighbours: list[int]
+    pose: np.ndarray  # (x, y, yaw) the update started from
+
+
+class RobotController:
+    """See module docstring."""
+
+    def __init__(self, domain: CoverageDomain, config: ControllerConfig,
+                 belief: Belief | None = None) -> None:
+        if config.strategy.explore != (belief is not None):
+            raise ConfigError.at("strategy", "an exploring strategy needs a belief of the map "
+                                 "and only an exploring strategy takes one",
+                                 config.strategy.name)
+        self.domain = domain
+        self.config = config
+        #: What the robot believes of an unknown map (exploring), else None.
+        self.belief = belief
+        self._planned_version = -1  # belief version the current path was planned on
+        ctx = StrategyContext(domain=domain, robot=config.robot, robot_id=config.robot_id,
+                              convergence_tolerance=config.goal_tolerance,
+                              seed=config.robot_id)
+        self.strategy = make_strategy(config.strategy, ctx)
+        self.neighbours = NeighbourTable(domain.geometry.extent(), config.neighbour_timeout)
+        self.tracker = PathTracker(TrackerConfig.for_robot(config.robot,
+                                                           goal_tolerance=config.goal_tolerance))
+        self.safety = SafetyFilter(domain, SafetyConfig(radius=config.robot.radius,
+                                                        a_max=config.robot.a_max))
+        self.pose: np.ndarray | None = None
+        self.scan: Scan | None = None
+        self.scan_points: np.ndarray | None = None
+        self.goal: np.ndarray | None = None
+        self.path: np.ndarray | None = None
+        self.velocity: tuple[float, float] | None = None
+        self.heading: float | None = None  # [rad] a self-steering strategy's, with velocity
+        self.last: UpdateResult | None = None
+        self.safety_note = ""
+        #: Driven by a person: commands come from :meth:`teleop`, not the strategy (which
+        #: keeps computing the cell, so the neighbours see this robot's share).
+        self.manual = False
+        #: Stopped and holding until resumed (cells and states keep being published).
+        self.paused = False
+        self._teleop = (0.0, 0.0, -math.inf)  # (v, w, receive time [s])
+        self._lock = threading.Lock()
+
+    @property
+    def needs_scan(self) -> bool:
+        return self.strategy.needs_scan or self.belief is not None
+
+    def set_pose(self, pose: tuple[float, float, float]) -> None:
+        self.pose = np.asarray(pose, dtype=np.float64)
+
+    def set_scan(self, scan: Scan, points_map: np.ndarray) -> None:
+        self.scan, self.scan_points = scan, points_map
+
+    def integrate_scan(self, scan: Scan, pose: np.ndarray, now: float) -> int:
+        """Exploring: add what one scan, taken at ``pose``, saw to the belief (returns on the
+        neighbours' bodies are robots, not walls); how many cells changed."""
+        if self.belief is None:
+            return 0
+        own = self.config.robot
+        discs = np.array([(*n.position, n.state.extra.get("radius", own.radius))
+                          for n in self.neighbours.current(now)]).reshape(-1, 3)
+        cells = scan_cells(self.belief.lattice, pose, scan.ranges, scan.angle_min,
+                           scan.angle_increment, scan.range_min, scan.range_max,
+                           ignore_discs=discs)
+        return self.belief.add_scan(cells)
+
+    def update(self, now: float) -> UpdateResult | None:
+        """One coverage period; None until the robot knows its pose."""
+        with self._lock:
+            if self.pose is None:
+                return None
+            pose, scan, goal, path = self.pose.copy(), self.scan, self.goal, self.path
+        nbrs = self.neighbours.current(now, pose[:2], self.config.comm_range)
+        t0 = time.perf_counter()
+        snapshot, nav = None, self.domain
+        if self.belief is not None:
+            snapshot = self.belief.snapshot()
+            nav = navigation_domain(snapshot, self.config.robot.radius,
+                                    len(self.domain.graph.offsets))
+            _ = nav.clearance  # computed here, not under the lock (see _commit)
+        obs = Observation(self.config.robot_id, pose, now, scan, snapshot)
+        decision = self.strategy.update(obs, nbrs)
+        update_ms = (time.perf_counter() - t0) * 1e3
+        if decision.velocity is None and decision.goal is not None:
+            new_goal = np.asarray(decision.goal, dtype=np.float64)
+            # An exploring robot's map grows: a path planned on an older map may cross a wall
+            # found since.
+            stale = snapshot is not None and snapshot.version != self._planned_version
+            if goal is None or path is None or stale or \
+                    float(np.hypot(*(new_goal - goal))) > REPLAN_DISTANCE:
+                goal, path = new_goal, plan_path(nav, pose[:2], new_goal)
+                if snapshot is not None:
+                    self._planned_version = snapshot.version
+        shared = decision.shared
+        state = {"x": float(shared.position[0]), "y": float(shared.position[1]),
+                 "weight": float(shared.weight), "mass": float(decision.mass),
+                 "cost": float(decision.cost), "update_ms": update_ms,
+                 "radius": float(self.config.robot.radius),
+                 "v_max": float(self.config.robot.v_max),
+                 "manual": float(self.manual), "paused": float(self.paused)}
+        if shared.virtual is not None:
+            state["virtual_x"], state["virtual_y"] = (float(v) for v in shared.virtual)
+        state.update({k: float(v) for k, v in shared.extra.items()})
+        result = UpdateResult(decision, path, state, [n.robot_id for n in nbrs], pose)
+        with self._lock:
+            self.velocity, self.goal, self.path = decision.velocity, goal, path
+            self.heading = decision.heading if decision.velocity is not None else None
+            self.last = result
+            if nav is not self.safety.domain:
+                self.safety.set_domain(nav)
+        return result
+
+    def presence_state(self) -> dict[str, float]:
+        """What to publish before the first update: who and where this robot is, without a
+        cell (no mass or cost yet)."""
+        x, y = (float(v) for v in self.pose[:2])
+        return {"x": x, "y": y, "weight": float(self.config.robot.power_weight),
+                "radius": float(self.config.robot.radius),
+                "v_max": float(self.config.robot.v_max)}
+
+    def set_manual(self, manual: bool) -> None:
+        """Hand the robot to a person (True) or back to its strategy (False: it replans from
+        where the person left it)."""
+        with self._lock:
+            if self.manual and not manual:
+                self.goal = self.path = None
+                self.velocity = self.heading = None
+            self.manual = bool(manual)
+            self._teleop = (0.0, 0.0, -math.inf)
+
+    def set_paused(self, paused: bool) -> None:
+        with self._lock:
+            self.paused = bool(paused)
+
+    def teleop(self, v: float, w: float, now: float) -> None:
+        """A person's command (used while manual, until ``teleop_timeout`` passes)."""
+        with self._lock:
+            self._teleop = (float(v), float(w), now)
+
+    def hold(self) -> None:
+        """Stop following anything (e.g. after a failed update)."""
+        with self._lock:
+            self.path, self.velocity, self.heading = None, (0.0, 0.0), None
+
+    def command(self, now: float, dt: float) -> tuple[float, float]:
+        """One tracking period: the safe (v, w) to send."""
+        with self._lock:
+            return self._command(now, dt)
+
+    def _command(self, now: float, dt: float) -> tuple[float, float]:
+        if self.pose is None:
+            return 0.0, 0.0
+        limits = self.config.robot
+        if self.paused:
+            v, w = 0.0, 0.0
+        elif self.manual:
+            v, w, heard = self._teleop
+            if not 0.0 <= now - heard <= self.config.teleop_timeout:
+                v, w = 0.0, 0.0  # the person let go (or the clock went back)
+            v = float(np.clip(v, -limits.v_max, limits.v_max))
+            w = float(np.clip(w, -limits.w_max, limits.w_max))
+        elif self.velocity is not None:
+            v, w = self.velocity
+            if self.heading is not None:
+                # Re-steer towards the strategy's heading every tracking period: a turn rate
+                # held for a whole coverage period overshoots (and, saturated, spins).
+                # The path tracker's own heading gain and turn-in-place angle: one way to steer.
+                steer = self.tracker.config
+                err = float(wrap_angle(self.heading - self.pose[2]))
+                w = steer.heading_gain * err
+                v = 0.0 if abs(err) > steer.turn_in_place else min(v, limits.v_max * math.cos(err))
+            v = float(np.clip(v, -limits.v_max, limits.v_max))
+            w = float(np.clip(w, -limits.w_max, limits.w_max))
+        else:
+            v, w, _ = self.tracker.command(self.pose, self.path, dt)
+        nbrs = self.neighbours.current(now)
+        positions = np.array([n.position for n in nbrs]).reshape(-1, 2)
+        # A neighbour may have moved since it published: grow it by how far it can have gone.
+        own = self.config.robot
+        radii = np.array([n.state.extra.get("radius", own.radius)
+                          + n.state.extra.get("v_max", own.v_max)
+                          * min(max(now - n.stamp, 0.0), MAX_NEIGHBOUR_AGE)
+                          for n in nbrs])
+        v, w, self.safety_note = self.safety.filter(self.pose, v, w, positions, radii,
+                                                    self.scan_points)
+        self.tracker.override(v, w)
+        return v, w

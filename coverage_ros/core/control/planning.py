@@ -1,0 +1,164 @@
+"""Paths for a differential-drive robot toward its coverage goal.
+
+:func:`plan_path` finds the shortest path on the configuration-space graph (free cells inflated
+by the robot radius) from the robot to its goal, shortened by line of sight into a few waypoints
+(the straight segment when it is free, which is the usual case: strategies clip their goals to
+what the robot can see). :func:`segment_free` is the collision check both use.
+
+Paths are ``(M, 2)`` map-frame points [m].
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.sparse.csgraph import dijkstra
+
+from coverage_ros.core.geodesic.domain import CoverageDomain
+from coverage_ros.core.geodesic.local_search import BLOCK, build_local_graph, local_graph_for
+
+#: Fraction of a cell between collision checks along a segment or arc.
+CHECK_STEP_CELLS = 0.25
+#: [m] extra clearance beyond the robot radius that planned shortcuts keep from walls (pure
+#: pursuit cuts corners a little; this keeps the robot off them).
+PATH_MARGIN = 0.05
+#: [m] the first path search looks this far around the box of start and goal.
+PLAN_WINDOW_MARGIN = 2.0
+
+
+def segment_free(domain: CoverageDomain, a: np.ndarray, b: np.ndarray,
+                 margin: float = 0.0) -> bool:
+    """Whether every point of the segment a-b (map frame) lies on a free C-space cell, and
+    (``margin`` > 0) at least ``margin`` farther from obstacles than the C-space requires."""
+    ga, gb = domain.to_grid(np.stack([a, b]))
+    n = max(2, int(math.ceil(float(np.hypot(*(gb - ga))) / CHECK_STEP_CELLS)) + 1)
+    t = np.linspace(0.0, 1.0, n)[:, None]
+    pts = ga + t * (gb - ga)
+    if not points_free(domain, pts):
+        return False
+    if margin <= 0:
+        return True
+    cells = np.floor(pts[:, ::-1]).astype(np.int64)
+    need = domain.robot_radius + 0.5 * domain.resolution + margin
+    return bool((domain.clearance[cells[:, 0], cells[:, 1]] >= need).all())
+
+
+def points_free(domain: CoverageDomain, grid_pts: np.ndarray) -> bool:
+    H, W = domain.shape
+    c = np.floor(grid_pts[:, 0]).astype(np.int64)
+    r = np.floor(grid_pts[:, 1]).astype(np.int64)
+    inside = (r >= 0) & (r < H) & (c >= 0) & (c < W)
+    return bool(inside.all() and domain.free[r, c].all())
+
+
+def plan_path(domain: CoverageDomain, start: np.ndarray, goal: np.ndarray,
+              max_detour: float = 4.0) -> np.ndarray | None:
+    """``(M, 2)`` waypoints from ``start`` to ``goal`` (both included), or None when the goal
+    cannot be reached within ``max_detour`` times the straight-line distance (+ 2 m)."""
+    start = np.asarray(start, dtype=np.float64)
+    goal = np.asarray(goal, dtype=np.float64)
+    if segment_free(domain, start, goal, PATH_MARGIN) or (
+            float(np.hypot(*(goal - start))) < 4 * domain.resolution
+            and segment_free(domain, start, goal)):
+        return np.stack([start, goal])
+    limit = max_detour * float(np.hypot(*(goal - start))) + 2.0
+    # First a window around start and goal (paths to a coverage goal are short), then the
+    # whole map.
+    for window in (PLAN_WINDOW_MARGIN, None):
+        local = _planning_graph(domain, start, goal, window)
+        nodes, costs, _ = domain.snap(start)
+        csr = local.with_sources([(local.local_of(nodes), costs)])
+        dist, pred = dijkstra(csr, directed=True, indices=local.n + 1, limit=limit,
+                              return_predecessors=True)
+        lids = local.local_of(domain.snap(goal)[0])
+        lids = lids[lids > 0]
+        if len(lids) and np.isfinite(dist[lids]).any():
+            break
+    else:
+        return None
+    v = int(lids[np.argmin(dist[lids])])
+    chain = []
+    while 0 < v <= local.n:
+        chain.append(int(local.global_nodes[v - 1]))
+        v = int(pred[v])
+    cells = domain.to_map(domain.node_centers(np.array(chain[::-1], dtype=np.int64)))
+    return shortcut(domain, np.vstack([start, cells, goal]))
+
+
+def _planning_graph(domain: CoverageDomain, start: np.ndarray, goal: np.ndarray,
+                    margin: float | None):
+    """The search graph of the box around start and goal grown by ``margin`` [m] (None: the
+    whole domain)."""
+    if margin is None or any(domain.graph.wrap):
+        return local_graph_for(domain, None, np.zeros((1, 2)), np.zeros(1), math.inf)
+    g = domain.to_grid(np.stack([start, goal]))
+    m = margin / domain.resolution
+    H, W = domain.shape
+    Hb, Wb = -(-H // BLOCK), -(-W // BLOCK)
+    blocks = np.zeros((Hb, Wb), dtype=bool)
+    r0, r1 = (int(np.clip((g[:, 1].min() - m) // BLOCK, 0, Hb)),
+              int(np.clip((g[:, 1].max() + m) // BLOCK + 1, 0, Hb)))
+    c0, c1 = (int(np.clip((g[:, 0].min() - m) // BLOCK, 0, Wb)),
+              int(np.clip((g[:, 0].max() + m) // BLOCK + 1, 0, Wb)))
+    blocks[r0:r1, c0:c1] = True
+    return build_local_graph(domain, blocks)
+
+
+def shortcut(domain: CoverageDomain, path: np.ndarray) -> np.ndarray:
+    """Greedy line-of-sight shortening: from each waypoint, jump to the farthest one reachable
+    in a straight line that keeps :data:`PATH_MARGIN` from the walls (else the next one).
+
+    Candidates are checked farthest first, a batch at a time in one vectorized pass each
+    (paths of exploring robots cross whole maps: hundreds of waypoints), up to
+    ``SHORTCUT_REACH`` waypoints ahead; a waypoint from which not even the one after next is
+    in clear sight (a path hugging an obstacle) keeps the next one without a search."""
+    ok = domain.margin_free(PATH_MARGIN)
+    g = domain.to_grid(path)
+    out = [path[0]]
+    i = 0
+    while i < len(path) - 1:
+        i = _farthest_visible(ok, g, i)
+        out.append(path[i])
+    return np.array(out)
+
+
+#: Waypoints ahead that shortcut() considers from each waypoint (6.4 m of a grid path at 5 cm).
+SHORTCUT_REACH = 128
+#: Candidates checked per vectorized pass of :func:`shortcut`.
+SHORTCUT_BATCH = 64
+
+
+def _farthest_visible(ok: np.ndarray, g: np.ndarray, i: int) -> int:
+    """The largest j in (i + 1, i + SHORTCUT_REACH] whose segment from waypoint i is clear in
+    ``ok`` (sampled like :func:`segment_free`), else i + 1 (also when i + 2 is not clear)."""
+    hi = min(len(g) - 1, i + SHORTCUT_REACH)
+    if hi > i + 1 and _visible(ok, g[i], g[i + 2:i + 3])[0] == 0:
+        return i + 1
+    while hi > i + 1:
+        lo = max(i + 2, hi - SHORTCUT_BATCH + 1)
+        js = np.arange(hi, lo - 1, -1)
+        clear = _visible(ok, g[i], g[js])
+        if clear.any():
+            return int(js[int(np.argmax(clear))])
+        hi = lo - 1
+    return i + 1
+
+
+def _visible(ok: np.ndarray, a: np.ndarray, ends: np.ndarray) -> np.ndarray:
+    """``(m,) bool``: whether each segment from grid point ``a`` to ``ends (m, 2)``, sampled
+    like :func:`segment_free`, stays on cells of ``ok``."""
+    H, W = ok.shape
+    d = ends - a
+    counts = np.maximum(2, np.ceil(np.hypot(d[:, 0], d[:, 1]) / CHECK_STEP_CELLS)
+                        .astype(np.int64) + 1)
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    seg = np.repeat(np.arange(len(d)), counts)
+    t = (np.arange(int(counts.sum())) - starts[seg]) / (counts[seg] - 1)
+    pts = a + t[:, None] * d[seg]
+    c = np.floor(pts[:, 0]).astype(np.int64)
+    r = np.floor(pts[:, 1]).astype(np.int64)
+    inside = (r >= 0) & (r < H) & (c >= 0) & (c < W)
+    free = np.zeros(len(pts), dtype=bool)
+    free[inside] = ok[r[inside], c[inside]]
+    return np.logical_and.reduceat(free, starts)

@@ -1,0 +1,119 @@
+"""The last word on every velocity command of a disc robot (:class:`SafetyFilter`).
+
+The unicycle arc of (v, w) over the stopping horizon is simulated against the configuration
+space (walls), the neighbours' discs and the lidar points, and v is cut (to zero if need be;
+turning in place is always allowed for a disc robot) until the arc is clear. No command ever
+drives into a wall.
+
+Poses are ``(x, y, yaw)`` in the map frame [m, rad].
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from coverage_ros.core.control.planning import CHECK_STEP_CELLS
+from coverage_ros.core.geodesic.domain import CoverageDomain
+from coverage_ros.core.world.robot import RobotSpec
+
+#: v scales tried by the safety filter, largest first (0 is always safe).
+SAFE_SCALES = (1.0, 0.6, 0.3, 0.12, 0.0)
+
+
+@dataclass(frozen=True)
+class SafetyConfig:
+    radius: float = RobotSpec().radius  # [m] own body
+    robot_margin: float = 0.06  # [m] kept free between two robots' bodies
+    # [m] kept free to lidar points. Small on purpose: walls are already kept at the
+    # configuration space's clearance (measured between cell centres, which lets a path pass a
+    # real wall edge ~1 cm closer than radius + 3 cm); the scan check is for what the map lacks.
+    obstacle_margin: float = 0.01
+    horizon: float = 0.6  # [s] arc simulated beyond the stopping distance
+    a_max: float = RobotSpec().a_max  # [m/s^2] braking
+
+
+class SafetyFilter:
+    """Cuts v until the predicted arc is clear (see module docstring)."""
+
+    def __init__(self, domain: CoverageDomain, config: SafetyConfig) -> None:
+        self.config = config
+        self.set_domain(domain)
+
+    def set_domain(self, domain: CoverageDomain) -> None:
+        """Check against another map from now on (an exploring robot's map grows)."""
+        self.domain = domain
+        # [m] distance of every cell centre to the nearest obstacle cell, and the clearance a
+        # robot centre needs (what the configuration space is inflated by).
+        self.clearance = domain.clearance
+        self.needed = self.config.radius + 0.5 * domain.resolution
+
+    def filter(self, pose: np.ndarray, v: float, w: float,
+               neighbours: np.ndarray | None = None, neighbour_radii: np.ndarray | None = None,
+               scan_points: np.ndarray | None = None) -> tuple[float, float, str]:
+        """``(v, w, reason)``; reason is "" when the command passed unchanged."""
+        why = ""
+        for scale in SAFE_SCALES:
+            vs = v * scale
+            blocked = self._blocked(pose, vs, w, neighbours, neighbour_radii, scan_points)
+            if not blocked:
+                return vs, w, "" if scale == 1.0 else f"slowed: {why}"
+            why = blocked
+        return 0.0, w, f"stopped: {why}"
+
+    def _arc(self, pose: np.ndarray, v: float, w: float) -> np.ndarray:
+        c = self.config
+        T = c.horizon + abs(v) / c.a_max
+        length = abs(v) * T
+        n = max(2, int(math.ceil(length / (CHECK_STEP_CELLS * self.domain.resolution))) + 1)
+        t = np.linspace(0.0, T, n)
+        yaw = pose[2] + w * t
+        if abs(w) < 1e-6:
+            x = pose[0] + v * t * math.cos(pose[2])
+            y = pose[1] + v * t * math.sin(pose[2])
+        else:
+            x = pose[0] + v / w * (np.sin(yaw) - math.sin(pose[2]))
+            y = pose[1] - v / w * (np.cos(yaw) - math.cos(pose[2]))
+        return np.stack([x, y], axis=-1)
+
+    def _clearance_at(self, pts: np.ndarray) -> np.ndarray:
+        cells = self.domain.geometry.world_to_cell(pts)
+        inside = self.domain.geometry.contains_cell(cells)
+        out = np.zeros(len(pts))
+        out[inside] = self.clearance[cells[inside, 0], cells[inside, 1]]
+        return out
+
+    def _blocked(self, pose, v, w, neighbours, radii, scan_points) -> str:
+        if abs(v) < 1e-9:
+            return ""
+        c = self.config
+        arc = self._arc(np.asarray(pose, dtype=np.float64), v, w)
+        clear = self._clearance_at(arc)
+        # Into the inflated zone, and closer to the obstacle than now: a robot already too
+        # close (pushed, or started there) may still move away.
+        if np.any((clear[1:] < self.needed) & (clear[1:] < clear[0] - 1e-9)):
+            return "wall ahead"
+        p0 = arc[0]
+        if neighbours is not None and len(neighbours):
+            nb = np.asarray(neighbours, dtype=np.float64).reshape(-1, 2)
+            r = np.broadcast_to(np.asarray(radii if radii is not None else c.radius,
+                                           dtype=np.float64), (len(nb),))
+            need = c.radius + r + c.robot_margin
+            d_now = np.hypot(*(nb - p0).T)
+            d_arc = np.hypot(arc[1:, None, 0] - nb[None, :, 0],
+                             arc[1:, None, 1] - nb[None, :, 1]).min(axis=0)
+            if np.any((d_arc < need) & (d_arc < d_now - 1e-6)):
+                return "robot ahead"
+        if scan_points is not None and len(scan_points):
+            sp = np.asarray(scan_points, dtype=np.float64).reshape(-1, 2)
+            reach = float(np.hypot(*(arc[-1] - p0))) + c.radius + 0.2
+            near = sp[np.hypot(*(sp - p0).T) < reach]
+            if len(near):
+                d_arc = np.hypot(arc[1:, None, 0] - near[None, :, 0],
+                                 arc[1:, None, 1] - near[None, :, 1]).min(axis=0)
+                d_now = np.hypot(*(near - p0).T)
+                if np.any((d_arc < c.radius + c.obstacle_margin) & (d_arc < d_now - 1e-6)):
+                    return "obstacle in scan"
+        return ""

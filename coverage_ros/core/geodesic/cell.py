@@ -1,0 +1,280 @@
+"""One robot's decentralized update: its own geodesic power Voronoi cell and the generalized
+Lloyd control (Bhattacharya et al. 2014, Sec. 4, Eq. 8).
+
+From its own position and its neighbours' positions only, a robot computes its own cell. It
+searches a window around itself pruned to its own ball and the "lenses" where a neighbour could
+possibly be closer (exact Euclidean lower bounds of the metric, :mod:`.local_search`), with
+scipy's compiled Dijkstra limited to a distance L; if the cell touches the search frontier, L
+grows. The work is proportional to the own cell's area, not to the map or the team. The cell is
+the same as the centralized tessellation's (:func:`.tessellation.tessellate`; tests check).
+
+The control covector of Eq. 8 is integrated over the own cell::
+
+    I_k = sum_{q in V_k} g_k(q) * M z / sqrt(z' M z) * w(q) dA(q),    M = eta(p_k)
+
+where z is the tangent at p_k of the geodesic to q (see :mod:`.tangents`). I_k is minus half the
+gradient of the coverage cost H; its dual ``u = M^-1 I_k`` divided by the cell mass is the step
+to the cell's *virtual centroid*, which is the ordinary centroid in the convex Euclidean case -
+the classic Lloyd step (:mod:`.descent` turns it into a reachable goal).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import dijkstra
+
+from coverage_ros.core.geodesic.descent import next_vertex, reachable_goal
+from coverage_ros.core.geodesic.domain import CoverageDomain
+from coverage_ros.core.geodesic.local_search import LocalGraph, SearchCache, local_graph_for
+from coverage_ros.core.geodesic.tangents import ancestor_table, first_ancestor_where
+from coverage_ros.core.geodesic.tessellation import (
+    Generator,
+    resolve_method,
+    source_row,
+    star_shaped,
+)
+
+__all__ = ["CellResult", "SearchCache", "geodesic_cell"]
+
+#: Growth factor of the search radius when a cell was not complete.
+GROWTH = 1.6
+#: Slack on a warm-start search radius: the last cell's radius plus this many longest edges
+#: (robots move a few centimetres between updates; a cell that outgrew it costs a second pass).
+WARM_SLACK_EDGES = 2.0
+#: Cold start: the search radius is COLD_FACTOR times the distance to the COLD_NEIGHBOURS-th
+#: nearest neighbour.
+COLD_NEIGHBOURS = 4
+COLD_FACTOR = 0.6
+#: [cells] granularity of warm-start search radii.
+RADIUS_STEP_CELLS = 2.0
+#: [cells] look-ahead of tangent chords on non-Euclidean metrics.
+LOOKAHEAD_CELLS = 3.0
+
+
+@dataclass(frozen=True)
+class CellResult:
+    """One robot's cell and control (vectors in the map frame)."""
+
+    nodes: np.ndarray  # (n,) int64 node ids of the cell (row * W + col)
+    distances: np.ndarray  # (n,) g(q), chart units
+    mass: float  # sum w dA over the cell
+    cost: float  # H_k = sum (g^2 - R_k^2) w dA over the cell
+    covector: np.ndarray  # (2,) I_k, grid axes (chart)
+    control: np.ndarray  # (2,) [m] step to the virtual centroid, map frame
+    goal: np.ndarray  # (2,) [m] virtual centroid, clipped to reachable free space
+    next_vertex: np.ndarray  # (2,) [m] neighbouring vertex best aligned with I_k (paper l.32)
+    neighbours: tuple[int, ...]  # indices (into `others`) of generators sharing a boundary
+    search_radius: float  # the limit L of the final pass
+    cell_radius: float  # max g over the cell (hint for the next update)
+    searched_nodes: int  # nodes in the pruned search graph of the final pass
+    passes: int  # searches run (1 when the first radius sufficed)
+
+def geodesic_cell(domain: CoverageDomain, own: Generator, others: Sequence[Generator],
+                  cache: SearchCache | None = None, method: str = "auto",
+                  whole: bool = False) -> CellResult:
+    """The decentralized update of one robot (see module docstring).
+
+    ``others`` are the neighbours this robot knows about (any number; far ones are ignored).
+    ``cache`` (one per robot) keeps the search graph and the last cell radius between updates,
+    which makes successive updates of a slowly moving robot much cheaper.
+    ``method`` picks the sources and tangents (see :func:`resolve_method`). ``whole``: search
+    the whole domain at once - for domains that change every update (exploration), whose weak
+    metric lower bound would make the pruned search regions nearly the whole map anyway.
+    """
+    method = resolve_method(domain, method)
+    res = domain.resolution
+    lam = domain.metric_lower_bound
+    others = [o for o in others if np.all(np.isfinite(o.position))]
+    gens = [own, *others]
+    snaps = domain.snap_many(np.array([g.position for g in gens]))
+    centers = np.array([s[2] for s in snaps])  # grid coordinates
+    weights = np.array([g.weight for g in gens], dtype=np.float64)
+    power = bool(np.ptp(weights) > 0)
+    max_edge = domain.graph.max_edge_cost
+    hint = cache.cell_radius if cache is not None else None
+    if len(others) == 0 or whole:
+        L = math.inf
+    elif hint is not None and hint > 0:
+        # Rounded up to whole steps so the small changes of the cell radius between updates
+        # keep the search region (and its cache) the same.
+        step = RADIUS_STEP_CELLS * res
+        L = math.ceil((hint + WARM_SLACK_EDGES * max_edge) / step) * step
+    else:
+        # A cell rarely reaches past half the distance to the nearer neighbours around it;
+        # if it does, the search grows.
+        dists = np.sort(lam * res * np.hypot(*(centers[1:] - centers[0]).T))
+        near = dists[min(len(dists), COLD_NEIGHBOURS) - 1]
+        L = max(COLD_FACTOR * near, 4.0 * max_edge)
+    passes = 0
+    while True:
+        passes += 1
+        # Competitor j can claim q only where g_j(q) < L_j = sqrt(L^2 - R_i^2 + R_j^2).
+        radii = np.sqrt(np.maximum(L * L - weights[0] ** 2 + weights ** 2, 0.0))
+        radii[0] = L
+        if math.isfinite(L):
+            dist_c = lam * res * np.hypot(*(centers - centers[0]).T)
+            relevant = np.flatnonzero(dist_c <= L + radii)
+            relevant = relevant[relevant > 0]
+        else:
+            relevant = np.arange(1, len(gens))
+        idx = np.concatenate([[0], relevant]).astype(np.int64)
+        local = local_graph_for(domain, cache, centers[idx], radii[idx], L)
+        if whole and not power:
+            found = _shared_search(domain, local, gens, snaps, method)
+            break
+        csr = local.with_sources([source_row(domain, local, snaps[k], radii[k], method)
+                                  for k in idx])
+        found = _search(local, csr, weights[idx], radii[idx], L, power)
+        if found is not None:
+            break
+        if local.covers_all and math.isfinite(L):
+            L = math.inf  # the region is everything already: drop the limit instead
+            continue
+        if not math.isfinite(L):  # unreachable: the unlimited search has no frontier
+            raise AssertionError("unlimited search reported an incomplete cell")
+        L *= GROWTH
+    own_local, g, pred, touching = found
+    result = _finish(domain, local, int(snaps[0][0][0]), centers[0], weights[0], own_local, g,
+                     pred,
+                     [int(idx[t]) - 1 for t in touching], L, passes, method)
+    if cache is not None:
+        cache.cell_radius = result.cell_radius
+    return result
+
+
+def _search(local: LocalGraph, csr: csr_matrix, weights: np.ndarray, radii: np.ndarray,
+            L: float, power: bool, force: bool = False):
+    """Run the limited Dijkstra; None if the own cell reaches the search frontier.
+
+    Returns ``(own, g, pred, touching)``: local ids (1..n) of the own cell, their distances, the
+    own shortest-path tree's predecessors (local ids) and the generators bordering the cell.
+    """
+    n = local.n
+    first = n + 1
+    sources = np.arange(first, first + len(weights))
+    limit = L if math.isfinite(L) else np.inf
+    if not power:
+        dist, pred, src = dijkstra(csr, directed=True, indices=sources, min_only=True,
+                                   return_predecessors=True, limit=limit)
+        label = src - first
+        label[src < 0] = -1
+        own_dist = dist
+    else:
+        all_d = np.empty((len(weights), first + len(weights)))
+        pred = None
+        for k in range(len(weights)):
+            lim = radii[k] if math.isfinite(L) else np.inf
+            if k == 0:
+                all_d[0], pred = dijkstra(csr, directed=True, indices=sources[0],
+                                          return_predecessors=True, limit=lim)
+            else:
+                all_d[k] = dijkstra(csr, directed=True, indices=sources[k], limit=lim)
+        pw = all_d ** 2 - (weights ** 2)[:, None]
+        label = np.argmin(pw, axis=0)
+        label[~np.isfinite(pw.min(axis=0))] = -1
+        own_dist = all_d[0]
+        label[0] = -1
+        # Keep only the star-shaped part of the own power cell (see module docstring).
+        drop = (label == 0) & ~star_shaped(label == 0, pred, first)
+        label[drop] = -2  # nobody's, but known: not a reason to grow the search
+    label[0] = -1  # the sink belongs to nobody
+    own = np.flatnonzero(label[1:first] == 0) + 1
+    nb = local.nb[own - 1]
+    edge = local.edge[own - 1]
+    nb_label = label[nb]
+    # A neighbouring cell outside the search region (the sink), or reached by nobody within the
+    # limits, could still belong to the own cell: then the search must grow.
+    frontier = edge & (nb_label == -1)
+    if frontier.any() and not force:
+        return None
+    touching = np.unique(nb_label[edge & (nb_label > 0)])
+    return own, own_dist[own], pred, touching
+
+
+def _shared_search(domain: CoverageDomain, local: LocalGraph, gens: Sequence[Generator],
+                   snaps: list, method: str):
+    """:func:`_search` of the whole domain with equal weights, for generator 0, from one
+    multi-source Dijkstra memoized in the domain: robots that share a domain and see the same
+    generators (a team run in one process) search it once. The sources are ordered by
+    position, so every robot's search is the same one."""
+    key = ("shared_search", method,
+           tuple(sorted((float(g.position[0]), float(g.position[1])) for g in gens)))
+    order = sorted(range(len(gens)), key=lambda k: (float(gens[k].position[0]),
+                                                    float(gens[k].position[1])))
+    first = local.n + 1
+    memo = domain._cache.get(key)
+    if memo is None:
+        csr = local.with_sources([source_row(domain, local, snaps[k], math.inf, method)
+                                  for k in order])
+        dist, pred, src = dijkstra(csr, directed=True, indices=np.arange(first, first + len(gens)),
+                                   min_only=True, return_predecessors=True)
+        label = np.where(src >= 0, src - first, -1)
+        label[0] = -1
+        domain._cache[key] = memo = (dist, pred, label)
+    dist, pred, label = memo
+    own_label = order.index(0)
+    own = np.flatnonzero(label[1:first] == own_label) + 1
+    nb_label = label[local.nb[own - 1]]
+    touching_sorted = np.unique(nb_label[local.edge[own - 1] & (nb_label >= 0)
+                                         & (nb_label != own_label)])
+    touching = np.array([order[k] for k in touching_sorted], dtype=np.int64)
+    return own, dist[own], pred, touching
+
+
+def _finish(domain: CoverageDomain, local: LocalGraph, base_node: int, own_grid: np.ndarray,
+            own_weight: float, own_local: np.ndarray, g: np.ndarray, pred: np.ndarray,
+            touching: list[int], L: float, passes: int, method: str) -> CellResult:
+    nodes = local.global_nodes[own_local - 1]
+    n_own = len(own_local)
+    wdA = domain.mass_element.ravel()[nodes]
+    mass = float(wdA.sum())
+    cost = float(((g * g - own_weight ** 2) * wdA).sum())
+    pts = domain.node_centers(nodes)
+    covector = np.zeros(2)
+    if n_own:
+        anchors = _tangent_anchors(domain, own_local, g, pred, pts, method)
+        z = domain.chart_displacement(own_grid[None], anchors)
+        M = domain.metric_at(own_grid[None])[0]
+        Mz = z @ M.T
+        norm = np.sqrt(np.einsum("ni,ni->n", z, Mz))
+        ok = norm > 1e-12
+        covector = ((g[ok] * wdA[ok] / norm[ok])[:, None] * Mz[ok]).sum(axis=0)
+    u = np.linalg.solve(domain.metric_at(own_grid[None])[0], covector)
+    step_chart = u / mass if mass > 0 else np.zeros(2)
+    step_grid = step_chart / domain.resolution
+    goal_grid = reachable_goal(domain, base_node, own_grid, step_grid, covector)
+    goal = domain.to_map(goal_grid[None])[0]
+    control = domain.grid_vector_to_map(step_chart)
+    nxt = next_vertex(domain, base_node, covector)
+    return CellResult(
+        nodes=nodes, distances=g, mass=mass, cost=cost, covector=covector, control=control,
+        goal=goal, next_vertex=nxt, neighbours=tuple(sorted(set(touching))),
+        search_radius=L, cell_radius=float(g.max()) if n_own else 0.0,
+        searched_nodes=local.n, passes=passes)
+
+
+def _tangent_anchors(domain: CoverageDomain, own_local: np.ndarray, g: np.ndarray,
+                     pred: np.ndarray, pts: np.ndarray, method: str) -> np.ndarray:
+    """Grid coordinates of the point each cell's tangent chord aims at: the first vertex
+    after the source on its shortest path (``visibility``, ``paper``), or the last vertex
+    within the look-ahead distance (``lookahead``)."""
+    n_own = len(own_local)
+    pos = np.full(len(pred), -1, dtype=np.int64)
+    pos[own_local] = np.arange(n_own)
+    parent = pos[np.maximum(pred[own_local], 0)]
+    parent[(pred[own_local] < 0) | (parent < 0)] = n_own  # virtual source (root)
+    if method == "lookahead":
+        flag = g <= LOOKAHEAD_CELLS * domain.graph.max_edge_cost
+    else:
+        flag = parent == n_own
+    if flag.all():
+        return pts  # every cell is joined to the source directly: the chord is the tangent
+    up = ancestor_table(np.append(parent, n_own))
+    anchor = first_ancestor_where(up, np.arange(n_own), np.append(flag, True))
+    anchor = np.where(anchor == n_own, np.arange(n_own), anchor)
+    return pts[anchor]

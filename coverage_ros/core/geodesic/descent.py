@@ -1,0 +1,102 @@
+"""From the generalized Lloyd control to a goal the robot can reach (Bhattacharya et al. 2014,
+Sec. 4).
+
+The control of Eq. 8 is a step toward the cell's virtual centroid. :func:`reachable_goal` keeps
+the part of that straight step that stays in free space; when the step is blocked almost at once
+(a robot in a doorway heading for a centroid beyond the door frame) it walks along the gradient
+through the free space instead (:func:`descent_walk`, the paper's next-vertex rule repeated).
+:func:`next_vertex` is that rule itself (pseudo-code line 32).
+
+Grid coordinates ``(gx, gy)`` are in cells; covectors in grid axes (chart units).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from coverage_ros.core.geodesic.domain import CoverageDomain
+
+#: A straight step to the virtual centroid that is blocked before this fraction of its length
+#: is replaced by a walk along the gradient through the free space, of at most WALK_CELLS.
+BLOCKED_FRACTION = 0.25
+WALK_CELLS = 20.0
+#: Walk steps must make progress along the gradient: cos of at most ~84 degrees off it (a robot
+#: beside a door jamb may have to step almost sideways before it can go on).
+WALK_MIN_ALIGNMENT = 0.1
+
+
+def reachable_goal(domain: CoverageDomain, base_node: int, own_grid: np.ndarray,
+                   step_grid: np.ndarray, covector: np.ndarray) -> np.ndarray:
+    """Grid point the robot at ``own_grid`` (on vertex ``base_node``) should head for, given
+    the control step ``step_grid`` [cells] and the covector I_k."""
+    goal_grid = clip_reachable(domain, own_grid, own_grid + step_grid)
+    wanted = float(np.hypot(*step_grid))
+    if wanted > 1.0 and float(np.hypot(*(goal_grid - own_grid))) < BLOCKED_FRACTION * wanted:
+        walk = descent_walk(domain, base_node, covector, min(wanted, WALK_CELLS))
+        if float(np.hypot(*(walk - own_grid))) > float(np.hypot(*(goal_grid - own_grid))):
+            goal_grid = walk
+    return goal_grid
+
+
+def clip_reachable(domain: CoverageDomain, start: np.ndarray, goal: np.ndarray) -> np.ndarray:
+    """The farthest point toward ``goal`` on the straight segment that stays in free cells."""
+    if any(domain.graph.wrap):
+        return goal
+    d = goal - start
+    length = float(np.hypot(*d))
+    if length < 1e-9:
+        return goal
+    t = np.linspace(0.0, 1.0, int(math.ceil(length * 4.0)) + 2)
+    pts = start + t[:, None] * d
+    _, _, ok = domain.free_at_grid(pts)
+    if ok.all():
+        return goal
+    if not ok[0]:
+        return start
+    last = int(np.argmin(ok)) - 1
+    return pts[max(last, 0)]
+
+
+def descent_walk(domain: CoverageDomain, base: int, covector: np.ndarray,
+                  length_cells: float) -> np.ndarray:
+    """Grid point reached by walking from vertex ``base`` along graph edges, each step to the
+    neighbour best aligned with the covector (Bhattacharya et al.'s next-vertex rule, repeated),
+    for about ``length_cells``; stops where no neighbour makes progress along it."""
+    graph = domain.graph
+    W = graph.shape[1]
+    direction = covector / max(float(np.hypot(*covector)), 1e-300)
+    dirs = graph.offsets[:, ::-1].astype(np.float64)  # (x, y) per offset, cells
+    lengths = np.hypot(dirs[:, 0], dirs[:, 1])
+    align = (dirs @ direction) / lengths
+    node, travelled, seen = base, 0.0, {base}
+    while travelled < length_cells:
+        r, c = divmod(node, W)
+        ok = np.isfinite(graph.cost[r, c]) & (align > WALK_MIN_ALIGNMENT)
+        if not ok.any():
+            break
+        k = int(np.argmax(np.where(ok, align, -np.inf)))
+        nxt = int(graph.neighbour_index(k)[r, c])
+        if nxt in seen:
+            break
+        seen.add(nxt)
+        node = nxt
+        travelled += float(lengths[k])
+    return domain.node_centers(np.array([node]))[0]
+
+
+def next_vertex(domain: CoverageDomain, base: int, covector: np.ndarray) -> np.ndarray:
+    """The graph neighbour of vertex ``base`` best aligned with the covector (paper, l. 32)."""
+    graph = domain.graph
+    W = graph.shape[1]
+    r, c = divmod(base, W)
+    ok = np.isfinite(graph.cost[r, c])
+    best = base
+    if ok.any():
+        v = graph.offsets[ok][:, ::-1].astype(np.float64) * domain.resolution  # (x, y) chart
+        score = v @ covector
+        k = int(np.argmax(score))
+        if score[k] > 0:
+            best = int(graph.neighbour_index(int(np.flatnonzero(ok)[k]))[r, c])
+    return domain.to_map(domain.node_centers(np.array([best])))[0]

@@ -1,0 +1,234 @@
+"""Lee & Lee (2024), decentralized: alpha-CVT where each robot knows only what its neighbours
+publish.
+
+The paper is centralized (:mod:`coverage_ros.core.strategies.acvt.dropout`); its future work
+is this form. Protocol - every robot publishes, each control period, a :class:`SharedState` with
+
+* ``position`` - its position [m];
+* ``mass`` - the mass of its own cell (Eq. 1/15/17 cell among the neighbours it knows, the
+  visible part of it with ``visibility``, Eq. 12) at that position;
+* ``extra["reach"]`` - R_i = v_max * 1 s [m] (Eq. 16; the common time cancels), so that
+  heterogeneous neighbours weigh cells (Eq. 17) and masses (Eq. 18) alike;
+* ``extra["dropout"]`` - 1 while its dropout phase is on, 0 once it has ended;
+* ``extra["greedy"]`` - 1 if it counted itself greedy in its last update (informational).
+
+and on each update a robot
+
+1. computes its own cell and mass from its position and its neighbours' positions (and
+   reaches);
+2. while its dropout is on, takes the masses it knows - its own and each neighbour's published
+   one, normalised by pi R^2 for heterogeneous teams - and computes their local I (Eq. 9), feeds
+   it to the low-pass-filtered Delta I switch of Alg. 2 (epsilon), and the local threshold
+   tau_drop = k / (k - 1) * mean(M) over those k masses (Alg. 1); no mass at or above tau_drop
+   ends the dropout, as in the paper;
+3. if its own mass reaches tau_drop it is greedy: like a greedy agent of Alg. 1 it keeps its
+   place during the dropout and then takes the ordinary CVT step - the goal is the (projected,
+   Eq. 8) centroid of its full cell;
+4. otherwise it drops the neighbours whose published mass reaches its tau_drop, jumps (virtually)
+   to the projected centroid of its cell among the remaining ones (Alg. 1, lines 9-10), and,
+   reinserting them, takes the projected centroid of its full cell about that point as its
+   goal (Alg. 2, lines 9-10) - both half-steps of an iteration in one update, so the goal does
+   not alternate between control periods;
+5. once its dropout is off: plain iCVT + projection (goal = projected centroid of its cell).
+
+With every robot hearing every other (as in
+:func:`coverage_ros.core.offline.runner.run_offline`) the local threshold and I are the global
+ones, computed from masses one control period old. With
+partial neighbourhoods each robot balances against its neighbours only.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+
+from coverage_ros.core.metrics import mass_deviation
+from coverage_ros.core.strategies.acvt.cells import CellSpec, MassCells, normalized_masses
+from coverage_ros.core.strategies.acvt.dropout import (
+    DEFAULT_FILTER_GAIN,
+    PAPER_EPSILON,
+    DropoutConfig,
+    DropoutSwitch,
+    greedy_mask,
+)
+from coverage_ros.core.strategies.base import (
+    Decision,
+    Neighbour,
+    Observation,
+    SharedState,
+    Strategy,
+    StrategyContext,
+    StrategyDetails,
+)
+from coverage_ros.errors import ConfigError
+
+#: [s] travel time t of Eq. 16 that turns v_max into the reach R_i; any value gives the same
+#: cells and metric (it cancels), 1 s makes R_i read as metres per second.
+REACH_TIME = 1.0
+
+
+@dataclass(frozen=True)
+class AcvtParams:
+    """Settings of the ``acvt`` strategy (see README "Strategy acvt")."""
+
+    dropout: bool = True  # agent dropout and reinsertion (False: iCVT + projection)
+    epsilon: float = PAPER_EPSILON  # threshold on the filtered Delta I (Eq. 10)
+    filter_gain: float = DEFAULT_FILTER_GAIN  # low-pass gain of Delta I, in (0, 1]
+    drop_factor: float | None = None  # tau_drop = drop_factor * mean M; None: k / (k - 1)
+    visibility: bool = False  # Eq. 11-12: only the part of the cell in line of sight
+    scale_x: float = 1.0  # a of T_c in Eq. 15 (shape constraint), on map x
+    scale_y: float = 1.0  # b of T_c in Eq. 15, on map y
+    gap_penalty: float = 0.0  # lambda of Eq. 15 [m per m of rho = 0 crossed]
+    speed_weighted: bool = True  # Eq. 16-18 when the robots' speeds differ
+
+    def __post_init__(self) -> None:
+        for name in ("dropout", "visibility", "speed_weighted"):
+            if not isinstance(getattr(self, name), bool | np.bool_):
+                raise ConfigError.at(name, "must be true or false", getattr(self, name))
+        for name in ("epsilon", "filter_gain", "drop_factor", "scale_x", "scale_y",
+                     "gap_penalty"):
+            value = getattr(self, name)
+            if value is None and name == "drop_factor":
+                continue
+            if isinstance(value, bool) or not isinstance(value, int | float | np.number):
+                raise ConfigError.at(name, "must be a number", value)
+        # The cell and dropout settings validate their own ranges.
+        self.dropout_config()
+        self.cell_spec()
+
+    def dropout_config(self) -> DropoutConfig:
+        return DropoutConfig(bool(self.dropout), float(self.epsilon), float(self.filter_gain),
+                             None if self.drop_factor is None else float(self.drop_factor))
+
+    def cell_spec(self) -> CellSpec:
+        return CellSpec(bool(self.visibility), (float(self.scale_x), float(self.scale_y)),
+                        float(self.gap_penalty))
+
+
+@dataclass(frozen=True)
+class AcvtDetails(StrategyDetails):
+    greedy: bool  # own mass reached tau_drop in this update
+    dropout: bool  # the dropout phase is on
+    dropped: tuple[int, ...]  # robot ids of the neighbours dropped in this update
+    local_deviation: float  # mass deviation I over the masses heard (NaN outside dropout)
+    tau_drop: float  # the dropout threshold (NaN outside dropout)
+    centroid: np.ndarray | None  # (2,) [m] own cell's centroid (None: empty cell)
+
+
+class AcvtStrategy(Strategy):
+    """Alpha-CVT (iCVT + projection with agent dropout and reinsertion), decentralized."""
+
+    name: ClassVar[str] = "acvt"
+    Params: ClassVar[type] = AcvtParams
+    params: AcvtParams
+
+    def __init__(self, context: StrategyContext, params: AcvtParams | None = None) -> None:
+        super().__init__(context, params)
+        self.dropout = self.params.dropout_config()
+        self.spec = self.params.cell_spec()
+        self.speed_weighted = bool(self.params.speed_weighted)
+        self.reach = context.robot.v_max * REACH_TIME
+        self.cells = MassCells(context.domain)
+        self.switch = DropoutSwitch(self.dropout)
+
+    def shared_state(self, obs: Observation) -> SharedState:
+        return SharedState(position=obs.position.copy(), weight=self.context.weight,
+                           extra=self._extra(False))
+
+    def _extra(self, greedy: bool) -> dict[str, float]:
+        return {"reach": self.reach, "dropout": float(self.switch.active),
+                "greedy": float(greedy)}
+
+    # ------------------------------------------------------------------ cells
+    def _own_cell(self, P: np.ndarray, reach: np.ndarray | None,
+                  own: int) -> tuple[np.ndarray, float, np.ndarray | None]:
+        """Labels of the mass cells among ``P (k, 2)`` (row ``own`` = this robot), the own mass
+        and the own centroid (None for an empty cell); visibility applies to the own cell."""
+        spec = self.spec
+        if spec.visibility:
+            spec = CellSpec(False, spec.scale, spec.gap_penalty)
+        labels = self.cells.labels(P, reach, spec)
+        if self.spec.visibility:
+            labels = self.cells.restrict_to_visible(labels, P, agents=[own])
+        masses, centroids = self.cells.stats(np.where(labels == own, 0, -1), 1)
+        centroid = None if masses[0] <= 0 else centroids[0]
+        return labels, float(masses[0]), centroid
+
+    def _goal(self, P: np.ndarray, reach: np.ndarray | None, own: int) -> np.ndarray:
+        """Projected (Eq. 8) centroid of the own cell among ``P`` (own position if empty)."""
+        _, _, centroid = self._own_cell(P, reach, own)
+        return self.cells.project(P[own] if centroid is None else centroid)[0]
+
+    # ------------------------------------------------------------------ update
+    def update(self, obs: Observation, neighbours: Sequence[Neighbour]) -> Decision:
+        p = obs.position
+        # Generators in robot-id order: ties (coincident robots) go to the lowest id in every
+        # robot's computation alike, so a shared cell has a single owner.
+        ids = np.array([obs.robot_id] + [n.robot_id for n in neighbours])
+        order = np.argsort(ids, kind="stable")
+        states = [None] + [n.state for n in neighbours]
+        P = np.vstack([p[None, :]] + [np.asarray(n.position, float)[None, :2]
+                                      for n in neighbours])[order]
+        reach = np.array([self.reach] + [float(n.state.extra.get("reach", self.reach))
+                                         for n in neighbours])[order]
+        own = int(np.flatnonzero(order == 0)[0])
+        if not self.speed_weighted or np.allclose(reach, reach[0]):
+            reach_arg = None  # equal reaches: Eq. 17 is Eq. 1 and M^h is M / const
+        else:
+            reach_arg = reach
+        labels, mass, centroid = self._own_cell(P, reach_arg, own)
+
+        greedy, dropped, local_i, tau = False, np.zeros(0, dtype=np.int64), math.nan, math.nan
+        published = np.full(len(P), np.nan)
+        for row, src in enumerate(order):
+            st = states[src]
+            if st is not None and st.mass is not None and math.isfinite(st.mass):
+                published[row] = float(st.mass)
+        published[own] = mass
+        idx = np.flatnonzero(np.isfinite(published))
+        if self.switch.active and len(idx) > 1:
+            m = published[idx]
+            weighed = m if reach_arg is None else normalized_masses(m, reach[idx])
+            local_i = mass_deviation(weighed)
+            self.switch.update(local_i)
+            mask = greedy_mask(weighed, self.dropout.drop_factor)
+            k = len(weighed)
+            factor = k / (k - 1) if self.dropout.drop_factor is None else self.dropout.drop_factor
+            tau = factor * float(weighed.mean())
+            if not mask.any():
+                self.switch.stop()
+            elif self.switch.active:
+                greedy = bool(mask[idx == own][0])
+                dropped = idx[mask & (idx != own)]
+
+        if self.switch.active and not greedy and len(dropped):
+            keep = np.ones(len(P), dtype=bool)
+            keep[dropped] = False
+            sub_own = int(keep[:own].sum())
+            jump = self._goal(P[keep], None if reach_arg is None else reach_arg[keep], sub_own)
+            P_jump = P.copy()
+            P_jump[own] = jump
+            goal = self._goal(P_jump, reach_arg, own)
+        else:
+            goal = self.cells.project(p if centroid is None else centroid)[0]
+
+        step = float(np.hypot(*(goal - p)))
+        mine = labels == own
+        return Decision(
+            goal=goal, velocity=None, cell=self.cells.nodes[mine],
+            shared=SharedState(position=p.copy(), weight=self.context.weight, mass=mass,
+                               extra=self._extra(greedy)),
+            # Converged once the goal is reached with no dropout under way (a robot that hears
+            # no neighbour's mass cannot drop out and converges like iCVT + projection).
+            converged=(not (self.switch.active and len(idx) > 1)
+                       and step < self.context.convergence_tolerance),
+            cost=self.cells.cost(labels, P, own), mass=mass,
+            mode="greedy" if greedy else ("dropout" if self.switch.active else "cvt"),
+            details=AcvtDetails(greedy=greedy, dropout=self.switch.active,
+                                dropped=tuple(int(ids[order[j]]) for j in dropped),
+                                local_deviation=local_i, tau_drop=tau,
+                                centroid=None if centroid is None else centroid.copy()))

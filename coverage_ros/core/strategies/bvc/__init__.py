@@ -1,0 +1,8 @@
+"""Buffered Voronoi cells from lidar points with a deadlock-aware guided map (Wang, Xu, Gao,
+Chen, Zhang, Wang, Ding & Chen, "Sensor-based multi-agent coverage control with spatial
+separation in unstructured environments", 2024).
+
+* :mod:`.strategy` - the ``bvc`` strategy;
+* :mod:`.cells` - buffered Voronoi cells from raw range points (Sec. IV-A/B);
+* :mod:`.guided_map` - obstacle memory and navigation function of the guided map (Sec. IV-C).
+"""

@@ -1,0 +1,326 @@
+"""Sensor-based coverage in buffered Voronoi cells with a deadlock-aware guided map (Wang et al.
+2024, "Sensor-based multi-agent coverage control with spatial separation in unstructured
+environments").
+
+Every control period the robot
+
+1. builds its buffered Voronoi cell (Eq. 4-7, :mod:`.cells`) from the current lidar points
+   within its sensing radius and its neighbours' positions - a convex polygon that keeps its
+   body at least its radius away from every sensed point and from every neighbour's cell;
+2. in guided mode (default) remembers the lidar hits, picks the highest-density point it can
+   reach within sensing range and inside its own Voronoi region as goal, and replaces the
+   density by ``phi = exp(-gamma M_go)`` with ``M_go`` the cost-to-go to that goal over what it
+   has seen (Eq. 8, :mod:`.guided_map`); in plain mode it keeps the importance density (the classic
+   move-to-centroid policy, which stalls behind non-convex obstacles);
+3. moves towards the centroid ``C`` of its cell under that density (Eq. 3). The decision's
+   goal is ``C`` itself: it lies in the convex cell, so the straight move there is
+   collision-free (Theorem 1), and the robot's navigation drives there at no more than its
+   speed limit - the saturation of Eq. 3. ``BvcDetails.u`` is Eq. 3's velocity,
+   ``(C - p) / dt`` capped at ``u_max`` (``dt`` from the observation times), for runners that
+   integrate single integrators (:func:`coverage_ros.bench.peak_trials.run_trial`). The robot
+   has converged when ``|u|`` drops below ``converged_speed`` (0.01 m/s in the paper).
+
+A centroid can stall short of the goal where two equally short paths pull it in opposite
+directions (a saddle of the smoothed field, likelier with a small ``gamma``); if its cell still
+holds a point clearly closer to the goal, the robot then heads for the cell's point of least
+cost-to-go (``Decision.mode == "escape"``), the ``gamma -> inf`` limit of Eq. 8.
+
+The importance density is the domain's raster (the "GIS prior"; it is zero on the map's blocked
+cells, so a goal is never picked inside a known obstacle). Obstacles are otherwise known only
+from the scans: the robot's safety never depends on the map.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+
+from coverage_ros.core.geometry import points_in_polygon
+from coverage_ros.core.strategies.base import (
+    Decision,
+    Neighbour,
+    Observation,
+    SharedState,
+    Strategy,
+    StrategyContext,
+    StrategyDetails,
+)
+from coverage_ros.core.strategies.bvc.cells import (
+    BufferedCell,
+    buffered_cell,
+    convex_polygon_cells,
+)
+from coverage_ros.core.strategies.bvc.guided_map import (
+    ObstacleMemory,
+    WindowGraph,
+    guided_density,
+    local_map,
+    local_maximum_goal,
+    navigation_function,
+)
+from coverage_ros.errors import ConfigError
+
+#: [m] lidar points this close to a neighbour's body are the neighbour, not a wall: they are
+#: kept out of the obstacle memory (the bisector already separates the robots). Covers pose
+#: latency (0.22 m/s for ~0.3 s) and range noise.
+NEIGHBOUR_POINT_MARGIN = 0.1
+#: An observed control period longer than this many nominal periods (a pause, a restart) is not
+#: used to scale the step; the nominal period is.
+MAX_PERIOD_FACTOR = 5.0
+#: The density over the guided map's candidates counts as flat (no goal to be guided to) when
+#: its largest value is within this share of its smallest.
+FLAT_DENSITY = 0.01
+#: A centroid closer than the arrival tolerance that keeps moving ahead is sent to the
+#: navigation this many tolerances along (see BvcStrategy._navigation_goal).
+EXTEND_FACTOR = 1.5
+#: [grid cells] a cell point must be this much closer to the goal (in cost-to-go) than the robot
+#: for a stalled centroid to count as a deadlock rather than arrival (grid distances are exact
+#: only to about a cell).
+ESCAPE_DESCENT_CELLS = 2.0
+
+
+@dataclass(frozen=True)
+class BvcParams:
+    """Parameters of the ``bvc`` strategy (see README "Strategy bvc")."""
+
+    guided: bool = True  # deadlock-aware guided map (False: plain move-to-centroid)
+    gamma: float = 10.0  # [1/m] gain of Eq. 8, phi = exp(-gamma * M_go)
+    u_max: float | None = None  # [m/s] speed cap of Eq. 3 (None: the robot's v_max)
+    period: float = 0.2  # [s] nominal control period (used until obs.time gives one)
+    converged_speed: float = 0.01  # [m/s] converged when |u| falls below this
+    grid_resolution: float = 0.1  # [m] cells of the obstacle memory and navigation function
+    nf_radius: float | None = None  # [m] half-width of the navigation window (None: 2 R_sensor)
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.guided, bool):
+            raise ConfigError.at("bvc.guided", "must be true or false", self.guided)
+        for name in ("gamma", "period", "converged_speed", "grid_resolution", "u_max",
+                     "nf_radius"):
+            value = getattr(self, name)
+            if value is None and name in ("u_max", "nf_radius"):
+                continue
+            ok = isinstance(value, int | float) and not isinstance(value, bool) \
+                and math.isfinite(value) and (value >= 0 if name == "gamma" else value > 0)
+            if not ok:
+                expected = "a finite number >= 0" if name == "gamma" else "a finite number > 0"
+                raise ConfigError.at(f"bvc.{name}", "invalid value", value, expected)
+
+
+@dataclass(frozen=True)
+class BvcDetails(StrategyDetails):
+    u: np.ndarray  # (2,) [m/s] Eq. 3's velocity toward the centroid, capped at u_max
+    speed: float  # [m/s] |u|
+    guide_goal: np.ndarray | None  # (2,) [m] p_g of the guided map, if any
+    buffer: float  # [m] the cell's buffer (the robot radius)
+    obstacle_planes: int  # robot-obstacle hyperplanes bounding the cell
+    reason: str = ""  # why the robot stays, when it does
+
+
+class BvcStrategy(Strategy):
+    """Buffered Voronoi cells from lidar points, guided by a navigation function."""
+
+    name: ClassVar[str] = "bvc"
+    Params: ClassVar[type] = BvcParams
+    params: BvcParams
+    needs_scan: ClassVar[bool] = True
+    needs_map: ClassVar[bool] = False  # cells, goals and safety from the lidar (Wang et al.)
+
+    def __init__(self, context: StrategyContext, params: BvcParams | None = None) -> None:
+        super().__init__(context, params)
+        self.radius = float(context.robot.radius)
+        # R_sensor: the sensing radius, but never beyond what the lidar can see.
+        self.sensor_radius = min(float(context.robot.sensor_radius),
+                                 float(context.robot.lidar.range_max))
+        if self.sensor_radius <= self.radius:
+            raise ConfigError.at("sensor_radius", "must exceed the robot radius",
+                                 self.sensor_radius, f"> {self.radius}")
+        self.u_max = float(self.params.u_max if self.params.u_max is not None
+                           else context.robot.v_max)
+        self.nf_radius = float(self.params.nf_radius if self.params.nf_radius is not None
+                               else 2.0 * self.sensor_radius)
+        if self.nf_radius < self.sensor_radius:
+            raise ConfigError.at("bvc.nf_radius", "must be at least the sensing radius",
+                                 self.nf_radius, f">= {self.sensor_radius}")
+        domain = context.domain
+        self.bounds = domain.geometry.extent()
+        self.memory = ObstacleMemory.covering(self.bounds, self.params.grid_resolution)
+        self.nf_cells = int(math.ceil(self.nf_radius / self.params.grid_resolution))
+        self.graph = WindowGraph(2 * self.nf_cells + 1, self.params.grid_resolution)
+        self._last_time: float | None = None
+        self._goal: np.ndarray | None = None
+        self._last_step: np.ndarray | None = None  # centroid - position at the last update
+
+    # ------------------------------------------------------------------ interface
+    def shared_state(self, obs: Observation) -> SharedState:
+        return SharedState(position=obs.position.copy(), weight=self.context.weight,
+                           extra={"radius": self.radius})
+
+    def update(self, obs: Observation, neighbours: Sequence[Neighbour]) -> Decision:
+        p = obs.position
+        dt = self._period(obs.time)
+        if obs.scan is None:
+            return self._stay(p, "no scan yet")
+        points = obs.scan.points(np.asarray(obs.pose, dtype=np.float64))
+        nb = np.array([n.position for n in neighbours], dtype=np.float64).reshape(-1, 2)
+        nb_r = np.array([float(n.state.extra.get("radius", self.radius)) for n in neighbours])
+        self.memory.add(_away_from(points, nb, nb_r + NEIGHBOUR_POINT_MARGIN))
+        cell = buffered_cell(p, points, nb, self.radius, self.sensor_radius, self.bounds)
+        if len(cell.polygon) < 3:
+            return self._stay(p, "empty cell", cell)
+        nodes, xy, wdA = self._samples(cell)
+        phi, mode, field = wdA, "plain", None
+        if self.params.guided:
+            field = self._guided_field(p, xy, cell, obs)
+            if field is not None:
+                phi, mode = field.phi, "guided"
+        total = float(phi.sum())
+        target = (xy * phi[:, None]).sum(axis=0) / total if total > 0 else p.copy()
+        speed = self._speed(target - p, dt)
+        if field is not None and speed < self.params.converged_speed:
+            # A stalled centroid short of the goal (see module docstring): head for the cell's
+            # point of least cost-to-go, the gamma -> inf limit of Eq. 8 (ties: first sample).
+            k = int(np.argmin(field.cost))
+            if field.cost[k] < field.cost_here - ESCAPE_DESCENT_CELLS * self.memory.resolution:
+                target, mode = xy[k].copy(), "escape"
+                speed = self._speed(target - p, dt)
+        step = target - p
+        dist = float(np.hypot(*step))
+        u = step * (speed / dist) if dist > 0 else np.zeros(2)
+        goal = self._navigation_goal(p, target, step, dist, cell)
+        d2 = ((xy - p) ** 2).sum(axis=1)
+        mass = float(wdA.sum())
+        free = self.context.domain.free.ravel()[nodes]
+        return Decision(
+            goal=goal, target=target, velocity=None, cell=nodes[free],
+            shared=SharedState(position=p.copy(), weight=self.context.weight, mass=mass,
+                               extra={"radius": self.radius}),
+            converged=speed < self.params.converged_speed, cost=float((d2 * wdA).sum()),
+            mass=mass, mode=mode, cell_polygon=cell.polygon,
+            details=BvcDetails(u=u, speed=speed,
+                               guide_goal=None if field is None else field.goal,
+                               buffer=cell.buffer, obstacle_planes=len(cell.obstacle_planes)))
+
+    # ------------------------------------------------------------------ helpers
+    def _navigation_goal(self, p: np.ndarray, target: np.ndarray, step: np.ndarray,
+                         dist: float, cell: BufferedCell) -> np.ndarray:
+        """Where the robot's navigation is sent: the centroid, except when it lies closer than
+        the navigation's arrival tolerance while the centroid keeps moving ahead of the robot
+        (the same direction as last update - a cell face that recedes as the robot follows
+        it): then a point of the cell that far along, so that the robot keeps following Eq.
+        3 instead of parking. A centroid that turned back (overshoot) is sent as it is."""
+        tol = self.context.convergence_tolerance
+        last, self._last_step = self._last_step, step.copy()
+        if not (1e-3 < dist < tol) or last is None or float(step @ last) <= 0.0:
+            return target
+        ahead = p + step * (EXTEND_FACTOR * tol / dist)
+        inside = points_in_polygon(ahead[None], cell.polygon)[0]
+        return ahead if inside else target
+
+    def _period(self, now: float) -> float:
+        last, self._last_time = self._last_time, float(now)
+        nominal = self.params.period
+        if last is None:
+            return nominal
+        dt = float(now) - last
+        return dt if 0.0 < dt <= MAX_PERIOD_FACTOR * nominal else nominal
+
+    def _stay(self, p: np.ndarray, reason: str, cell: BufferedCell | None = None) -> Decision:
+        return Decision(goal=p.copy(), velocity=None, cell=np.zeros(0, np.int64),
+                        shared=SharedState(position=p.copy(), weight=self.context.weight,
+                                           extra={"radius": self.radius}),
+                        converged=False, cost=0.0, mass=0.0, mode="stay",
+                        cell_polygon=None if cell is None else cell.polygon,
+                        details=BvcDetails(u=np.zeros(2), speed=0.0, guide_goal=None,
+                                           buffer=self.radius, obstacle_planes=0,
+                                           reason=reason))
+
+    def _window(self, p: np.ndarray, reach: float) -> tuple[np.ndarray, np.ndarray]:
+        """Domain nodes ``(N,)`` within ``reach`` [m] of ``p`` and their centres ``(N, 2)``."""
+        domain = self.context.domain
+        H, W = domain.shape
+        g = domain.to_grid(p)[0]
+        n = int(math.ceil(reach / domain.resolution)) + 1
+        c0, c1 = max(int(g[0]) - n, 0), min(int(g[0]) + n + 1, W)
+        r0, r1 = max(int(g[1]) - n, 0), min(int(g[1]) + n + 1, H)
+        if c0 >= c1 or r0 >= r1:
+            return np.zeros(0, np.int64), np.zeros((0, 2))
+        rows, cols = np.mgrid[r0:r1, c0:c1]
+        nodes = (rows * W + cols).ravel()
+        xy = domain.to_map(domain.node_centers(nodes))
+        near = np.hypot(*(xy - p).T) <= reach
+        return nodes[near], xy[near]
+
+    def _samples(self, cell: BufferedCell) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Domain nodes whose centre lies in the cell, the centres ``(N, 2)`` and their mass
+        elements (density * area)."""
+        domain = self.context.domain
+        rows, cols = convex_polygon_cells(domain.to_grid(cell.polygon), domain.shape)
+        nodes = rows * domain.shape[1] + cols
+        xy = domain.to_map(domain.node_centers(nodes))
+        return nodes, xy, domain.mass_element.ravel()[nodes]
+
+    def _speed(self, step: np.ndarray, dt: float) -> float:
+        """|u| of Eq. 3 towards a target ``step`` away: ``|step| / dt`` capped at ``u_max``."""
+        return min(self.u_max, float(np.hypot(*step)) / dt)
+
+    def _guided_field(self, p: np.ndarray, xy: np.ndarray, cell: BufferedCell,
+                      obs: Observation) -> _GuidedField | None:
+        """Eq. 8 at the cell samples ``xy``, or None when no goal can be reached (the caller
+        falls back to the importance density)."""
+        local = local_map(self.memory, p, self.nf_cells, self.radius)
+        nodes, cand = self._window(p, self.sensor_radius)
+        # Candidates: inside the own (unbuffered) Voronoi region - the region this robot is
+        # tasked with - and reachable in what it has seen.
+        rp = cell.robot_planes
+        own = np.all(cand @ rp.a.T <= rp.b[None, :], axis=1) if len(rp) else \
+            np.ones(len(cand), dtype=bool)
+        domain = self.context.domain
+        ok = own & local.is_reachable(cand) & domain.free.ravel()[nodes]
+        if not ok.any():
+            return None
+        values = domain.density.ravel()[nodes[ok]]
+        cand = cand[ok]
+        if values.max() <= values.min() * (1.0 + FLAT_DENSITY):
+            # No peak to be guided to (a uniform density): every candidate ties, and the
+            # nearest - the robot's own spot - would hold the robot in place. Be guided to the
+            # middle of what is its own instead: the candidate nearest to the centroid of the
+            # part of its Voronoi region that it sees free within sensing range (without a
+            # map, unseen space behind a wall would pull it otherwise).
+            seen = obs.scan.sees(cand, np.asarray(obs.pose, dtype=np.float64))
+            if seen.any():
+                cand = cand[seen]
+            k = int(np.argmin(np.hypot(*(cand - cand.mean(axis=0)).T)))
+        else:
+            k = local_maximum_goal(cand, values, p, self._goal,
+                                   match_radius=domain.resolution)
+        if k is None:
+            return None
+        self._goal = cand[k].copy()
+        nf = navigation_function(local, self._goal, self.graph, origin=p,
+                                 reach=self.sensor_radius)
+        cost = nf.at(xy)
+        phi = guided_density(cost, self.params.gamma)
+        if phi.sum() <= 0:
+            return None
+        return _GuidedField(self._goal.copy(), cost, float(nf.at(p)[0]), phi)
+
+
+@dataclass(frozen=True)
+class _GuidedField:
+    goal: np.ndarray  # (2,) [m] p_g
+    cost: np.ndarray  # (N,) [m] M_go at the cell samples
+    cost_here: float  # [m] M_go at the robot
+    phi: np.ndarray  # (N,) Eq. 8 weights at the samples
+
+
+def _away_from(points: np.ndarray, centres: np.ndarray, radii: np.ndarray) -> np.ndarray:
+    """The ``points (N, 2)`` farther than ``radii (J,)`` from every one of ``centres (J, 2)``."""
+    if len(centres) == 0 or len(points) == 0:
+        return points
+    d = np.hypot(points[:, None, 0] - centres[None, :, 0],
+                 points[:, None, 1] - centres[None, :, 1])
+    return points[np.all(d > radii[None, :], axis=1)]

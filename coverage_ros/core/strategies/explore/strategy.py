@@ -1,0 +1,200 @@
+"""Coordinated exploration of an unknown map: geodesic power Voronoi cells on the belief's
+entropy-weighted metric, the generalized Lloyd control, and the greedy mode (Bhattacharya et al.
+2014, Sec. 4.2).
+
+Every update the robot builds, from its belief (:class:`~coverage_ros.core.exploration.belief.
+BeliefSnapshot`), the coverage domain of Eq. 9 (:func:`~coverage_ros.core.exploration.maps.
+entropy_domain`): density w and isotropic metric zeta I equal to the entropy where it is at least
+tau, and small constants where the map is explored. It computes its own cell among its
+neighbours and the Eq. 8 control, whose goal is the cell's virtual centroid - pulled toward the
+unexplored parts of the cell, which the metric stretches out, so that the team splits the unknown
+among its members.
+
+When that control vanishes (the goal is closer than ``stall_distance``) while the cell still holds
+unexplored mass (the integral of w over the cell exceeds that of eps_w), the robot switches to
+the *greedy* mode: it heads for the closest vertex whose entropy is above tau (closest along the
+metric's shortest paths from the robot) until that vertex is explored or reached, then returns
+to the Lloyd mode. Once no reachable vertex is above tau, w and zeta stop changing and the team
+converges to the coverage of the explored map, as in the paper.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+from scipy.sparse.csgraph import connected_components, dijkstra
+
+from coverage_ros.core.exploration.maps import EntropyMetric, entropy_domain
+from coverage_ros.core.geodesic.cell import geodesic_cell
+from coverage_ros.core.geodesic.domain import CoverageDomain
+from coverage_ros.core.geodesic.tessellation import METHODS, Generator
+from coverage_ros.core.strategies.base import (
+    Decision,
+    Neighbour,
+    Observation,
+    SharedState,
+    Strategy,
+    StrategyContext,
+    StrategyDetails,
+)
+from coverage_ros.errors import ConfigError
+
+#: Relative margin on "the integral of w over the cell exceeds that of eps_w" (round-off).
+MASS_MARGIN = 1e-6
+#: The paper's control (``paper``), and ours (``nearest``).
+VARIANTS = ("paper", "nearest")
+
+
+@dataclass(frozen=True)
+class ExploreParams:
+    """Settings of the exploring ``geodesic`` strategy."""
+
+    tau: float = 0.55  # [nats] vertices at or above this entropy are unexplored (Eq. 9)
+    eps_w: float = 0.01  # density of explored vertices (Eq. 9)
+    eps_zeta: float = 0.1  # metric weight of explored vertices (Eq. 9)
+    stall_distance: float = 0.15  # [m] a Lloyd goal closer than this = the control vanished
+    method: str = "auto"  # sources and tangents (auto: lookahead on this curved metric)
+    variant: str = "nearest"  # "nearest" or "paper" (Lloyd + greedy; see module docstring)
+
+    def __post_init__(self) -> None:
+        self.metric()  # validates tau, eps_w, eps_zeta
+        if self.variant not in VARIANTS:
+            raise ConfigError.at("variant", "unknown variant", self.variant,
+                                 f"one of {VARIANTS}")
+        if not (math.isfinite(self.stall_distance) and self.stall_distance > 0):
+            raise ConfigError.at("stall_distance", "must be a number > 0 [m]",
+                                 self.stall_distance)
+        if self.method not in METHODS:
+            raise ConfigError.at("method", "unknown method", self.method, f"one of {METHODS}")
+
+    def metric(self) -> EntropyMetric:
+        return EntropyMetric(self.tau, self.eps_w, self.eps_zeta)
+
+
+@dataclass(frozen=True)
+class ExploreDetails(StrategyDetails):
+    lloyd_goal: np.ndarray  # (2,) [m] the Eq. 8 goal (virtual centroid, reachable part)
+    greedy_target: np.ndarray | None  # (2,) [m] the greedy mode's vertex, if greedy
+    unexplored_mass: float  # integral over the own cell of (w - eps_w)
+    unexplored_cells: int  # own cell's vertices at or above tau
+
+
+class ExploreStrategy(Strategy):
+    """See module docstring."""
+
+    name: ClassVar[str] = "geodesic"
+    Params: ClassVar[type] = ExploreParams
+    params: ExploreParams
+    explores: ClassVar[bool] = True
+
+    def __init__(self, context: StrategyContext, params: ExploreParams | None = None) -> None:
+        super().__init__(context, params)
+        self.metric = self.params.metric()
+        self.target: np.ndarray | None = None  # greedy target (2,) [m], None in Lloyd mode
+
+    def shared_state(self, obs: Observation) -> SharedState:
+        return SharedState(position=obs.position.copy(), weight=self.context.weight,
+                           extra={"greedy": 0.0})
+
+    def update(self, obs: Observation, neighbours: Sequence[Neighbour]) -> Decision:
+        if obs.belief is None:
+            raise ConfigError.at("geodesic (explore)", "needs the robot's belief of the map")
+        p = obs.position
+        domain, e = entropy_domain(obs.belief, self.context.robot.radius, self.metric,
+                                   len(self.context.domain.graph.offsets))
+        own = Generator(p, self.context.weight)
+        others = [Generator(n.position, n.state.weight) for n in neighbours]
+        cell = geodesic_cell(domain, own, others, method=self.params.method, whole=True)
+        area = domain.graph.cell_area().ravel()[cell.nodes]
+        unexplored = float((domain.mass_element.ravel()[cell.nodes]
+                            - self.metric.eps_w * area).sum())
+        unexplored_cells = int((e.ravel()[cell.nodes] >= self.metric.tau).sum())
+        lloyd_step = float(np.hypot(*(cell.goal - p)))
+        if self.target is not None and not self._still_greedy(domain, e, p):
+            self.target = None
+        if self.params.variant == "nearest":
+            mode = self._nearest(domain, e, p, cell.nodes, cell.distances)
+        else:
+            if (self.target is None and lloyd_step < self.params.stall_distance
+                    and unexplored > MASS_MARGIN * max(float(area.sum()), 1e-12)):
+                self.target = closest_unexplored(domain, e, p, self.metric.tau)
+            mode = "greedy" if self.target is not None else "lloyd"
+        greedy = self.target is not None
+        goal = self.target.copy() if greedy else cell.goal
+        converged = not greedy and lloyd_step < self.context.convergence_tolerance
+        return Decision(
+            goal=goal, velocity=None, cell=cell.nodes,
+            shared=SharedState(position=p.copy(), weight=self.context.weight, mass=cell.mass,
+                               extra={"greedy": float(greedy)}),
+            converged=converged, cost=cell.cost, mass=cell.mass, mode=mode,
+            details=ExploreDetails(lloyd_goal=cell.goal, greedy_target=None if not greedy
+                                   else self.target.copy(), unexplored_mass=unexplored,
+                                   unexplored_cells=unexplored_cells))
+
+    def _nearest(self, domain: CoverageDomain, e: np.ndarray, p: np.ndarray, nodes: np.ndarray,
+                 distances: np.ndarray) -> str:
+        """The ``nearest`` variant: the target is the own cell's unexplored vertex nearest along
+        the metric (kept while it stays unexplored, unreached and in the cell); a robot whose
+        cell is explored heads for the nearest unexplored vertex anywhere. Returns the mode."""
+        if self.target is not None and self._in(domain, self.target, nodes):
+            return "frontier"
+        open_ = e.ravel()[nodes] >= self.metric.tau
+        if open_.any():
+            k = int(np.argmin(np.where(open_, distances, np.inf)))
+            self.target = domain.to_map(domain.node_centers(nodes[k:k + 1]))[0]
+            return "frontier"
+        self.target = closest_unexplored(domain, e, p, self.metric.tau)
+        return "lloyd" if self.target is None else "greedy"
+
+    @staticmethod
+    def _in(domain: CoverageDomain, point: np.ndarray, nodes: np.ndarray) -> bool:
+        cell = domain.geometry.world_to_cell(point[None])[0]
+        return bool(np.isin(cell[0] * domain.shape[1] + cell[1], nodes))
+
+    def _still_greedy(self, domain: CoverageDomain, e: np.ndarray, p: np.ndarray) -> bool:
+        """The greedy target is kept until it is explored or reached."""
+        assert self.target is not None
+        cell = domain.geometry.world_to_cell(self.target[None])[0]
+        if not domain.geometry.contains_cell(cell[None])[0]:
+            return False
+        reached = float(np.hypot(*(self.target - p))) < self.params.stall_distance
+        return bool(e[cell[0], cell[1]] >= self.metric.tau) and not reached and \
+            reachable(domain, p, self.target)
+
+
+def reachable(domain: CoverageDomain, a: np.ndarray, b: np.ndarray) -> bool:
+    """Whether ``b`` can be reached from ``a`` (map frame) on the domain's graph (an unknown
+    pocket inside an obstacle is not, once the obstacle's outline has been seen)."""
+    key = "components"
+    if key not in domain._cache:
+        domain._cache[key] = connected_components(domain.graph.csr, directed=False)[1]
+    labels = domain._cache[key]
+    cell = domain.geometry.world_to_cell(np.asarray(b, dtype=np.float64)[None])[0]
+    if not domain.geometry.contains_cell(cell[None])[0] or not domain.free[cell[0], cell[1]]:
+        return False
+    na = domain.snap(a)[0]
+    return len(na) > 0 and bool(labels[na[0]] == labels[cell[0] * domain.shape[1] + cell[1]])
+
+
+def closest_unexplored(domain: CoverageDomain, e: np.ndarray, p: np.ndarray,
+                       tau: float) -> np.ndarray | None:
+    """(2,) [m] the accessible vertex of entropy >= ``tau`` closest to ``p`` along the domain's
+    metric, or None if none can be reached."""
+    unexplored = (e >= tau) & domain.free
+    if not unexplored.any():
+        return None
+    nodes, _, _ = domain.snap(p)
+    if len(nodes) == 0:
+        return None
+    # The cells around the robot are a fraction of a cell away: their offsets do not matter.
+    best = dijkstra(domain.graph.csr, directed=True, indices=nodes,
+                    min_only=True).reshape(domain.shape)
+    best[~unexplored] = np.inf
+    k = int(np.argmin(best))
+    if not np.isfinite(best.ravel()[k]):
+        return None
+    return domain.to_map(domain.node_centers(np.array([k])))[0]

@@ -1,0 +1,165 @@
+"""Occupancy grids in the ROS convention, and conversions between cells and map coordinates.
+
+Conventions (the same as nav_msgs/OccupancyGrid, REP 103):
+
+* ``occupancy[row, col]`` with row 0 at the map origin (lowest y), col 0 at the lowest x;
+  values 0 = free, 100 = occupied, -1 = unknown, 1..99 = occupancy probability in percent.
+* ``origin = (x, y, yaw)`` is the pose, in the ``map`` frame, of the lower-left corner of cell
+  (0, 0); yaw rotates the grid counter-clockwise about that corner.
+* Cell centres are at ``origin + R(yaw) @ ((col + 0.5) * resolution, (row + 0.5) * resolution)``.
+* Points are ``(N, 2) float64`` arrays of ``(x, y)`` in metres, map frame; cells are
+  ``(N, 2) int64`` arrays of ``(row, col)``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import ndimage
+
+from coverage_ros.errors import ConfigError
+
+FREE = 0
+OCCUPIED = 100
+UNKNOWN = -1
+#: [percent] cells at or above this occupancy count as obstacles (map_server's occupied_thresh
+#: of 0.65 maps to 100 in trinary mode; scale-mode maps carry intermediate values).
+OCCUPIED_PERCENT = 65
+
+
+@dataclass(frozen=True)
+class GridMap:
+    """An occupancy grid with its resolution and origin (see module docstring for conventions)."""
+
+    occupancy: np.ndarray
+    resolution: float
+    origin: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    _rot: np.ndarray = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        occ = np.asarray(self.occupancy)
+        if occ.ndim != 2 or occ.shape[0] < 1 or occ.shape[1] < 1:
+            raise ConfigError.at("grid.occupancy", "must be a non-empty 2-D array", occ.shape)
+        if not np.isfinite(self.resolution) or self.resolution <= 0:
+            raise ConfigError.at("grid.resolution", "must be a positive number of metres per cell",
+                                 self.resolution)
+        if len(self.origin) != 3 or not np.all(np.isfinite(self.origin)):
+            raise ConfigError.at("grid.origin", "must be three finite numbers [x, y, yaw]",
+                                 self.origin)
+        occ = np.ascontiguousarray(occ, dtype=np.int8)
+        occ.setflags(write=False)
+        object.__setattr__(self, "occupancy", occ)
+        object.__setattr__(self, "resolution", float(self.resolution))
+        object.__setattr__(self, "origin", tuple(float(v) for v in self.origin))
+        c, s = np.cos(self.origin[2]), np.sin(self.origin[2])
+        object.__setattr__(self, "_rot", np.array([[c, -s], [s, c]]))
+
+    # ------------------------------------------------------------------ shape and extent
+    @property
+    def shape(self) -> tuple[int, int]:
+        """``(height, width)`` in cells."""
+        return self.occupancy.shape  # type: ignore[return-value]
+
+    @property
+    def height(self) -> int:
+        return int(self.occupancy.shape[0])
+
+    @property
+    def width(self) -> int:
+        return int(self.occupancy.shape[1])
+
+    @property
+    def cell_area(self) -> float:
+        """[m^2] area of one cell."""
+        return self.resolution * self.resolution
+
+    def extent(self) -> tuple[float, float, float, float]:
+        """``(xmin, ymin, xmax, ymax)`` of the grid's bounding box in the map frame [m]."""
+        corners = self.grid_to_world(np.array([[0.0, 0.0], [self.width, 0.0],
+                                               [0.0, self.height], [self.width, self.height]]))
+        return (float(corners[:, 0].min()), float(corners[:, 1].min()),
+                float(corners[:, 0].max()), float(corners[:, 1].max()))
+
+    # ------------------------------------------------------------------ masks
+    def occupied_mask(self, unknown_is_occupied: bool = True) -> np.ndarray:
+        """``(H, W) bool``: cells that are obstacles (and unknown ones, by default)."""
+        occ = self.occupancy
+        mask = occ >= OCCUPIED_PERCENT
+        if unknown_is_occupied:
+            mask |= occ < 0
+        return mask
+
+    def free_mask(self, unknown_is_free: bool = False) -> np.ndarray:
+        """``(H, W) bool``: cells a robot centre may occupy, before inflation."""
+        return ~self.occupied_mask(unknown_is_occupied=not unknown_is_free)
+
+    def clearance(self, unknown_is_free: bool = False) -> np.ndarray:
+        """``(H, W) float64`` [m]: distance from each cell centre to the nearest blocked cell.
+
+        Blocked cells have clearance 0; cells outside the grid count as blocked, so a robot
+        never plans off the map.
+        """
+        free = np.pad(self.free_mask(unknown_is_free), 1, constant_values=False)
+        dist = ndimage.distance_transform_edt(free) * self.resolution
+        return dist[1:-1, 1:-1]
+
+    def inflated_free_mask(self, radius: float, unknown_is_free: bool = False) -> np.ndarray:
+        """``(H, W) bool``: free cells whose centre is farther than ``radius`` [m] from any
+        blocked cell centre (the configuration space of a disc robot of that radius)."""
+        if radius < 0 or not np.isfinite(radius):
+            raise ConfigError.at("robot_radius", "must be a finite number >= 0", radius)
+        if radius == 0:
+            return self.free_mask(unknown_is_free)
+        # A blocked cell occupies a square of half-width res/2 around its centre; the robot
+        # clears it when its centre is more than radius from that square, approximated by
+        # distance between centres > radius + res/2.
+        return self.clearance(unknown_is_free) > radius + 0.5 * self.resolution
+
+    # ------------------------------------------------------------------ coordinates
+    def grid_to_world(self, grid_xy: np.ndarray) -> np.ndarray:
+        """Continuous grid coordinates ``(gx, gy)`` in cells -> map-frame ``(x, y)`` [m]."""
+        g = np.asarray(grid_xy, dtype=np.float64) * self.resolution
+        return g @ self._rot.T + np.array(self.origin[:2])
+
+    def world_to_grid(self, xy: np.ndarray) -> np.ndarray:
+        """Map-frame ``(x, y)`` [m] -> continuous grid coordinates ``(gx, gy)`` in cells."""
+        p = np.asarray(xy, dtype=np.float64) - np.array(self.origin[:2])
+        return (p @ self._rot) / self.resolution
+
+    def direction_to_grid(self, v: np.ndarray) -> np.ndarray:
+        """Map-frame vectors ``(..., 2)`` -> the same vectors in grid axes (rotation only, same
+        length)."""
+        return np.asarray(v, dtype=np.float64) @ self._rot
+
+    def cell_centers(self, cells: np.ndarray) -> np.ndarray:
+        """``(N, 2)`` cells ``(row, col)`` -> ``(N, 2)`` centres ``(x, y)`` [m]."""
+        c = np.asarray(cells)
+        return self.grid_to_world(np.stack([c[..., 1] + 0.5, c[..., 0] + 0.5], axis=-1))
+
+    def world_to_cell(self, xy: np.ndarray) -> np.ndarray:
+        """``(N, 2)`` points [m] -> ``(N, 2) int64`` cells ``(row, col)`` containing them
+        (may lie outside the grid; check with :meth:`contains_cell`)."""
+        g = np.floor(self.world_to_grid(xy)).astype(np.int64)
+        return np.stack([g[..., 1], g[..., 0]], axis=-1)
+
+    def contains_cell(self, cells: np.ndarray) -> np.ndarray:
+        c = np.asarray(cells)
+        return ((c[..., 0] >= 0) & (c[..., 0] < self.height)
+                & (c[..., 1] >= 0) & (c[..., 1] < self.width))
+
+    def contains_point(self, xy: np.ndarray) -> np.ndarray:
+        return self.contains_cell(self.world_to_cell(xy))
+
+    def all_cell_centers(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(X, Y)``, each ``(H, W)``: map-frame coordinates of every cell centre."""
+        rows, cols = np.mgrid[0:self.height, 0:self.width]
+        xy = self.cell_centers(np.stack([rows.ravel(), cols.ravel()], axis=-1))
+        return xy[:, 0].reshape(self.shape), xy[:, 1].reshape(self.shape)
+
+    def with_occupancy(self, occupancy: np.ndarray) -> GridMap:
+        """A grid with the same geometry and new cell values."""
+        if np.shape(occupancy) != self.shape:
+            raise ConfigError.at("grid.occupancy", "shape must match the grid",
+                                 np.shape(occupancy), str(self.shape))
+        return GridMap(occupancy, self.resolution, self.origin)

@@ -1,0 +1,82 @@
+"""The belief traffic of an exploring robot: what it tells the team, what it hears, what it
+shows.
+
+* ``observations`` (out, ``sensor_msgs/PointCloud2``, reliable): at ``observation_rate`` the own
+  evidence of the cells that changed since the last message (at most ``observation_cells``) and
+  the next ``refresh_cells`` of all the own evidence, round robin - so a lost message is
+  repaired and a robot that joins late catches up within a few seconds;
+* ``/<prefix><k>/observations`` (in): every other robot's evidence, merged as a grow-only state
+  (:meth:`~coverage_ros.core.exploration.belief.Belief.merge`: repeats and reordering change
+  nothing); a malformed cloud is dropped with a throttled warning;
+* ``map`` (out, ``nav_msgs/OccupancyGrid``, transient local): the robot's belief at
+  ``belief_rate``: -1 where nothing was seen, else round(100 p).
+
+No map server and no merge node: every robot fuses what it hears itself.
+"""
+
+from __future__ import annotations
+
+from nav_msgs.msg import OccupancyGrid
+from rclpy.node import Node
+from sensor_msgs.msg import PointCloud2
+
+from coverage_ros.core.exploration.belief import Belief
+from coverage_ros.errors import CoverageError
+from coverage_ros.nodes import conversions as conv
+from coverage_ros.nodes.plumbing import (
+    MAP_QOS,
+    TEAM_QOS,
+    WarnThrottle,
+    quiet_publisher,
+    quiet_subscription,
+)
+from coverage_ros.nodes.robot_config import ExploreIO
+
+OBSERVATIONS = "observations"
+OBSERVATIONS_TYPE = "sensor_msgs/msg/PointCloud2"
+
+
+class BeliefExchange:
+    """The ``observations`` and ``map`` topics of one exploring robot node."""
+
+    def __init__(self, node: Node, belief: Belief, io: ExploreIO, throttle: WarnThrottle,
+                 now) -> None:
+        self.node, self.belief, self.io = node, belief, io
+        self._throttle = throttle
+        self._now = now  # () -> sim time [s]
+        self.heard: dict[int, object] = {}  # robot id -> subscription
+        self.sent_cells = 0
+        self.pub = node.create_publisher(PointCloud2, OBSERVATIONS, TEAM_QOS,
+                                         event_callbacks=quiet_publisher())
+        self.map_pub = node.create_publisher(OccupancyGrid, "map", MAP_QOS)
+        node.create_timer(1.0 / io.observation_rate, self.publish_observations)
+        node.create_timer(1.0 / io.belief_rate, self.publish_map)
+
+    def listen(self, robot_id: int, topic: str) -> None:
+        """Merge the evidence robot ``robot_id`` publishes on ``topic`` from now on."""
+        if robot_id in self.heard:
+            return
+        self.heard[robot_id] = self.node.create_subscription(
+            PointCloud2, topic, lambda msg, rid=robot_id: self._on_observations(rid, msg),
+            TEAM_QOS, event_callbacks=quiet_subscription())
+
+    def _on_observations(self, robot_id: int, msg: PointCloud2) -> None:
+        try:
+            evidence = conv.evidence_from_msg(msg, robot_id, self.belief.lattice)
+        except (CoverageError, ValueError) as exc:
+            self._throttle.warn(f"obs{robot_id}", f"dropped observations of robot {robot_id}: "
+                                f"{exc}")
+            return
+        self.belief.merge(evidence)
+
+    def publish_observations(self) -> None:
+        stamp = conv.to_time_msg(self._now())
+        for evidence in (self.belief.take_changes(self.io.observation_cells),
+                         self.belief.refresh_chunk(self.io.refresh_cells)):
+            if evidence is not None and len(evidence.cells):
+                self.pub.publish(conv.evidence_msg(evidence, self.belief.lattice, stamp))
+                self.sent_cells += len(evidence.cells)
+
+    def publish_map(self) -> None:
+        grid = self.belief.lattice.with_occupancy(self.belief.occupancy_percent())
+        self.map_pub.publish(conv.grid_to_occupancy_grid(grid, conv.to_time_msg(self._now())))

@@ -1,0 +1,110 @@
+"""All ROS message <-> numpy/python conversions of coverage_ros, in one place.
+
+Conventions (REP 103 / REP 105 / REP 117)
+-----------------------------------------
+* Units SI: metres, radians, seconds. Axes right-handed, x forward, y left, z up; yaw is the
+  counter-clockwise angle about z from the map's x axis, wrapped to [-pi, pi).
+* Frames: ``map`` is the world (the simulator's ground truth and ``/map``). Robot ``<id>`` with
+  prefix ``robot_`` has ``robot_<id>/odom`` (fixed to the world at the robot's spawn pose: odom
+  pose (0, 0, 0) is where the robot appeared), ``robot_<id>/base_link`` (robot centre on the
+  floor, x forward) and ``robot_<id>/base_scan`` (the lidar; same origin and axes as
+  ``base_link`` in this simulator).
+* Time stamps are simulation time (``/clock``); :func:`to_time_msg` turns seconds into
+  ``builtin_interfaces/Time``.
+* Occupancy grids follow nav_msgs/OccupancyGrid exactly as
+  :class:`~coverage_ros.core.world.grid.GridMap` does: row 0 at the origin (lowest y), row-major
+  ``data``, 0 free, 100 occupied, -1 unknown.
+* Laser scans: beam ``k`` at ``angle_min + k * angle_increment`` in ``base_scan``, counter-
+  clockwise; ranges in metres, ``+inf`` no return within ``range_max``, ``-inf`` closer than
+  ``range_min`` (REP 117).
+* Velocity commands (``cmd_vel``): ``linear.x`` [m/s] forward and ``angular.z`` [rad/s]
+  counter-clockwise in ``base_link``; the other components are ignored (differential drive).
+* Coverage state (``coverage_state``): a ``sensor_msgs/JointState`` used as a stamped vector of
+  named values in the ``map`` frame: ``name[k]`` / ``position[k]`` pairs ``x``, ``y`` (the
+  generator [m]), ``weight`` (power weight R [m]), ``mass``, ``cost``, ``update_ms``, and for
+  some strategies ``virtual_x``/``virtual_y`` (virtual generator [m]) and further extras.
+* Cells (``cell``): a ``nav_msgs/OccupancyGrid`` cropped to the cell's bounding box, on the
+  map's cell lattice: 100 = part of the robot's cell, 0 = not.
+
+* Exploration evidence (``observations``): a ``sensor_msgs/PointCloud2``, a point per cell, fields
+  ``x``, ``y`` (the cell centre [m], ``map`` frame), ``hits``, ``misses`` (the sender's counts);
+  see :mod:`.evidence`.
+
+The conversions are grouped by topic kind in :mod:`.basics`, :mod:`.grids`, :mod:`.motion`,
+:mod:`.team` and :mod:`.evidence`, and all re-exported here: nodes use ``conv.<name>``.
+
+Arrays cross the message boundary with ``array.array`` (``tobytes``/``np.frombuffer``): element-
+wise assignment of a numpy array to a message sequence is ~60x slower.
+"""
+
+from coverage_ros.nodes.conversions.basics import (
+    MAP_FRAME,
+    RobotFrames,
+    clock_msg,
+    from_time_msg,
+    quaternion_to_yaw,
+    to_time_msg,
+    yaw_to_quaternion,
+)
+from coverage_ros.nodes.conversions.evidence import evidence_from_msg, evidence_msg
+from coverage_ros.nodes.conversions.grids import grid_to_occupancy_grid, occupancy_grid_to_grid
+from coverage_ros.nodes.conversions.motion import (
+    command_to_twist,
+    laser_scan_msg,
+    laser_scan_to_ranges,
+    odometry_msg,
+    odometry_to_pose,
+    twist_to_command,
+)
+from coverage_ros.nodes.conversions.team import (
+    SpawnRequest,
+    cell_grid_msg,
+    cell_grid_to_grid,
+    coverage_state_msg,
+    coverage_state_values,
+    diagnostic_status,
+    diagnostic_values,
+    parse_spawn_request,
+    path_msg,
+    path_to_points,
+    polygon_msg,
+    polygon_to_points,
+    pose_stamped_msg,
+    pose_stamped_to_pose,
+    scan_to_points,
+)
+
+__all__ = [
+    "MAP_FRAME",
+    "RobotFrames",
+    "SpawnRequest",
+    "cell_grid_msg",
+    "cell_grid_to_grid",
+    "clock_msg",
+    "command_to_twist",
+    "coverage_state_msg",
+    "coverage_state_values",
+    "diagnostic_status",
+    "diagnostic_values",
+    "evidence_from_msg",
+    "evidence_msg",
+    "from_time_msg",
+    "grid_to_occupancy_grid",
+    "laser_scan_msg",
+    "laser_scan_to_ranges",
+    "occupancy_grid_to_grid",
+    "odometry_msg",
+    "odometry_to_pose",
+    "parse_spawn_request",
+    "path_msg",
+    "path_to_points",
+    "polygon_msg",
+    "polygon_to_points",
+    "pose_stamped_msg",
+    "pose_stamped_to_pose",
+    "quaternion_to_yaw",
+    "scan_to_points",
+    "to_time_msg",
+    "twist_to_command",
+    "yaw_to_quaternion",
+]

@@ -1,0 +1,183 @@
+"""What every node of the package shares beyond its life cycle (:mod:`.runner`): the QoS of
+each kind of topic, throttled warnings, quiet QoS event callbacks, and the update worker.
+
+QoS (one table for the whole team; README "Nodes, topics and parameters" lists it per topic):
+
+* ``MAP_QOS`` - reliable, transient local, depth 1: latched like map_server's ``/map``, so a
+  node that starts late still gets the map;
+* ``SCAN_QOS`` - rclpy's sensor-data profile (best effort, volatile): compatible with every
+  lidar driver, a lost scan is replaced by the next one;
+* ``TEAM_QOS`` - reliable, volatile, depth 10: the team's own streams (``coverage_state``,
+  ``cmd_vel``, ``goal_pose``, ``plan``, ``cell``, odometry, ``/world/...``);
+* ``STREAM_QOS`` - best effort, depth 5: what an observer (the rerun bridge) reads of
+  high-rate streams; it matches reliable and best-effort publishers alike;
+* ``CLOCK_QOS`` - best effort, depth 1: an observer only needs the newest ``/clock``.
+
+Threads. rclpy's executor runs every callback of a node on one thread (the *executor thread*).
+A robot's coverage update can take longer than its tracking period, so it runs on the
+:class:`UpdateWorker`'s own thread instead; the rules that keep that safe:
+
+1. the worker runs one call at a time, started only from the executor thread
+   (:meth:`UpdateWorker.request`), so updates never overlap;
+2. an update reads its inputs as a snapshot taken under the controller's lock and commits its
+   result under the same lock; tracking (executor thread) takes that lock for each command, so
+   it sees either the old or the new plan, never half of one
+   (:class:`coverage_ros.core.control.controller.RobotController`);
+3. the neighbour table has its own lock: states arrive on the executor thread while an update
+   reads the table (:class:`coverage_ros.core.control.neighbours.NeighbourTable`);
+4. publishing from the worker thread is allowed (rclpy publishers are thread-safe), but a
+   publish may fail once the context is shut down, which the worker treats as shutdown;
+5. :class:`WarnThrottle` may be called from any thread.
+
+rclpy's ``MultiThreadedExecutor`` with a ``MutuallyExclusiveCallbackGroup`` for the update
+timer would give the same separation, but it hands *every* callback to a thread pool: with a
+robot's traffic (``scripts/bench_executor``: 15 neighbours' states, pose, clock and scan, 62
+messages/s) the listener spent 1.3-1.8x the CPU per message (0.97-1.06 ms against 0.59-0.75 ms
+for the single-threaded executor in two runs). A team on two cores is bound by exactly that
+per-message cost, so robot_node keeps the single-threaded executor and one update thread.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from collections.abc import Callable
+
+import numpy as np
+from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+
+MAP_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
+SCAN_QOS = qos_profile_sensor_data
+TEAM_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+STREAM_QOS = QoSProfile(depth=5, reliability=ReliabilityPolicy.BEST_EFFORT)
+CLOCK_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
+
+#: [s] wall time between two warnings of the same kind.
+WARN_PERIOD = 5.0
+#: [s] CPU time an update may borrow ahead of its load (see UpdateWorker).
+UPDATE_BURST = 1.0
+
+
+def quiet_publisher() -> PublisherEventCallbacks:
+    """``event_callbacks`` for a publisher without rclpy's default QoS event handlers.
+
+    Every handler is a waitable that the Python executor adds to its wait set on every
+    wake-up; with a team's dozens of topics per process that was most of an idle robot's
+    CPU (measured: 13 % -> ~5 % of a core). Incompatible QoS is still reported by the
+    subscribing side where it matters (map, pose and scan inputs keep their handlers)."""
+    return PublisherEventCallbacks(use_default_callbacks=False)
+
+
+def quiet_subscription() -> SubscriptionEventCallbacks:
+    """``event_callbacks`` for a subscription without the default QoS event handlers (see
+    :func:`quiet_publisher`); for topics of the team's own nodes, whose QoS match by design."""
+    return SubscriptionEventCallbacks(use_default_callbacks=False)
+
+
+class WarnThrottle:
+    """Warnings at most once per ``period`` (wall time) per key; safe from any thread.
+
+    ``throttle.warn("scan", "dropped an empty scan")`` logs through ``log`` (a node logger's
+    ``warning``) unless the same key was logged less than ``period`` seconds ago."""
+
+    def __init__(self, log: Callable[[str], object], period: float = WARN_PERIOD) -> None:
+        self._log = log
+        self.period = period
+        self._last: dict[str, float] = {}
+        self._lock = threading.Lock()
+
+    def warn(self, key: str, text: str) -> bool:
+        """Log ``text`` if ``key`` is due; whether it was logged."""
+        now = time.monotonic()
+        with self._lock:
+            if now - self._last.get(key, -math.inf) < self.period:
+                return False
+            self._last[key] = now
+        self._log(text)
+        return True
+
+
+class UpdateWorker:
+    """Runs ``run(now)`` on its own thread when asked, one call at a time, and keeps the CPU
+    time of the calls within ``load`` of one core on average (see the module's thread rules).
+
+    A CPU-time credit (a token bucket) grows by ``load`` per wall second up to ``burst``
+    seconds and every call spends its CPU time; a call may start while the credit is not
+    negative. So by any start time t, the calls before it used at most
+    ``burst + load * (t - created)`` seconds of CPU, and a single costly call (the first,
+    cold one, or one in a very large cell) is absorbed by the credit instead of holding back
+    the next updates for c / load seconds. An exception raised by a call goes to ``on_error``
+    and the worker carries on."""
+
+    def __init__(self, run: Callable[[float], None], load: float,
+                 on_error: Callable[[Exception], None] | None = None,
+                 burst: float = UPDATE_BURST) -> None:
+        self._run = run
+        self._on_error = on_error
+        self._load = load
+        self.burst = burst
+        self._wake = threading.Event()
+        self._closing = False
+        self._busy = False
+        self._now = 0.0
+        self.created = time.monotonic()
+        self._credit = burst  # [s] CPU time
+        self._credit_at = self.created
+        self.cpu_ms: list[float] = []  # CPU time of every call
+        self.starts: list[float] = []  # [s] monotonic start of every call
+        self._thread = threading.Thread(target=self._loop, name="coverage-update", daemon=True)
+        self._thread.start()
+
+    def request(self, now: float) -> bool:
+        """Start a call for node time ``now``; False if one is running or it is too early."""
+        if self._busy or self._closing or self._refill(time.monotonic()) < 0:
+            return False
+        self._busy, self._now = True, now
+        self._wake.set()
+        return True
+
+    def _loop(self) -> None:
+        while True:
+            self._wake.wait()
+            self._wake.clear()
+            if self._closing:
+                return
+            start, cpu0 = time.monotonic(), time.thread_time()
+            try:
+                self._run(self._now)
+            except Exception as exc:
+                if self._on_error is not None:
+                    self._on_error(exc)
+            finally:
+                cpu = time.thread_time() - cpu0
+                self._refill(start)
+                self._credit -= cpu
+                self.cpu_ms.append(1e3 * cpu)
+                self.starts.append(start)
+                self._busy = False
+
+    def _refill(self, now: float) -> float:
+        if now > self._credit_at:
+            self._credit = min(self.burst, self._credit + self._load * (now - self._credit_at))
+            self._credit_at = now
+        return self._credit
+
+    def summary(self) -> str:
+        """One line on the calls so far: count, mean period, CPU per call."""
+        n = len(self.cpu_ms)
+        if n == 0:
+            return "no coverage updates"
+        period = (self.starts[-1] - self.starts[0]) / (n - 1) if n > 1 else math.nan
+        cpu = np.asarray(self.cpu_ms)
+        return (f"{n} coverage updates, one every {period:.2f} s wall; CPU per update "
+                f"median {np.median(cpu):.1f} ms, max {cpu.max():.1f} ms "
+                f"(update_load {self._load:g})")
+
+    def close(self, timeout: float = 5.0) -> None:
+        """Stop the thread (waits for a running call up to ``timeout``)."""
+        self._closing = True
+        self._wake.set()
+        self._thread.join(timeout)

@@ -1,0 +1,85 @@
+"""Checks that keep the layout honest: the core stays pure numpy/scipy, every folder is a real
+package, modules stay small, and the shipped robot parameters file matches what robot_node
+declares."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import pytest
+import yaml
+from conftest import REPO
+
+PACKAGE = REPO / "coverage_ros"
+FORBIDDEN = ("rclpy", "pymunk", "rerun")
+#: Soft limit of a module's length ("~400 lines"): a module above it has more than one job.
+MAX_MODULE_LINES = 420
+
+
+def test_every_core_module_imports_without_ros_pymunk_or_rerun():
+    """Walk every module below coverage_ros/core (a new one is checked without editing this
+    test) and import each in one fresh interpreter."""
+    code = (
+        "import importlib, json, pkgutil, sys\n"
+        "import coverage_ros.core as core\n"
+        "names = [m.name for m in pkgutil.walk_packages(core.__path__, 'coverage_ros.core.')]\n"
+        "for name in names:\n"
+        "    importlib.import_module(name)\n"
+        f"bad = sorted(m for m in sys.modules if m.split('.')[0] in {FORBIDDEN!r})\n"
+        "print(json.dumps({'modules': names, 'bad': bad}))\n")
+    out = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True,
+                         timeout=120)
+    assert out.returncode == 0, out.stderr
+    report = json.loads(out.stdout.strip().splitlines()[-1])
+    files = {p for p in (PACKAGE / "core").rglob("*.py")}
+    # walk_packages lists the modules below coverage_ros.core, not the package itself.
+    assert len(report["modules"]) + 1 == len(files), "a core file is not an importable module"
+    assert report["bad"] == []
+
+
+def test_every_source_folder_is_a_package():
+    """Without __init__.py a folder is a namespace package: setuptools' find_packages skips it
+    and an installed (non-editable) package would miss it."""
+    folders = {p.parent for p in PACKAGE.rglob("*.py") if "__pycache__" not in p.parts}
+    missing = sorted(str(f.relative_to(REPO)) for f in folders
+                     if not (f / "__init__.py").is_file())
+    assert missing == []
+
+
+def test_modules_stay_small():
+    big = {str(p.relative_to(REPO)): n for p in PACKAGE.rglob("*.py")
+           if (n := len(p.read_text().splitlines())) > MAX_MODULE_LINES}
+    assert big == {}
+
+
+def test_robot_params_file_matches_the_declared_parameters():
+    """config/robot.yaml lists every robot_node parameter with its declared default."""
+    from coverage_ros.nodes.robot_config import PARAMETERS
+
+    data = yaml.safe_load((REPO / "config" / "robot.yaml").read_text())
+    shipped = data["/**"]["ros__parameters"]
+    shipped.pop("use_sim_time", None)  # rclpy's own parameter
+    assert sorted(shipped) == sorted(PARAMETERS)
+    for name, (default, _) in PARAMETERS.items():
+        assert shipped[name] == default, name
+        assert type(shipped[name]) is type(default), name
+
+
+def test_readme_documents_every_robot_parameter():
+    from coverage_ros.nodes.robot_config import PARAMETERS
+
+    readme = (REPO / "README.md").read_text()
+    missing = [name for name in PARAMETERS if f"| `{name}` |" not in readme]
+    assert missing == []
+
+
+@pytest.mark.parametrize("module", ["coverage_ros.sim.world", "coverage_ros.cli.plan"])
+def test_simulator_and_planner_import_neither_rclpy_nor_rerun(module):
+    code = (f"import sys, {module}; "
+            "bad = [m for m in sys.modules if m.split('.')[0] in ('rclpy', 'rerun')]; "
+            "print(bad); sys.exit(1 if bad else 0)")
+    out = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True,
+                         timeout=60)
+    assert out.returncode == 0, out.stdout + out.stderr

@@ -1,0 +1,120 @@
+"""The launcher when things go wrong: impossible teams refused before anything starts, one DDS
+domain per run for sure, and interrupts at any moment - during start-up too - that leave no
+process behind and end with one line and a summary, never a traceback."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import psutil
+import pytest
+from conftest import REPO
+from rosutil import NodeProcess, domain_id, ros_env
+
+from coverage_ros.cli.domains import acquire_domain, foreign_participants, try_lock
+from coverage_ros.errors import ConfigError
+
+TEAM = [str(REPO / ".venv" / "bin" / "coverage-team")]
+
+
+@pytest.fixture(autouse=True)
+def own_lock_dir(tmp_path, monkeypatch):
+    """Locks of this test's runs only (the machine's real runs keep theirs)."""
+    monkeypatch.setenv("COVERAGE_ROS_LOCK_DIR", str(tmp_path / "locks"))
+
+
+def test_a_domain_lock_is_exclusive_and_dies_with_its_owner(tmp_path):
+    lock = try_lock(150)
+    assert lock is not None and try_lock(150) is None
+    lock.release()
+    again = try_lock(150)
+    assert again is not None
+    again.release()
+    # A process that holds a lock and is killed (no clean-up at all) frees it.
+    code = (f"import sys, time; sys.path.insert(0, {str(REPO)!r}); "
+            "from coverage_ros.cli.domains import try_lock; l = try_lock(151); "
+            "print('locked', flush=True); time.sleep(60)")
+    holder = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True,
+                              env=dict(os.environ))
+    try:
+        assert holder.stdout.readline().strip() == "locked"
+        assert try_lock(151) is None
+        with pytest.raises(ConfigError, match="--domain-id: is in use by another coverage run"):
+            acquire_domain(151)
+    finally:
+        holder.kill()
+        holder.wait()
+    assert try_lock(151) is not None
+
+
+def test_a_domain_with_someone_else_on_it_is_not_picked():
+    busy = domain_id(24)
+    with NodeProcess.world_node(busy, "world:=l_shape", "num_robots:=1"):
+        deadline = time.monotonic() + 20
+        seen: list[str] = []
+        while not seen and time.monotonic() < deadline:
+            seen = foreign_participants(busy, 1.0)
+        assert seen, "no node seen on a domain with a world node"
+    assert foreign_participants(domain_id(25), 0.5) == []
+
+
+@pytest.mark.parametrize(("args", "message"), [
+    (["--robots", "500", "--world", "l_shape"], "--robots: 500 robots"),
+    (["--domain-id", "300"], "--domain-id: must be in 0..232"),
+])
+def test_impossible_runs_are_refused_before_anything_starts(tmp_path, args, message):
+    out = tmp_path / "team"
+    proc = subprocess.run(TEAM + ["--out", str(out), *args], capture_output=True, text=True,
+                          timeout=120, env=ros_env(domain_id(26)))
+    assert proc.returncode == 2, proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and message in lines[0], proc.stderr
+    assert not (out / "logs").exists()
+
+
+def _children(pid: int) -> list[psutil.Process]:
+    try:
+        return psutil.Process(pid).children(recursive=True)
+    except psutil.NoSuchProcess:
+        return []
+
+
+@pytest.mark.integration
+@pytest.mark.parametrize("when", [2.0, 25.0])  # during start-up, in the middle of the run
+def test_an_interrupt_at_any_moment_leaves_nothing_behind(tmp_path, when):
+    out = tmp_path / "team"
+    team = subprocess.Popen(TEAM + ["--world", "l_shape", "--robots", "4", "--duration", "120",
+                                    "--out", str(out), "--quiet",
+                                    "--domain-id", str(domain_id(27 if when < 10 else 28))],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env=ros_env(domain_id(27)), start_new_session=True)
+    seen: dict[int, psutil.Process] = {}
+    deadline = time.monotonic() + when
+    while time.monotonic() < deadline:
+        for p in _children(team.pid):
+            seen.setdefault(p.pid, p)
+        time.sleep(0.2)
+    assert seen, "the launcher started no process"
+    team.send_signal(signal.SIGINT)
+    t0 = time.monotonic()
+    _, err = team.communicate(timeout=30)
+    gone = time.monotonic() - t0
+    alive = [p.pid for p in seen.values() if p.is_running() and p.status() != "zombie"]
+    try:
+        assert not alive, f"left behind: {alive}"
+        assert gone <= 10.0, gone
+        assert team.returncode == 130, err
+        assert "Traceback" not in err and len(err.strip().splitlines()) == 1, err
+        assert "interrupted" in err
+        summary = json.loads((out / "summary.json").read_text())
+        assert summary["interrupted"] is True
+        if when > 10:
+            assert summary["sim_time"] > 0 and len(summary["robots"]) == 4
+    finally:
+        for pid in alive:
+            os.killpg(pid, signal.SIGKILL)

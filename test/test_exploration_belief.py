@@ -19,6 +19,7 @@ from coverage_ros.core.exploration.sensor_model import (
 from coverage_ros.core.offline.rangesim import simulate_scan
 from coverage_ros.core.world.grid import GridMap
 from coverage_ros.core.world.robot import LidarSpec
+from coverage_ros.errors import ConfigError
 
 RES = 0.05
 LIDAR = LidarSpec(beams=360, range_max=3.5)
@@ -227,3 +228,69 @@ def test_malformed_evidence_is_clipped_not_fatal():
                          np.array([0, 0, 0, 0], np.uint16)))
     assert n == 1  # only cell 2 (twice; the larger count wins)
     assert b.snapshot().log_odds.ravel()[2] == pytest.approx(4 * b.config.l_occ)
+
+
+def test_a_cell_seen_often_enough_is_decided_even_with_mixed_evidence():
+    """An obstacle's edge is crossed by some beams and ends others: its log-odds hovers near 0.
+    Seen ``edge_after`` times with a quarter or more of returns it is occupied; below a quarter
+    the log-odds alone has decided it free - no cell seen that often stays unexplored."""
+    config = BeliefConfig()
+    lat = lattice(1, 400)
+    b = Belief(lat, 0, config)
+    cells = np.arange(400)
+    seen = cells // 2 + 1  # 1 .. 200 observations
+    hits = (cells % 2) * (seen // 3) + (1 - cells % 2) * ((seen - 1) // 4)  # 1/3 or < 1/4
+    b.merge(Evidence(1, cells, hits.astype(np.uint16), (seen - hits).astype(np.uint16)))
+    p = b.snapshot().probability.ravel()
+    e = entropy(p)
+    often = seen >= config.edge_after
+    edge = often & (hits >= config.edge_share * seen)
+    assert edge.any() and (often & ~edge).any()
+    np.testing.assert_allclose(p[edge], config.p_max, rtol=1e-6)
+    assert (p[often & ~edge] < 0.19).all()
+    assert (e[often] < 0.55).all()  # below the explore strategy's tau: explored
+    # Before that, the same share of returns leaves the cell undecided (the old dead end).
+    assert (e[~often & (cells % 2 == 1) & (hits > 0)] > 0.55).any()
+    with pytest.raises(ConfigError, match="edge_after"):
+        BeliefConfig(edge_after=0)
+
+
+def _diamond_scan(pose, centre=(3.0, 2.0), half=0.7):
+    """Exact ranges to a square obstacle turned by 45 degrees (its edges are not grid lines)."""
+    cx, cy = centre
+    corners = np.array([(cx + half, cy), (cx, cy + half), (cx - half, cy), (cx, cy - half)])
+    a = pose[2] + LIDAR.angle_min + LIDAR.angle_increment * np.arange(LIDAR.beams)
+    d = np.stack([np.cos(a), np.sin(a)], axis=1)
+    best = np.full(len(a), np.inf)
+    for p0, p1 in zip(corners, np.roll(corners, -1, axis=0), strict=True):
+        e = p1 - p0
+        w = p0 - np.asarray(pose[:2])
+        den = d[:, 0] * (-e[1]) - d[:, 1] * (-e[0])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = (w[0] * (-e[1]) - w[1] * (-e[0])) / den
+            s = (d[:, 0] * w[1] - d[:, 1] * w[0]) / den
+        ok = (np.abs(den) > 1e-12) & (t > 0) & (s >= 0) & (s <= 1)
+        best = np.where(ok & (t < best), t, best)
+    return np.where(best <= LIDAR.range_max, best, np.inf)
+
+
+def test_a_turned_obstacle_seen_from_all_around_is_closed():
+    """Scans from a ring of poses around a turned square (edges off the grid lines): its outline
+    is closed - its unseen inside cannot be reached from where the robots stand - and almost
+    every cell seen is explored."""
+    from scipy.ndimage import label
+
+    lat = lattice(80, 120)
+    b = Belief(lat, 0)
+    for k in range(72):
+        t = 2 * math.pi * k / 72
+        pose = np.array([3.0 + 1.4 * math.cos(t), 2.0 + 1.4 * math.sin(t), t + 2.0])
+        b.add_scan(scan_cells(lat, pose, _diamond_scan(pose), LIDAR.angle_min,
+                              LIDAR.angle_increment, LIDAR.range_min, LIDAR.range_max))
+    snap = b.snapshot()
+    parts, _ = label(snap.probability < 0.65)  # what a planner may cross, unknown included
+    inside = tuple(lat.world_to_cell(np.array([[3.0, 2.0]]))[0])
+    outside = tuple(lat.world_to_cell(np.array([[4.4, 2.0]]))[0])
+    assert not snap.observed[inside] and parts[inside] != parts[outside]
+    undecided = snap.observed & (snap.entropy >= 0.55)
+    assert undecided.sum() <= 0.01 * snap.observed.sum(), undecided.sum()

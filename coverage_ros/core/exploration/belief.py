@@ -16,6 +16,15 @@ order-independent (out-of-order delivery is harmless), and a lost message is rep
 later one that carries the cell - every robot re-sends all its evidence, a bounded chunk at a
 time (:meth:`Belief.refresh_chunk`), which is also how a late-joining robot catches up.
 
+Obstacle edges: a cell that holds the edge or corner of an obstacle is crossed by some beams and
+ends others, so its log-odds can hover near 0 however often it is seen - a cell that stays
+"unexplored" forever, and pulls the whole team to it (the entropy-weighted density). A cell seen
+at least ``edge_after`` times of which at least ``edge_share`` were returns is therefore decided
+occupied (L = +L_max). With the defaults (12, 1/4) every cell seen 12 times is decided one way or
+the other (below a quarter of returns the log-odds is already at most -1.5, p < 0.19), and the
+rule leans to occupied at the margin (the log-odds alone would switch at a share of 0.32), the
+safe side for navigation.
+
 Cells whose belief entropy has dropped below ``frozen_entropy`` (tau' of Bhattacharya et al.)
 are frozen: the robot's own scans no longer count there, so a decided cell stops generating
 traffic and the belief of an explored map stops changing.
@@ -48,6 +57,8 @@ class BeliefConfig:
     p_miss: float = 0.4  # P(occupied | a beam crossed the cell)
     p_max: float = 0.97  # beliefs are clamped to [1 - p_max, p_max]
     frozen_entropy: float = 0.2  # [nats] tau': cells below this entropy are frozen
+    edge_after: int = 12  # a cell seen this often with >= edge_share returns is occupied
+    edge_share: float = 0.25
 
     def __post_init__(self) -> None:
         if not 0.5 < self.p_hit < 1.0:
@@ -59,6 +70,11 @@ class BeliefConfig:
         if not 0.0 <= self.frozen_entropy < math.log(2.0):
             raise ConfigError.at("frozen_entropy", "must be in [0, ln 2) nats",
                                  self.frozen_entropy)
+        if not (isinstance(self.edge_after, int) and self.edge_after >= 1):
+            raise ConfigError.at("edge_after", "must be an integer >= 1 [observations]",
+                                 self.edge_after)
+        if not 0.0 < self.edge_share <= 1.0:
+            raise ConfigError.at("edge_share", "must be in (0, 1]", self.edge_share)
 
     @property
     def l_occ(self) -> float:
@@ -234,8 +250,11 @@ class Belief:
     # ------------------------------------------------------------------ reading
     def _log_odds(self, idx: np.ndarray | slice) -> np.ndarray:
         c = self.config
-        raw = c.l_occ * self._hits[idx] + c.l_free * self._misses[idx]
-        return np.clip(raw, -c.l_max, c.l_max)
+        hits, misses = self._hits[idx], self._misses[idx]
+        lo = np.clip(c.l_occ * hits + c.l_free * misses, -c.l_max, c.l_max)
+        seen = hits + misses
+        edge = (seen >= c.edge_after) & (hits >= c.edge_share * seen)
+        return np.where(edge, c.l_max, lo)
 
     def _frozen(self, idx: np.ndarray) -> np.ndarray:
         return np.abs(self._log_odds(idx)) >= self.config.frozen_log_odds

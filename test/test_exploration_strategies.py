@@ -115,6 +115,30 @@ def test_nearest_variant_splits_the_unknown_between_neighbours():
     assert a.goal[0] < 1.05 and b.goal[0] > 4.95
 
 
+def test_a_target_that_never_gets_explored_is_given_up_and_not_chosen_again():
+    """A robot next to an unknown pocket its lidar cannot clear (furniture not closed yet, a
+    cell under another robot) keeps it as its target for ``give_up_after`` seconds, then gives
+    it up and turns to the next unexplored part; the pocket is not chosen again."""
+    belief = corridor((10, 120))  # unknown: columns 0..9 (x < 0.5 m), the far end explored
+    robot = explorer(belief, "nearest")
+    after = robot.params.give_up_after
+    pose = np.array([1.0, 0.5, 0.0])
+    first = robot.update(Observation(0, pose, 0.0, None, belief.snapshot()), [])
+    assert first.mode == "frontier" and first.goal[0] < 0.5
+    kept = robot.update(Observation(0, pose, after - 1.0, None, belief.snapshot()), [])
+    np.testing.assert_allclose(kept.goal, first.goal)  # not given up early
+    gone = robot.update(Observation(0, pose, after + 0.5, None, belief.snapshot()), [])
+    assert len(robot.given_up) == 1 and np.allclose(robot.given_up[0], first.goal)
+    assert np.hypot(*(gone.goal - first.goal)) > robot.params.ban_radius  # another target
+    # Far from a target, time does not count: a robot on its way is never "stuck".
+    far = explorer(belief, "nearest")
+    for t in (0.0, 100.0, 200.0):
+        d = far.update(Observation(0, np.array([5.5, 0.5, 0.0]), t, None, belief.snapshot()), [])
+    assert far.given_up == [] and d.goal[0] < 0.5
+    with pytest.raises(ConfigError, match="give_up_after"):
+        strategy_choice("geodesic", {"give_up_after": 0.0}, explore=True)
+
+
 def test_frontiers_of_a_room_with_an_open_door():
     """A 2 m x 2 m room seen free with walls around, but for a 1 m door on its right: one
     frontier along the door, centred on it, without the cells next to the jambs that a robot

@@ -16,6 +16,12 @@ the *greedy* mode: it heads for the closest vertex whose entropy is above tau (c
 metric's shortest paths from the robot) until that vertex is explored or reached, then returns
 to the Lloyd mode. Once no reachable vertex is above tau, w and zeta stop changing and the team
 converges to the coverage of the explored map, as in the paper.
+
+A target that cannot be explored (a cell hidden under another robot, or inside furniture whose
+outline the lidar has not closed yet) would hold a robot for ever; one the robot has stayed
+within ``give_up_radius`` of for ``give_up_after`` seconds while it stayed unexplored is given up
+and the unexplored vertices within ``ban_radius`` of it are not chosen again by this robot (the
+blacklist of explore_lite's frontiers).
 """
 
 from __future__ import annotations
@@ -59,6 +65,9 @@ class ExploreParams:
     stall_distance: float = 0.15  # [m] a Lloyd goal closer than this = the control vanished
     method: str = "auto"  # sources and tangents (auto: lookahead on this curved metric)
     variant: str = "nearest"  # "nearest" or "paper" (Lloyd + greedy; see module docstring)
+    give_up_after: float = 20.0  # [s] near an unexplorable target this long: give it up
+    give_up_radius: float = 1.0  # [m] "near" for give_up_after
+    ban_radius: float = 0.3  # [m] unexplored vertices this close to a given-up target
 
     def __post_init__(self) -> None:
         self.metric()  # validates tau, eps_w, eps_zeta
@@ -68,6 +77,10 @@ class ExploreParams:
         if not (math.isfinite(self.stall_distance) and self.stall_distance > 0):
             raise ConfigError.at("stall_distance", "must be a number > 0 [m]",
                                  self.stall_distance)
+        for name in ("give_up_after", "give_up_radius", "ban_radius"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0):
+                raise ConfigError.at(name, "must be a number > 0", v)
         if self.method not in METHODS:
             raise ConfigError.at("method", "unknown method", self.method, f"one of {METHODS}")
 
@@ -95,6 +108,9 @@ class ExploreStrategy(Strategy):
         super().__init__(context, params)
         self.metric = self.params.metric()
         self.target: np.ndarray | None = None  # greedy target (2,) [m], None in Lloyd mode
+        self.banned: np.ndarray | None = None  # (H, W) bool: given-up vertices (see docstring)
+        self.given_up: list[np.ndarray] = []  # the given-up targets (2,) [m]
+        self._near: tuple[np.ndarray, float] | None = None  # (target, since [s]) when near it
 
     def shared_state(self, obs: Observation) -> SharedState:
         return SharedState(position=obs.position.copy(), weight=self.context.weight,
@@ -114,15 +130,14 @@ class ExploreStrategy(Strategy):
                             - self.metric.eps_w * area).sum())
         unexplored_cells = int((e.ravel()[cell.nodes] >= self.metric.tau).sum())
         lloyd_step = float(np.hypot(*(cell.goal - p)))
+        if self.banned is not None:
+            e = np.where(self.banned, 0.0, e)  # given-up vertices count as explored for targets
         if self.target is not None and not self._still_greedy(domain, e, p):
             self.target = None
-        if self.params.variant == "nearest":
-            mode = self._nearest(domain, e, p, cell.nodes, cell.distances)
-        else:
-            if (self.target is None and lloyd_step < self.params.stall_distance
-                    and unexplored > MASS_MARGIN * max(float(area.sum()), 1e-12)):
-                self.target = closest_unexplored(domain, e, p, self.metric.tau)
-            mode = "greedy" if self.target is not None else "lloyd"
+        mode = self._choose(domain, e, p, cell, lloyd_step, unexplored, area)
+        if self._give_up(domain, p, obs.time):
+            e = np.where(self.banned, 0.0, e)
+            mode = self._choose(domain, e, p, cell, lloyd_step, unexplored, area)
         greedy = self.target is not None
         goal = self.target.copy() if greedy else cell.goal
         converged = not greedy and lloyd_step < self.context.convergence_tolerance
@@ -134,6 +149,39 @@ class ExploreStrategy(Strategy):
             details=ExploreDetails(lloyd_goal=cell.goal, greedy_target=None if not greedy
                                    else self.target.copy(), unexplored_mass=unexplored,
                                    unexplored_cells=unexplored_cells))
+
+    def _choose(self, domain: CoverageDomain, e: np.ndarray, p: np.ndarray, cell, lloyd_step:
+                float, unexplored: float, area: np.ndarray) -> str:
+        """Keeps or picks ``self.target`` by the variant's rule; returns the mode."""
+        if self.params.variant == "nearest":
+            return self._nearest(domain, e, p, cell.nodes, cell.distances)
+        if (self.target is None and lloyd_step < self.params.stall_distance
+                and unexplored > MASS_MARGIN * max(float(area.sum()), 1e-12)):
+            self.target = closest_unexplored(domain, e, p, self.metric.tau)
+        return "greedy" if self.target is not None else "lloyd"
+
+    def _give_up(self, domain: CoverageDomain, p: np.ndarray, now: float) -> bool:
+        """Whether the target was just given up (see module docstring); bans around it."""
+        t = self.target
+        near = t is not None and float(np.hypot(*(t - p))) <= self.params.give_up_radius
+        if not near:
+            self._near = None
+            return False
+        # A target that moves within ban_radius of where it was is the same pocket.
+        if self._near is None or np.hypot(*(self._near[0] - t)) > self.params.ban_radius:
+            self._near = (t.copy(), now)
+            return False
+        if now - self._near[1] < self.params.give_up_after:
+            return False
+        if self.banned is None:
+            self.banned = np.zeros(domain.shape, bool)
+        centres = domain.to_map(domain.node_centers(np.arange(self.banned.size)))
+        for point in (self._near[0], t):
+            close = np.hypot(*(centres - point).T) <= self.params.ban_radius
+            self.banned |= close.reshape(domain.shape)
+        self.given_up.append(t.copy())
+        self.target, self._near = None, None
+        return True
 
     def _nearest(self, domain: CoverageDomain, e: np.ndarray, p: np.ndarray, nodes: np.ndarray,
                  distances: np.ndarray) -> str:

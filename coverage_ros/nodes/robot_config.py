@@ -88,6 +88,12 @@ PARAMETERS: dict[str, tuple[Any, str]] = {  # name: (default, description)
                      "teleop_twist_keyboard or coverage-teleop), used while manual"),
     "teleop_timeout": (0.5, "[s] a manual robot stops when its teleop topic is silent this "
                        "long"),
+    "drive": (True, "drive the robot: cmd_vel from the strategy; false: no cmd_vel, the goal "
+              "goes to an external navigator (Nav2's bt_navigator) on goal_topic"),
+    "goal_topic": ("goal_pose", "drive: false: geometry_msgs/PoseStamped goals for the "
+                   "navigator (Nav2 listens on goal_pose)"),
+    "goal_resend_distance": (0.25, "[m] drive: false: a goal is sent again only when it moved "
+                             "farther than this"),
 }
 
 
@@ -110,6 +116,9 @@ class RobotNodeConfig:
     map_free: GridMap | None = None  # no map: the area, every cell free
     manual: bool = False  # driven by a person from the start
     teleop_topic: str = "teleop/cmd_vel"
+    drive: bool = True  # False: goals for an external navigator, no cmd_vel
+    goal_topic: str = "goal_pose"
+    goal_resend_distance: float = 0.25  # [m]
 
     def __post_init__(self) -> None:
         for name in ("control_rate", "tracking_rate", "state_rate"):
@@ -124,6 +133,16 @@ class RobotNodeConfig:
             raise ConfigError.at("map_topic", "is empty and no 'world' gives the map", "")
         if self.manual and not self.teleop_topic:
             raise ConfigError.at("teleop_topic", "is empty but the robot starts manual", "")
+        if not self.drive:
+            if self.manual:
+                raise ConfigError.at("drive", "is false but the robot starts manual (a person "
+                                     "drives it through this node's cmd_vel)", False)
+            if not self.goal_topic:
+                raise ConfigError.at("goal_topic", "is empty but drive is false", "",
+                                     "the navigator's goal topic, e.g. goal_pose")
+        if not (math.isfinite(self.goal_resend_distance) and self.goal_resend_distance >= 0):
+            raise ConfigError.at("goal_resend_distance", "must be a number >= 0 [m]",
+                                 self.goal_resend_distance)
         if self.connectivity not in (8, 16):
             raise ConfigError.at("connectivity", "must be 8 or 16", self.connectivity)
 
@@ -245,7 +264,9 @@ def load_robot_inputs(values: dict[str, Any], namespace: str) -> RobotInputs:
         use_scan=values["use_scan"], use_stamped_cmd_vel=values["use_stamped_cmd_vel"],
         robot_prefix=prefix, connectivity=values["connectivity"], explore=explore,
         map_free=map_free,
-        manual=bool(values["manual"]), teleop_topic=values["teleop_topic"])
+        manual=bool(values["manual"]), teleop_topic=values["teleop_topic"],
+        drive=bool(values["drive"]), goal_topic=values["goal_topic"],
+        goal_resend_distance=values["goal_resend_distance"])
     density = world.density if world is not None else None
     if values["density"]:
         density = parse_density(yaml_mapping(values["density"], "density"), "density")

@@ -5,7 +5,10 @@ own pose and scan, and what its neighbours publish; it finds its neighbours itse
 graph (every ``/robot_<k>/coverage_state`` topic), so no team list is configured and robots may
 join or vanish at any time. Every coverage period it computes its own cell with the chosen
 strategy, publishes ``goal_pose``, ``plan``, ``cell`` and ``coverage_state``; every tracking
-period it sends a safe ``cmd_vel``. See README "Robot node" for parameters and topics.
+period it sends a safe ``cmd_vel``. With ``drive: false`` it sends no ``cmd_vel``: the goal goes
+to the robot's own navigator (Nav2's ``goal_pose``), only when it moved
+(:mod:`~coverage_ros.core.control.goal_relay`). See README "Robot node" for parameters and
+topics.
 
 Coverage updates run on a worker thread, so that tracking, the safety filter and incoming
 messages never wait for them; an update costs in proportion to the robot's own cell, which is
@@ -24,7 +27,7 @@ import sys
 import time
 from collections import deque
 
-from geometry_msgs.msg import PolygonStamped, PoseStamped, Twist, TwistStamped
+from geometry_msgs.msg import PolygonStamped, Twist, TwistStamped
 from nav_msgs.msg import OccupancyGrid, Odometry, Path
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
@@ -40,6 +43,7 @@ from coverage_ros.core.world.metric import zeta_on_grid
 from coverage_ros.errors import ConfigError, CoverageError
 from coverage_ros.nodes import conversions as conv
 from coverage_ros.nodes.belief_exchange import OBSERVATIONS, OBSERVATIONS_TYPE, BeliefExchange
+from coverage_ros.nodes.goal_output import GoalOutput
 from coverage_ros.nodes.plumbing import (
     MAP_QOS,
     SCAN_QOS,
@@ -84,9 +88,11 @@ class RobotNode(Node):
             return self.create_publisher(msg_type, topic, TEAM_QOS,
                                          event_callbacks=quiet_publisher())
 
+        # drive: false - no cmd_vel publisher at all: the robot's own navigator owns cmd_vel.
         self.cmd_pub = publisher(TwistStamped if self.config.use_stamped_cmd_vel else Twist,
-                                 "cmd_vel")
-        self.goal_pub = publisher(PoseStamped, "goal_pose")
+                                 "cmd_vel") if self.config.drive else None
+        self.goals = GoalOutput(publisher, self.config.drive, self.config.goal_topic,
+                                self.config.goal_resend_distance)
         self.plan_pub = publisher(Path, "plan")
         self.cell_pub = publisher(OccupancyGrid, "cell")
         self.polygon_pub = publisher(PolygonStamped, "cell_polygon")
@@ -228,6 +234,10 @@ class RobotNode(Node):
         if c is None:
             response.success, response.message = False, "no map yet"
             return response
+        if request.data and not self.config.drive:
+            response.success = False
+            response.message = "drive is false: the robot's own navigator drives it"
+            return response
         c.set_manual(bool(request.data))
         response.success = True
         response.message = ("manual: driven by " + self.config.teleop_topic if request.data
@@ -239,6 +249,7 @@ class RobotNode(Node):
         self._paused = bool(request.data)
         if self.controller is not None:
             self.controller.set_paused(self._paused)
+            self.goals.hold(conv.to_time_msg(self._now()), self.controller.pose, self._paused)
         response.success = True
         response.message = "paused" if self._paused else "resumed"
         self.get_logger().info(f"robot {self.config.controller.robot_id}: {response.message}")
@@ -327,9 +338,7 @@ class RobotNode(Node):
         goal = d.target
         if c.manual or c.paused:
             return  # a person drives it, or it holds: no goal or plan to show
-        if goal is not None:
-            self.goal_pub.publish(conv.pose_stamped_msg(stamp, goal[0], goal[1],
-                                                        float(result.pose[2])))
+        self.goals.publish(stamp, goal, result.pose)
         if result.path is not None:
             self.plan_pub.publish(conv.path_msg(stamp, result.path))
         elif d.goal is not None and d.velocity is None:
@@ -343,8 +352,9 @@ class RobotNode(Node):
         dt = 1.0 / self.config.tracking_rate if self._last_tick is None else \
             min(max(now - self._last_tick, 0.0), 0.5)
         self._last_tick = now
-        v, w = c.command(now, dt)
-        self._publish_cmd(v, w, now)
+        if self.config.drive:
+            v, w = c.command(now, dt)
+            self._publish_cmd(v, w, now)
         if now < self._last_state:  # sim time went back (a restarted simulation)
             self._last_state = -math.inf
         if now - self._last_state >= 0.999 / self.config.state_rate:
@@ -357,6 +367,8 @@ class RobotNode(Node):
             self.state_pub.publish(conv.coverage_state_msg(conv.to_time_msg(now), state))
 
     def _publish_cmd(self, v: float, w: float, now: float) -> None:
+        if self.cmd_pub is None:
+            return
         twist = conv.command_to_twist(v, w)
         if self.config.use_stamped_cmd_vel:
             msg = TwistStamped()
@@ -371,14 +383,8 @@ class RobotNode(Node):
         """Best effort: finish the running update, leave the robot standing."""
         self._worker.close()
         self.get_logger().info(self._worker.summary())
-        c = self.controller
-        if c is not None and c.last is not None and c.pose is not None:
-            d = c.last.decision
-            goal = "none" if d.target is None else f"({d.target[0]:.2f}, {d.target[1]:.2f})"
-            path = "no path" if c.path is None else f"path of {len(c.path)} points"
-            self.get_logger().info(
-                f"last decision: mode {d.mode or '-'}, heading for {goal} ({path}) from "
-                f"({c.pose[0]:.2f}, {c.pose[1]:.2f}); safety: {c.safety_note or 'clear'}")
+        if self.controller is not None and (text := self.controller.describe_last()):
+            self.get_logger().info(text)
         if self.exchange is not None:
             self.get_logger().info(f"sent the evidence of {self.exchange.sent_cells} cells, "
                                    f"heard {len(self.exchange.heard)} robots")

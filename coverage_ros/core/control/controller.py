@@ -50,6 +50,7 @@ from coverage_ros.core.strategies import (
     make_strategy,
     strategy_choice,
 )
+from coverage_ros.core.strategies.base import mode_code
 from coverage_ros.core.world.robot import RobotSpec
 from coverage_ros.errors import ConfigError
 
@@ -189,7 +190,8 @@ class RobotController:
                  "cost": float(decision.cost), "update_ms": update_ms,
                  "radius": float(self.config.robot.radius),
                  "v_max": float(self.config.robot.v_max),
-                 "manual": float(self.manual), "paused": float(self.paused)}
+                 "manual": float(self.manual), "paused": float(self.paused),
+                 "mode": float(mode_code(decision.mode))}
         if shared.virtual is not None:
             state["virtual_x"], state["virtual_y"] = (float(v) for v in shared.virtual)
         state.update({k: float(v) for k, v in shared.extra.items()})
@@ -277,3 +279,13 @@ class RobotController:
                                                     self.scan_points)
         self.tracker.override(v, w)
         return v, w
+
+    def describe_last(self) -> str:
+        """One line on the last decision (mode, target, path, safety), '' before the first."""
+        if self.last is None or self.pose is None:
+            return ""
+        d = self.last.decision
+        goal = "none" if d.target is None else f"({d.target[0]:.2f}, {d.target[1]:.2f})"
+        path = "no path" if self.path is None else f"path of {len(self.path)} points"
+        return (f"last decision: mode {d.mode or '-'}, heading for {goal} ({path}) from "
+                f"({self.pose[0]:.2f}, {self.pose[1]:.2f}); safety: {self.safety_note or 'clear'}")

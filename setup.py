@@ -29,6 +29,7 @@ setup(
             "robot_node = coverage_ros.nodes.robot_node:main",
             "coverage-plan = coverage_ros.cli.plan:main",
             "rerun_bridge = coverage_ros.nodes.rerun_bridge:main",
+            "marker_node = coverage_ros.nodes.marker_node:main",
             "coverage-team = coverage_ros.cli.team:main",
             "coverage-teleop = coverage_ros.cli.teleop:main",
         ],

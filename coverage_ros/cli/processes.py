@@ -42,7 +42,8 @@ def executable(name: str) -> list[str]:
             return [str(path)]
     modules = {"world_node": "coverage_ros.nodes.world_node",
                "robot_node": "coverage_ros.nodes.robot_node",
-               "rerun_bridge": "coverage_ros.nodes.rerun_bridge"}
+               "rerun_bridge": "coverage_ros.nodes.rerun_bridge",
+               "marker_node": "coverage_ros.nodes.marker_node"}
     return [sys.executable, "-m", modules[name]]
 
 

@@ -2,10 +2,11 @@
 
     coverage-team --robots 6 --world office --strategy geodesic --duration 60 --record
 
-Starts ``world_node`` and ``robot_node`` x N (and ``rerun_bridge`` when recording or viewing)
-as separate processes, exactly as ``ros2 run`` would, with discovery limited to this machine
-and a fresh ``ROS_DOMAIN_ID``; shows progress (sim time, coverage cost); stops everything
-cleanly at the end or on Ctrl-C; writes ``<out>/summary.json`` and prints a table.
+Starts ``world_node``, ``robot_node`` x N, ``marker_node`` (RViz markers; ``--no-markers``) and
+``rerun_bridge`` (when recording or viewing) as separate processes, exactly as ``ros2 run``
+would, with discovery limited to this machine and a fresh ``ROS_DOMAIN_ID``; shows progress
+(sim time, coverage cost); stops everything cleanly at the end or on Ctrl-C; writes
+``<out>/summary.json`` and prints a table.
 """
 
 from __future__ import annotations
@@ -102,6 +103,8 @@ def build_parser() -> argparse.ArgumentParser:
                     help="extra robot_node parameter (repeatable), e.g. strategy_params:={...}")
     ap.add_argument("--kill", action="append", default=[], metavar="ID@SECONDS",
                     help="kill robot ID's process at that sim time (robot loss experiments)")
+    ap.add_argument("--no-markers", action="store_true",
+                    help="do not start marker_node (RViz markers on /coverage/markers)")
     ap.add_argument("--stats", action="store_true",
                     help="sample CPU and memory of every process into summary.json")
     ap.add_argument("--quiet", action="store_true", help="no progress display")
@@ -239,6 +242,8 @@ def run(args: argparse.Namespace) -> int:
             odom_rate_hz=float(args.odom_rate), status_rate_hz=2.0,
             publish_map=not args.explore))
         viewer = _start_viz(args, procs, out, radius, world_path, say)
+        if not args.no_markers:
+            procs.start("markers", executable("marker_node") + ros_args(use_sim_time=True))
         tracker.run(STARTUP_TIMEOUT, PROGRESS_PERIOD, METRICS_PERIOD)
     except KeyboardInterrupt:
         interrupted = True

@@ -17,6 +17,7 @@ from coverage_ros.errors import ConfigError
 ROBOT_MB = 300.0
 WORLD_MB = 150.0
 BRIDGE_MB = 300.0
+MARKERS_MB = 100.0  # the RViz marker node
 
 
 def build_team(world: WorldSpec, args: argparse.Namespace) -> list[TeamMember]:
@@ -43,7 +44,8 @@ def build_team(world: WorldSpec, args: argparse.Namespace) -> list[TeamMember]:
     if args.sensor_radius is not None:
         members = [replace(m, spec=m.spec.with_overrides(
             {"sensor_radius": args.sensor_radius}, "--sensor-radius")) for m in members]
-    check_room(world, len(members), max(m.spec.radius for m in members), bool(args.record))
+    check_room(world, len(members), max(m.spec.radius for m in members),
+               bool(args.record or args.viewer or args.serve_web), not args.no_markers)
     if args.starts or any(m.start is None for m in members):
         starts = team_starts(world, [m.spec for m in members], args.starts, args.seed)
         members = [replace(m, start=tuple(float(v) for v in starts[i]))
@@ -56,7 +58,7 @@ def build_team(world: WorldSpec, args: argparse.Namespace) -> list[TeamMember]:
 
 
 def check_room(world: WorldSpec, robots: int, radius: float, bridge: bool,
-               available_mb: float | None = None) -> None:
+               markers: bool = True, available_mb: float | None = None) -> None:
     """Refuse a team that cannot work: more robots than the free area holds at their radius
     and spacing (hexagonal packing, CLUSTER_GAP apart), or more memory than the machine has
     available (``available_mb``: default, what psutil says)."""
@@ -69,7 +71,8 @@ def check_room(world: WorldSpec, robots: int, radius: float, bridge: bool,
                              f"{robots * per_robot:.1f} m^2 packed {CLUSTER_GAP:g} m apart; "
                              f"{world.name} has {area:.1f} m^2 of free space for them",
                              expected=f"at most {int(area // per_robot)}")
-    need = robots * ROBOT_MB + WORLD_MB + (BRIDGE_MB if bridge else 0.0)
+    need = robots * ROBOT_MB + WORLD_MB + (BRIDGE_MB if bridge else 0.0) + \
+        (MARKERS_MB if markers else 0.0)
     if available_mb is None:
         import psutil
 

@@ -128,6 +128,23 @@ class StrategyDetails:
     """Base of each strategy's own typed account of an update (subclassed per strategy)."""
 
 
+#: Every ``Decision.mode`` of the shipped strategies; ``coverage_state`` carries a mode as its
+#: index here (``mode``; -1 for one not listed), since a JointState holds numbers only.
+MODES = ("lloyd", "greedy", "frontier", "done", "stay", "cvt", "dropout", "plain", "guided",
+         "escape", "motion_to_goal", "boundary_following", "projecting", "reached",
+         "projected", "blocked")
+
+
+def mode_code(mode: str) -> int:
+    return MODES.index(mode) if mode in MODES else -1
+
+
+def mode_name(code: float) -> str:
+    """The mode of a ``coverage_state`` code ('' when unknown)."""
+    k = int(code) if code == code else -1
+    return MODES[k] if 0 <= k < len(MODES) else ""
+
+
 @dataclass(frozen=True)
 class Decision:
     """What a strategy decided in one update."""

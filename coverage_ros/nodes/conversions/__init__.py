@@ -30,8 +30,12 @@ Conventions (REP 103 / REP 105 / REP 117)
   ``x``, ``y`` (the cell centre [m], ``map`` frame), ``hits``, ``misses`` (the sender's counts);
   see :mod:`.evidence`.
 
+* RViz markers (``/coverage/markers``): one marker per robot and kind, id = robot id, namespace =
+  kind; see :mod:`.markers`.
+
 The conversions are grouped by topic kind in :mod:`.basics`, :mod:`.grids`, :mod:`.motion`,
-:mod:`.team` and :mod:`.evidence`, and all re-exported here: nodes use ``conv.<name>``.
+:mod:`.team`, :mod:`.evidence` and :mod:`.markers`, and all re-exported here: nodes use
+``conv.<name>``.
 
 Arrays cross the message boundary with ``array.array`` (``tobytes``/``np.frombuffer``): element-
 wise assignment of a numpy array to a message sequence is ~60x slower.
@@ -48,6 +52,13 @@ from coverage_ros.nodes.conversions.basics import (
 )
 from coverage_ros.nodes.conversions.evidence import evidence_from_msg, evidence_msg
 from coverage_ros.nodes.conversions.grids import grid_to_occupancy_grid, occupancy_grid_to_grid
+from coverage_ros.nodes.conversions.markers import (
+    MARKER_KINDS,
+    RobotMarkers,
+    delete_marker,
+    robot_markers,
+    team_markers,
+)
 from coverage_ros.nodes.conversions.motion import (
     command_to_twist,
     laser_scan_msg,
@@ -76,7 +87,9 @@ from coverage_ros.nodes.conversions.team import (
 
 __all__ = [
     "MAP_FRAME",
+    "MARKER_KINDS",
     "RobotFrames",
+    "RobotMarkers",
     "SpawnRequest",
     "cell_grid_msg",
     "cell_grid_to_grid",
@@ -84,6 +97,7 @@ __all__ = [
     "command_to_twist",
     "coverage_state_msg",
     "coverage_state_values",
+    "delete_marker",
     "diagnostic_status",
     "diagnostic_values",
     "evidence_from_msg",
@@ -103,7 +117,9 @@ __all__ = [
     "pose_stamped_msg",
     "pose_stamped_to_pose",
     "quaternion_to_yaw",
+    "robot_markers",
     "scan_to_points",
+    "team_markers",
     "to_time_msg",
     "twist_to_command",
     "yaw_to_quaternion",

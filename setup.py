@@ -13,7 +13,8 @@ setup(
     data_files=[
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
         (f"share/{PACKAGE}", ["package.xml"]),
-        (f"share/{PACKAGE}/config", glob("config/*.yaml")),
+        (f"share/{PACKAGE}/config", glob("config/*.yaml") + glob("config/*.rviz")),
+        (f"share/{PACKAGE}/config/teams", glob("config/teams/*.yaml")),
         (f"share/{PACKAGE}/config/worlds", glob("config/worlds/*.yaml")),
     ],
     install_requires=["setuptools"],

@@ -134,3 +134,16 @@ def test_a_team_shows_in_rviz_markers_and_a_robot_that_leaves_is_cleared(tmp_pat
     assert all(m.action == Marker.DELETE for m in later)
     modes = {m.text for arr in arrays for m in arr.markers if m.ns == "mode"}
     assert any(t.startswith("robot_0: ") and t != "robot_0: " for t in modes), modes
+
+
+def test_the_shipped_rviz_config_shows_the_map_the_markers_and_the_scans():
+    import yaml
+
+    config = yaml.safe_load((REPO / "config" / "coverage.rviz").read_text())
+    manager = config["Visualization Manager"]
+    assert manager["Global Options"]["Fixed Frame"] == "map"
+    displays = {d["Class"].split("/")[-1]: d for d in manager["Displays"]}
+    topics = {d["Topic"]["Value"] for d in manager["Displays"] if "Topic" in d}
+    assert {"/map", "/coverage/markers", "/robot_0/scan"} <= topics
+    assert displays["Map"]["Topic"]["Durability Policy"] == "Transient Local"  # as world_node
+    assert set(displays["MarkerArray"]["Namespaces"]) == set(conv.MARKER_KINDS)

@@ -73,9 +73,14 @@ def test_team_markers_replace_by_namespace_and_id_and_delete_who_left():
                           goal=(2.0, 2.0), plan=np.array([[1.0, 2.0], [2.0, 2.0]]),
                           mode="lloyd")
     b = conv.RobotMarkers(4, (0.0, 0.0, 1.0))  # nothing known yet: all deleted
-    msg = conv.team_markers([a, b], [7], stamp, lifetime=5.0)
+    square = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], float)
+    msg = conv.team_markers([a, b], [7], stamp, lifetime=5.0, region=(square,),
+                            region_before=3)
     by = {(m.ns, m.id): m for m in msg.markers}
-    assert len(by) == len(msg.markers) == 3 * len(conv.MARKER_KINDS)
+    assert len(by) == len(msg.markers) == 3 * len(conv.MARKER_KINDS) + 3
+    outline = by[("region", 0)]
+    assert outline.type == Marker.LINE_STRIP and len(outline.points) == 5  # closed
+    assert by[("region", 1)].action == by[("region", 2)].action == Marker.DELETE
     cell = by[("cell", 0)]
     assert cell.type == Marker.LINE_LIST and cell.action == Marker.ADD and len(cell.points) == 4
     assert (cell.color.r, cell.color.b) == (1.0, 0.0) and cell.header.frame_id == "map"
@@ -146,4 +151,4 @@ def test_the_shipped_rviz_config_shows_the_map_the_markers_and_the_scans():
     topics = {d["Topic"]["Value"] for d in manager["Displays"] if "Topic" in d}
     assert {"/map", "/coverage/markers", "/robot_0/scan"} <= topics
     assert displays["Map"]["Topic"]["Durability Policy"] == "Transient Local"  # as world_node
-    assert set(displays["MarkerArray"]["Namespaces"]) == set(conv.MARKER_KINDS)
+    assert set(displays["MarkerArray"]["Namespaces"]) == {*conv.MARKER_KINDS, "region"}

@@ -147,6 +147,31 @@ def test_controller_update_and_command():
 
 
 
+def test_a_region_of_interest_moves_the_goal_into_it_and_clearing_it_moves_it_back():
+    """A lone robot's goal is its cell's centroid: the room's middle, then the middle of the
+    region once the density is kept inside it, then the room's middle again."""
+    from coverage_ros.core.strategies import strategy_choice
+    from coverage_ros.core.world.region import Region
+    from coverage_ros.errors import ConfigError
+
+    d = room(wall=False)
+    c = RobotController(d, ControllerConfig(robot_id=0, strategy=strategy_choice("lloyd")))
+    c.set_pose((1.0, 1.0, 0.0))
+    whole = c.update(0.0).decision.goal
+    assert whole == pytest.approx([2.0, 1.5], abs=0.1)
+    region = Region().with_polygon([[2.8, 1.8], [3.6, 1.8], [3.6, 2.6], [2.8, 2.6]])
+    c.set_region(region)
+    assert c.goal is None and c.path is None  # replans
+    inside = c.update(1.0).decision.goal
+    assert inside == pytest.approx([3.2, 2.2], abs=0.05)
+    assert c.domain.density[d.free].sum() < 0.1 * d.density[d.free].sum()
+    with pytest.raises(ConfigError, match="no free space"):
+        c.set_region(Region().with_polygon([[10, 10], [11, 10], [11, 11]]))
+    assert c.region is region  # a refused region changes nothing
+    c.set_region(Region())
+    assert c.update(2.0).decision.goal == pytest.approx(whole, abs=1e-9)
+
+
 def test_vectorized_shortcut_equals_the_segment_by_segment_greedy():
     """shortcut() checks candidates in batches; the result is the one-by-one greedy's."""
     from coverage_ros.core.control.planning import PATH_MARGIN, SHORTCUT_REACH, shortcut

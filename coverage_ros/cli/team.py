@@ -30,6 +30,7 @@ from coverage_ros.cli.team_setup import build_team
 from coverage_ros.core.geodesic.domain import CoverageDomain
 from coverage_ros.core.strategies import EXPLORERS, STRATEGIES, strategy_choice
 from coverage_ros.core.world import load_planar_world, write_team
+from coverage_ros.core.world.region import Region, parse_region_text
 from coverage_ros.core.world.robot import RobotSpec
 from coverage_ros.core.world.yaml_io import yaml_mapping
 from coverage_ros.errors import ConfigError, CoverageError
@@ -103,6 +104,10 @@ def build_parser() -> argparse.ArgumentParser:
                     help="extra robot_node parameter (repeatable), e.g. strategy_params:={...}")
     ap.add_argument("--kill", action="append", default=[], metavar="ID@SECONDS",
                     help="kill robot ID's process at that sim time (robot loss experiments)")
+    ap.add_argument("--region", action="append", default=[], metavar="x,y;x,y;...",
+                    help="region of interest [m] (repeatable: a union of polygons): the "
+                         "importance density is kept inside it; changeable at run time on "
+                         "/coverage/region")
     ap.add_argument("--no-markers", action="store_true",
                     help="do not start marker_node (RViz markers on /coverage/markers)")
     ap.add_argument("--stats", action="store_true",
@@ -194,6 +199,12 @@ def run(args: argparse.Namespace) -> int:
     if not (math.isfinite(load) and 0 < load <= 1):
         raise ConfigError.at("--update-load", "must be a fraction in (0, 1]", load)
     extra = _robot_params(args.robot_param)
+    region = Region(tuple(parse_region_text(t) for t in args.region))
+    if args.explore and not region.everywhere:
+        raise ConfigError.at("--region", "does not apply to --explore (the density is the "
+                             "belief's entropy)", args.region)
+    domain = CoverageDomain.from_world(world, radius)  # the launcher's scoring
+    region.restrict(domain.density, world.grid, domain.free, "--region")  # refused if empty
     # One DDS domain per run, for sure: held until this process exits.
     domain_lock = acquire_domain(args.domain_id)
     domain_id = domain_lock.domain_id
@@ -214,7 +225,6 @@ def run(args: argparse.Namespace) -> int:
         f"{env['ROS_AUTOMATIC_DISCOVERY_RANGE']}); output in {out}")
 
     procs = ProcessSet(env, out / "logs")
-    domain = CoverageDomain.from_world(world, radius)
     interrupted = False
     failure = None
     tracker = viewer = None
@@ -224,7 +234,7 @@ def run(args: argparse.Namespace) -> int:
                 for sig in (signal.SIGINT, signal.SIGTERM)}
     t_wall0 = time.monotonic()
     try:
-        tracker = TeamTracker(domain, world, team, args, kills, procs, say)
+        tracker = TeamTracker(domain, world, team, args, kills, procs, say, region)
         # Robots first: they load while the world starts, then wait for /map and /clock.
         for member in team:
             params = {"robot_id": member.id, "use_sim_time": True, "strategy": args.strategy,
@@ -293,6 +303,7 @@ def _report(args, out: Path, tracker, procs: ProcessSet, viewer, wall: float,
         return 130
     if tracker.exploration is not None:
         say(f"  explored map: {tracker.exploration.write_map(out)}")
+    tracker.picture(out / "summary.png")
     if not args.quiet:
         print(summary_table(summary))
     say(f"coverage-team: wrote {out / 'summary.json'}; logs in {out / 'logs'}")
@@ -325,16 +336,22 @@ def _start_viz(args, procs: ProcessSet, out: Path, radius: float, world_path: Pa
     viewer = None
     if args.record:
         params["record_path"] = str((out / "recording.rrd").resolve())
+    from coverage_ros.viz.web_viewer import free_ports, grpc_proxy_url, web_viewer_url
+
+    # Ports the kernel says are free now: a second run's viewer never collides with the first.
+    viewer_port, grpc_port, web_port = free_ports(3)
     if args.viewer:
-        port = 9876
         rerun = Path(sys.executable).with_name("rerun")
-        viewer = subprocess.Popen([str(rerun), "--port", str(port), "--bind", "127.0.0.1"],
-                                  stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                                  start_new_session=True)
-        params["connect_url"] = f"rerun+http://127.0.0.1:{port}/proxy"
-        say(f"  rerun viewer started (port {port})")
+        viewer = subprocess.Popen([str(rerun), "--port", str(viewer_port), "--bind",
+                                   "127.0.0.1"], stdout=subprocess.DEVNULL,
+                                  stderr=subprocess.DEVNULL, start_new_session=True)
+        params["connect_url"] = grpc_proxy_url(viewer_port)
+        say(f"  rerun viewer started (port {viewer_port})")
     if args.serve_web:
-        params["serve_web"] = True
+        params.update(serve_web=True, grpc_port=grpc_port, web_port=web_port)
+        # Printed even with --quiet: without it nobody finds the viewer.
+        print(f"coverage-team: web viewer at {web_viewer_url(web_port, grpc_port)}",
+              file=sys.stderr, flush=True)
     procs.start("bridge", executable("rerun_bridge") + ros_args(**params))
     return viewer
 

@@ -25,6 +25,7 @@ import time
 import numpy as np
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import PolygonStamped
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock
@@ -35,17 +36,23 @@ from std_srvs.srv import SetBool
 from coverage_ros.cli.team_exploration import TeamExploration
 from coverage_ros.core.geodesic.tessellation import Generator, tessellate
 from coverage_ros.core.metrics import coverage_ratio, mass_deviation
+from coverage_ros.core.world.region import Region
 from coverage_ros.core.world.robot import NUMBER_FIELDS
 from coverage_ros.nodes import conversions as conv
 from coverage_ros.nodes.plumbing import quiet_subscription
+from coverage_ros.nodes.region_input import REGION_QOS, REGION_TOPIC, RegionInput
 
 CONVERGED_BAND = 0.02  # H within 2 % of its final value counts as converged
 EXPLORE_PERIOD = 1.0  # [s] wall time between scores of an exploring team's merged belief
+TRACK_STEP = 0.05  # [m] a robot's path in summary.png gets a point every this far
 
 
 class TeamTracker:
-    def __init__(self, domain, world, team, args, kills, procs, say) -> None:
+    def __init__(self, domain, world, team, args, kills, procs, say,
+                 region: Region | None = None) -> None:
         self.domain, self.world, self.args = domain, world, args
+        self.base_domain = domain  # the world's density; a region of interest restricts it
+        self.region_set_at: float | None = None
         self.team = {m.id: m for m in team}
         self.starts = np.array([m.start for m in team], dtype=np.float64)
         self.kills = list(kills)
@@ -58,6 +65,7 @@ class TeamTracker:
         self.sim_time = 0.0
         self.ready_at: float | None = None
         self.poses: dict[int, np.ndarray] = {}
+        self.tracks: dict[int, list[tuple[float, float]]] = {}  # driven paths, for the picture
         self.status: dict[int, dict[str, str]] = {}
         self.states_seen: set[int] = set()
         self.lost: dict[int, float] = {}
@@ -74,12 +82,24 @@ class TeamTracker:
         self.pause_clients = {i: self.node.create_client(SetBool, f"/robot_{i}/pause")
                               for i in range(n)}
         self.node.create_service(SetBool, "/team/pause", self._on_pause)
+        # The region of interest: scored as the robots take it (--region is published here).
+        self.regions = RegionInput(self.node, self._set_region,
+                                   lambda _, text: self.say(f"\n  {text}"))
+        self.region_pub = self.node.create_publisher(PolygonStamped, REGION_TOPIC, REGION_QOS)
+        for poly in (region or Region()).polygons:
+            self.region_pub.publish(conv.polygon_msg(conv.to_time_msg(0.0), poly))
         self.exploration = None
         if getattr(args, "explore", False):
             self.exploration = TeamExploration(self.node, world, self.starts, list(range(n)),
                                                max(m.spec.radius for m in team))
 
     # ------------------------------------------------------------------ inputs
+    def _set_region(self, region: Region) -> None:
+        base = self.base_domain
+        self.domain = base if region.everywhere else base.with_density(
+            region.restrict(base.density, base.geometry, base.free))
+        self.region_set_at = self.sim_time
+
     def _on_clock(self, msg: Clock) -> None:
         self.sim_time = max(self.sim_time, conv.from_time_msg(msg.clock))
 
@@ -92,6 +112,9 @@ class TeamTracker:
             self.status[i] = values
             if i not in self.lost:
                 self.poses[i] = np.array([float(values[k]) for k in ("x", "y", "yaw")])
+                track = self.tracks.setdefault(i, [])
+                if not track or np.hypot(*(self.poses[i][:2] - track[-1])) > TRACK_STEP:
+                    track.append(tuple(self.poses[i][:2]))
 
     def _on_pause(self, request, response):
         asked = []
@@ -267,10 +290,30 @@ class TeamTracker:
                 "min_separation": self.min_sep if math.isfinite(self.min_sep) else None,
                 "converged_at": self._converged_at(H),
             },
+            "region": {"polygons": [p.round(4).tolist() for p in self.regions.region.polygons],
+                       "set_at": None if self.region_set_at is None or self.ready_at is None
+                       else round(max(self.region_set_at - self.ready_at, 0.0), 3)},
             **({"processes": self.proc_stats.report()} if self.proc_stats is not None else {}),
             **({"exploration": self.exploration.summary()}
                if self.exploration is not None else {}),
         }
+
+    def picture(self, path) -> None:
+        """``summary.png``: the map, the importance density under the final cells, each
+        robot's driven path from its start (ring) to its end (disc)."""
+        from coverage_ros.viz.png import density_underlay, padded_tracks, render_plan
+
+        alive = self._present()
+        P = np.array([self.poses[i][:2] for i in alive]).reshape(-1, 2)
+        labels = None
+        if len(P):
+            own = tessellate(self.domain, self._generators(alive, P)).labels
+            labels = np.where(own >= 0, np.asarray(alive)[np.maximum(own, 0)], -1)
+        n = self.args.robots
+        tracks = padded_tracks(self.starts, [self.tracks.get(i, []) for i in range(n)])
+        render_plan(self.world.grid, labels, tracks, path, robot_ids=list(range(n)),
+                    title=f"{self.args.strategy}: {n} robots, {self.sim_time:.0f} s",
+                    underlay=density_underlay(self.domain.density))
 
     @staticmethod
     def _body(status: dict[str, str]) -> dict[str, float]:

@@ -4,7 +4,8 @@
 It finds the robots itself from the ROS graph (every ``/<prefix><k>/coverage_state``), listens to
 each robot's ``coverage_state``, ``cell``, ``goal_pose`` and ``plan``, and at ``rate`` publishes
 one array with each robot's cell outline (in the robot's colour, the same as in rerun),
-generator, goal, plan and mode (:mod:`coverage_ros.nodes.conversions.markers`). Markers keep
+generator, goal, plan and mode, and the region of interest (``/coverage/region``)
+(:mod:`coverage_ros.nodes.conversions.markers`). Markers keep
 their namespace and id (= robot id), so each array replaces the previous one. A robot whose
 ``coverage_state`` has been silent for ``stale_after`` seconds (it publishes a few per second,
 even paused) or whose topics are gone from the graph gets its markers deleted - a killed
@@ -32,6 +33,7 @@ from coverage_ros.core.strategies.base import mode_name
 from coverage_ros.errors import ConfigError
 from coverage_ros.nodes import conversions as conv
 from coverage_ros.nodes.plumbing import TEAM_QOS, WarnThrottle, quiet_subscription
+from coverage_ros.nodes.region_input import RegionInput
 from coverage_ros.nodes.runner import declare_parameters, run_node
 from coverage_ros.viz.colors import robot_color
 from coverage_ros.viz.outline import outline_segments
@@ -71,6 +73,8 @@ class MarkerNode(Node):
         self._idle: dict[int, int] = {}
         self._heard: dict[int, float] = {}  # robot id -> time.monotonic() of its last state
         self._shown: set[int] = set()  # robots whose markers the last array added
+        self.regions = RegionInput(self, lambda region: None, self._throttle.warn)
+        self._region_shown = 0  # polygons in the last array
         self._topic_re = re.compile(rf"^/{re.escape(self.prefix)}(\d+)/coverage_state$")
         self._throttle = WarnThrottle(self.get_logger().warning)
         self.create_timer(DISCOVERY_PERIOD, self._discover)
@@ -152,10 +156,13 @@ class MarkerNode(Node):
         for rid in gone:
             self.get_logger().info(f"robot {rid} silent or gone: its markers are deleted")
         self._shown = shown
-        if not active and not gone:
+        region = self.regions.region.polygons
+        if not active and not gone and not region and not self._region_shown:
             return
         stamp = self.get_clock().now().to_msg()
-        self.pub.publish(conv.team_markers(active, gone, stamp, self.frame, self.lifetime))
+        self.pub.publish(conv.team_markers(active, gone, stamp, self.frame, self.lifetime,
+                                           region, self._region_shown))
+        self._region_shown = len(region)
 
 
 def main(args=None) -> int:

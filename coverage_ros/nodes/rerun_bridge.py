@@ -42,6 +42,7 @@ from coverage_ros.nodes.plumbing import (
     WarnThrottle,
     quiet_subscription,
 )
+from coverage_ros.nodes.region_input import RegionInput
 from coverage_ros.nodes.runner import declare_parameters, run_node
 from coverage_ros.worlds import resolve_world_path
 
@@ -200,6 +201,7 @@ class RerunBridge(Node):
         self.create_subscription(DiagnosticArray, "/world/robots",
                                  self._guard("/world/robots", self._on_status), TEAM_QOS)
         self.create_timer(DISCOVERY_PERIOD, self._discover)
+        self.regions = RegionInput(self, self._on_region, self._warn)
         outputs = [f"{what} {where}" for what, where in (
             ("file", cfg.record_path), ("viewer", cfg.connect_url),
             ("web viewer", self.web and self.web.web_url)) if where]
@@ -260,6 +262,10 @@ class RerunBridge(Node):
                 self.get_logger().info(f"robot {robot_id} left")
 
     # ------------------------------------------------------------------ global topics
+    def _on_region(self, region) -> None:
+        self.rec.set_time(self.team.now)
+        self.rec.log_region(region.polygons)
+
     def _on_clock(self, msg: Clock) -> None:
         self.team.advance(conv.from_time_msg(msg.clock))
 

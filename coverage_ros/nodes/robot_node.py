@@ -53,6 +53,7 @@ from coverage_ros.nodes.plumbing import (
     quiet_publisher,
     quiet_subscription,
 )
+from coverage_ros.nodes.region_input import RegionInput
 from coverage_ros.nodes.robot_config import PARAMETERS, load_robot_inputs
 from coverage_ros.nodes.runner import FatalConfigError, declare_parameters, run_node
 
@@ -102,6 +103,7 @@ class RobotNode(Node):
             self.create_subscription(Twist, self.config.teleop_topic, self._on_teleop, TEAM_QOS)
         self.create_service(SetBool, "set_manual", self._on_set_manual)
         self.create_service(SetBool, "pause", self._on_pause)
+        self.regions = RegionInput(self, self._set_region, self._warn)
         self._scan_sub = None
         self.exchange: BeliefExchange | None = None
         self._poses = PoseHistory()  # exploring: scans go into the belief from these
@@ -143,6 +145,8 @@ class RobotNode(Node):
         self.controller = RobotController(domain, self.config.controller, belief)
         self.controller.set_manual(self.config.manual)
         self.controller.set_paused(self._paused)
+        if not self.regions.region.everywhere:
+            self._set_region(self.regions.region)  # heard before the map came
         if belief is not None:
             self.exchange = BeliefExchange(self, belief, self.config.explore, self._throttle,
                                            self._now)
@@ -244,6 +248,10 @@ class RobotNode(Node):
                             else "autonomous")
         self.get_logger().info(f"robot {self.config.controller.robot_id}: {response.message}")
         return response
+
+    def _set_region(self, region) -> None:
+        if self.controller is not None:  # else applied when the map comes (_build)
+            self.controller.set_region(region)
 
     def _on_pause(self, request, response):
         self._paused = bool(request.data)

@@ -12,6 +12,7 @@ Entity layout (all in the ``map`` frame, metres, z = 0 is the floor)::
     /world/plans/robot_<id>          LineStrips3D: planned path
     /world/scans/robot_<id>          Points3D: lidar hits
     /world/cell_polygons/robot_<id>  LineStrips3D: cell outline (strategies that publish one)
+    /world/region         LineStrips3D: the region of interest (README "Using it on your robots")
     /metrics/H            Scalars: coverage cost
     /metrics/mass/robot_<id>         Scalars: cell masses
     /metrics/explored     Scalars: exploring, explored fraction and false free share
@@ -142,7 +143,9 @@ class CoverageRecorder:
             plots.insert(0, rrb.TimeSeriesView(origin="/metrics/explored", name="explored"))
         return rrb.Blueprint(
             rrb.Horizontal(view, rrb.Vertical(*plots), column_shares=[3, 1]),
-            rrb.TimePanel(timeline=TIMELINE), collapse_panels=True)
+            # "following": a saved recording opens at its end, on the team (not on an empty
+            # map at its first second); a live one follows the newest data.
+            rrb.TimePanel(timeline=TIMELINE, play_state="following"), collapse_panels=True)
 
     # ------------------------------------------------------------------ static layers
     def _grid_map(self, grid: GridMap, rgb: np.ndarray, channels: str):
@@ -266,6 +269,19 @@ class CoverageRecorder:
         self.stream.log(f"/world/cell_polygons/robot_{robot_id}", self.rr.LineStrips3D(
             [np.column_stack([P, np.full(len(P), ROBOT_HEIGHT)])], radii=0.01,
             colors=[robot_color(robot_id)]))
+
+    def log_region(self, polygons: Sequence[np.ndarray]) -> None:
+        """The region of interest: closed outlines ``(M, 2)`` [m] (none: the whole map)."""
+        if not polygons:
+            self.stream.log("/world/region", self.rr.Clear(recursive=False))
+            return
+        strips = []
+        for poly in polygons:
+            P = np.asarray(poly, dtype=np.float64).reshape(-1, 2)
+            P = np.vstack([P, P[:1]])
+            strips.append(np.column_stack([P, np.full(len(P), ROBOT_HEIGHT)]))
+        self.stream.log("/world/region", self.rr.LineStrips3D(strips, radii=0.03,
+                                                              colors=[[255, 255, 255]]))
 
     def log_values(self, entity: str, values: dict[str, float]) -> None:
         """Named values as one plot ``entity`` with a series per name (one entity, not one

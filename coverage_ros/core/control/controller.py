@@ -28,7 +28,7 @@ from __future__ import annotations
 import math
 import threading
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -51,6 +51,7 @@ from coverage_ros.core.strategies import (
     strategy_choice,
 )
 from coverage_ros.core.strategies.base import mode_code
+from coverage_ros.core.world.region import Region
 from coverage_ros.core.world.robot import RobotSpec
 from coverage_ros.errors import ConfigError
 
@@ -104,6 +105,8 @@ class RobotController:
                                  "and only an exploring strategy takes one",
                                  config.strategy.name)
         self.domain = domain
+        self._base_domain = domain  # the map's own density (a region restricts a copy)
+        self.region = Region()  # everywhere
         self.config = config
         #: What the robot believes of an unknown map (exploring), else None.
         self.belief = belief
@@ -221,6 +224,24 @@ class RobotController:
                 self.velocity = self.heading = None
             self.manual = bool(manual)
             self._teleop = (0.0, 0.0, -math.inf)
+
+    def set_region(self, region: Region) -> None:
+        """Keep the importance density inside ``region`` (everywhere: the map's own density
+        again). The strategy starts afresh on the restricted domain and the robot replans.
+        ConfigError, and nothing changes, if the region holds no free space or the robot
+        explores (its density is the belief's entropy)."""
+        if self.belief is not None:
+            raise ConfigError.at("region", "does not apply while exploring (the density is the "
+                                 "belief's entropy)", region.describe())
+        base = self._base_domain
+        domain = base if region.everywhere else base.with_density(
+            region.restrict(base.density, base.geometry, base.free))
+        strategy = make_strategy(self.config.strategy,
+                                 replace(self.strategy.context, domain=domain))
+        with self._lock:
+            self.domain, self.strategy, self.region = domain, strategy, region
+            self.goal = self.path = None
+            self.velocity = self.heading = None
 
     def set_paused(self, paused: bool) -> None:
         with self._lock:

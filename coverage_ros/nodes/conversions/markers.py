@@ -9,7 +9,8 @@ array replaces the previous markers instead of adding to them:
 * ``plan`` - LINE_STRIP along the planned path;
 * ``mode`` - TEXT_VIEW_FACING above the robot: ``robot_<k>: <mode>``.
 
-A robot that left gets a DELETE of each of its markers (same namespaces and ids).
+A robot that left gets a DELETE of each of its markers (same namespaces and ids). The region of
+interest is namespace ``region``: a closed white LINE_STRIP per polygon, ids 0, 1, ...
 """
 
 from __future__ import annotations
@@ -115,10 +116,28 @@ def delete_marker(kind: str, rid: int, stamp: Time, frame: str = MAP_FRAME) -> M
     return m
 
 
+def region_markers(polygons, shown_before: int, stamp: Time, frame: str = MAP_FRAME,
+                   lifetime: float = 0.0) -> list[Marker]:
+    """The region's outlines (ids 0..n-1) and deletions of ids n..``shown_before`` - 1."""
+    out = []
+    for k, poly in enumerate(polygons):
+        m = _marker("region", k, Marker.LINE_STRIP, stamp, frame, lifetime)
+        m.color = _color((1.0, 1.0, 1.0))
+        m.scale.x = 0.05
+        P = np.asarray(poly, dtype=np.float64).reshape(-1, 2)
+        m.points = _points(np.vstack([P, P[:1]]), 0.03)
+        out.append(m)
+    out += [delete_marker("region", k, stamp, frame) for k in range(len(polygons), shown_before)]
+    return out
+
+
 def team_markers(robots: list[RobotMarkers], left: list[int], stamp: Time,
-                 frame: str = MAP_FRAME, lifetime: float = 0.0) -> MarkerArray:
-    """One array: every robot's markers, and deletions for the robots in ``left``."""
+                 frame: str = MAP_FRAME, lifetime: float = 0.0,
+                 region: tuple = (), region_before: int = 0) -> MarkerArray:
+    """One array: every robot's markers, deletions for the robots in ``left``, and the region
+    of interest's polygons (``region_before``: how many the previous array had)."""
     msg = MarkerArray()
+    msg.markers.extend(region_markers(region, region_before, stamp, frame, lifetime))
     for r in robots:
         msg.markers.extend(robot_markers(r, stamp, frame, lifetime))
     for rid in left:

@@ -1,0 +1,126 @@
+"""A region of interest at run time: polygons checked as a user types them, the density kept
+inside, and a live team that re-spreads into a polygon published on /coverage/region."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import time
+
+import numpy as np
+import pytest
+from conftest import REPO
+from rosutil import RosClient, domain_id
+
+from coverage_ros.core.geodesic.domain import CoverageDomain
+from coverage_ros.core.geodesic.tessellation import Generator, tessellate
+from coverage_ros.core.world import load_world
+from coverage_ros.core.world.grid import OCCUPIED, GridMap
+from coverage_ros.core.world.region import Region, parse_region_text
+from coverage_ros.errors import ConfigError
+
+TEAM = [str(REPO / ".venv" / "bin" / "coverage-team"), "--quiet"]
+SQUARE = "5,5;7.5,5;7.5,7.5;5,7.5"
+
+
+def test_region_text_and_polygons_are_checked():
+    assert parse_region_text("0,0;1,0;1,1").shape == (3, 2)
+    for bad, why in [("0,0;1,0", "at least 3"), ("0,0;1;1,1", "two numbers"),
+                     ("a,b;1,0;1,1", "x,y;x,y"), ("0,0;1,1;2,2", "no area"),
+                     ("0,0;nan,0;1,1", "finite")]:
+        with pytest.raises(ConfigError, match=why) as err:
+            parse_region_text(bad)
+        assert str(err.value).startswith("--region")
+
+
+def test_the_density_is_kept_inside_the_union_of_the_polygons():
+    occ = np.zeros((40, 60), np.int8)
+    occ[:, 30] = OCCUPIED  # a wall down the middle
+    grid = GridMap(occ, 0.1)
+    region = Region().with_polygon([[0, 0], [1, 0], [1, 1], [0, 1]]).with_polygon(
+        [[4, 2.02], [5, 2.02], [5, 3.02]])  # no cell centre on an edge
+    mask = region.mask(grid)
+    X, Y = grid.all_cell_centers()
+    square = (X < 1) & (Y < 1)
+    triangle = (X > 4) & (X < 5) & (Y > 2.02) & (Y < X - 1.98)
+    assert (mask == (square | triangle)).all()
+    assert Region().mask(grid).all() and Region().everywhere
+    w = region.restrict(np.ones(grid.shape), grid, grid.free_mask())
+    assert w.sum() == pytest.approx((square | triangle).sum())
+    with pytest.raises(ConfigError, match="no free space"):  # on the wall only
+        Region().with_polygon([[2.98, 0], [3.08, 0], [3.08, 4], [2.98, 4]]).restrict(
+            np.ones(grid.shape), grid, grid.free_mask())
+
+
+def test_an_impossible_region_is_refused_before_anything_starts(tmp_path):
+    proc = subprocess.run(TEAM + ["--world", "empty", "--robots", "2", "--out",
+                                  str(tmp_path / "t"), "--region", "20,20;21,20;21,21"],
+                          capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 2
+    assert proc.stderr.strip().splitlines() == [
+        line for line in proc.stderr.strip().splitlines() if "--region" in line]
+    assert "holds no free space" in proc.stderr and not (tmp_path / "t").exists()
+
+
+def region_cost(world, square, positions) -> float:
+    domain = CoverageDomain.from_world(world, 0.105)
+    region = Region().with_polygon(square)
+    d = domain.with_density(region.restrict(domain.density, world.grid, domain.free))
+    return float(tessellate(d, [Generator(p) for p in positions]).cost)
+
+
+@pytest.mark.integration
+@pytest.mark.slow
+def test_a_polygon_published_mid_run_draws_the_team_into_it(tmp_path):
+    """Three robots spread over the empty 8 m x 8 m world; a polygon (and a malformed one) is
+    published on /coverage/region after 10 s: all robots end inside the polygon, and the
+    coverage cost over it falls by more than 40 % from where they were when it came."""
+    from geometry_msgs.msg import PolygonStamped
+    from sensor_msgs.msg import JointState
+
+    from coverage_ros.nodes import conversions as conv
+    from coverage_ros.nodes.region_input import REGION_QOS, REGION_TOPIC
+
+    domain = domain_id(5)
+    out = tmp_path / "team"
+    client = RosClient(domain, "region_user")
+    states = {i: client.subscribe(f"/robot_{i}/coverage_state", JointState) for i in range(3)}
+    pub = client.node.create_publisher(PolygonStamped, REGION_TOPIC, REGION_QOS)
+    square = parse_region_text(SQUARE)
+    proc = subprocess.Popen(TEAM + ["--world", "empty", "--robots", "3", "--duration", "55",
+                                    "--seed", "1", "--out", str(out),
+                                    "--domain-id", str(domain)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)
+    try:
+        def clock():
+            xs = [states[i][-1] for i in range(3) if states[i]]
+            return min(conv.from_time_msg(m.header.stamp) for m in xs) if len(xs) == 3 else 0
+        client.spin_until(lambda: clock() > 12.0, 120, "the team running for 12 s")
+        at_publish = [conv.coverage_state_values(states[i][-1]) for i in range(3)]
+        pub.publish(conv.polygon_msg(conv.to_time_msg(0.0), np.array([[0, 0], [1, 1.0]])))
+        pub.publish(conv.polygon_msg(conv.to_time_msg(0.0), square))
+        deadline = time.monotonic() + 200
+        while proc.poll() is None and time.monotonic() < deadline:
+            client.spin_for(0.2)
+        _, err = proc.communicate(timeout=30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        client.close()
+    assert proc.returncode == 0, err[-3000:]
+    summary = json.loads((out / "summary.json").read_text())
+    world = load_world(REPO / "config" / "worlds" / "empty.yaml")
+    before = np.array([[v["x"], v["y"]] for v in at_publish])
+    final = np.array([r["final"][:2] for r in summary["robots"]])
+    lo, hi = square.min(axis=0) - 0.05, square.max(axis=0) + 0.05
+    assert ((final >= lo) & (final <= hi)).all(), final
+    H0, H1 = region_cost(world, square, before), region_cost(world, square, final)
+    print(f"H over the region: {H0:.2f} when published -> {H1:.2f} at the end")
+    assert H1 <= 0.6 * H0, (H0, H1)
+    assert summary["region"]["polygons"] == pytest.approx(square.tolist())
+    assert summary["metrics"]["H"] == pytest.approx(H1, rel=0.05)  # scored over the region
+    for i in range(3):
+        log = (out / "logs" / f"robot_{i}.log").read_text()
+        assert "region of interest now: 1 polygon" in log
+        assert "dropped a polygon on /coverage/region: region: needs at least 3 points" in log

@@ -4,6 +4,7 @@ process behind and end with one line and a summary, never a traceback."""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import signal
@@ -118,3 +119,47 @@ def test_an_interrupt_at_any_moment_leaves_nothing_behind(tmp_path, when):
     finally:
         for pid in alive:
             os.killpg(pid, signal.SIGKILL)
+
+
+@pytest.mark.integration
+@pytest.mark.slow
+def test_serve_web_takes_free_ports_and_prints_the_viewer_address(tmp_path):
+    """Another run holds the default ports (9090, 9876): the web viewer still comes up, on
+    ports the kernel gave, and its address is printed on the console even with --quiet."""
+    import re
+    import socket
+    import urllib.request
+
+    held = []
+    for port in (9090, 9876):
+        sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+        with contextlib.suppress(OSError):  # already taken by something else: as good
+            sock.bind(("127.0.0.1", port))
+            sock.listen(1)
+        held.append(sock)
+    out = tmp_path / "team"
+    proc = subprocess.Popen(
+        [str(REPO / ".venv" / "bin" / "coverage-team"), "--quiet", "--world", "empty",
+         "--robots", "2", "--duration", "15", "--serve-web", "--no-markers", "--out", str(out),
+         "--domain-id", str(domain_id(6))],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        line = proc.stderr.readline()
+        m = re.match(r"coverage-team: web viewer at (http://127\.0\.0\.1:(\d+)/\?url=\S+)", line)
+        assert m, line
+        assert int(m.group(2)) not in (9090, 9876)
+        page = None
+        for _ in range(60):  # the viewer comes up with the bridge
+            with contextlib.suppress(OSError):
+                page = urllib.request.urlopen(m.group(1), timeout=2).read()
+                break
+            time.sleep(0.5)
+        assert page, "the web viewer never answered"
+        _, err = proc.communicate(timeout=200)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+        for sock in held:
+            sock.close()
+    assert proc.returncode == 0, err[-3000:]
+    assert "already in use" not in (out / "logs" / "bridge.log").read_text()

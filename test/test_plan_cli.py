@@ -121,3 +121,15 @@ def test_other_strategies_write_the_same_outputs(strategy, max_ratio, tmp_path):
     assert np.all(world.grid.occupancy[cells[:, 0], cells[:, 1]] == 0)  # ends in free space
     H_start = tessellate(domain, [Generator(np.array(p)) for p in data["start_positions"]]).cost
     assert 0 < data["H"] <= max_ratio * H_start, (data["H"], H_start)
+
+
+def test_picture_underlays_show_a_density_with_peaks_and_nothing_for_a_uniform_one():
+    from coverage_ros.viz.png import density_underlay, padded_tracks
+
+    assert density_underlay(np.where(np.eye(4) > 0, 0.0, 2.0)) is None  # 0 off the free space
+    w = density_underlay(np.array([[1.0, 3.0], [0.0, 6.0]]))
+    assert w == pytest.approx(np.array([[1 / 6, 0.5], [0.0, 1.0]]))
+    tracks = padded_tracks(np.array([[0.0, 0.0, 0.0], [5.0, 5.0, 1.0]]),
+                           [[(1.0, 0.0), (2.0, 0.0)], []])
+    assert tracks.shape == (3, 2, 2)
+    assert tracks[:, 1].tolist() == [[5.0, 5.0]] * 3 and tracks[-1, 0].tolist() == [2.0, 0.0]

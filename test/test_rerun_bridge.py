@@ -541,3 +541,32 @@ def test_ros2_run_layout_has_the_console_script():
     assert out.returncode == 2
     assert out.stderr.strip() == ("rerun_bridge: error: record_path: no output: set "
                                   "record_path, connect_url or serve_web (got '')")
+
+
+def test_a_saved_recording_opens_at_its_end_and_shows_the_region(tmp_path):
+    """The blueprint's time panel follows the newest data: a saved file opens on the team at
+    its end, not on an empty map at its first second. The region of interest is a layer."""
+    from rerun.chunk import RrdReader
+
+    from coverage_ros.viz.recording import CoverageRecorder
+
+    path = tmp_path / "r.rrd"
+    rec = CoverageRecorder()
+    rec.set_outputs(path)
+    rec.log_map(GridMap(np.zeros((10, 10), np.int8), 0.1))
+    rec.send_blueprint()
+    rec.set_time(1.0)
+    rec.log_robots([0], np.array([[0.5, 0.5]]), [0.1])
+    rec.log_region([np.array([[0.1, 0.1], [0.6, 0.1], [0.6, 0.6]])])
+    rec.close()
+    reader = RrdReader(path)
+    states = []
+    for bp in reader.blueprints():
+        for chunk in reader.store(store=bp).stream():
+            batch = chunk.to_record_batch()
+            if "TimePanelBlueprint:play_state" in batch.schema.names:
+                states += batch.column("TimePanelBlueprint:play_state").to_pylist()
+    assert states and all(s == [3] for s in states), states  # 3: following
+    region = read_rrd(path)["/world/region"]
+    strips = region[-1][1]["LineStrips3D:strips"][0]
+    assert len(strips) == 4  # closed triangle

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import subprocess
 
+import numpy as np
 import pytest
 from conftest import REPO, WORLDS
 from rosutil import domain_id
@@ -50,6 +51,16 @@ def test_geodesic_team_spreads_out_and_reaches_the_planned_cost(tmp_path):
         assert key in summary
     assert all(len(r["start"]) == 3 and len(r["final"]) == 3 and r["path_length"] > 0
                for r in summary["robots"])
+    # summary.png: the final cells, and each robot's path ending in a disc of its colour.
+    from PIL import Image
+
+    from coverage_ros.viz.colors import robot_color
+
+    img = np.asarray(Image.open(tmp_path / "team" / "summary.png").convert("RGB"))
+    assert min(img.shape[:2]) >= 300
+    pixels = {tuple(p) for p in img.reshape(-1, 3)}
+    for i in range(4):
+        assert tuple(int(v) for v in robot_color(i) * 0.7) in pixels, i
 
 
 def test_a_lost_robots_area_is_absorbed_by_the_others(tmp_path):

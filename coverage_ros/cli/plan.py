@@ -132,10 +132,12 @@ def run(args: argparse.Namespace) -> dict:
         args.json.write_text(json.dumps(summary, indent=2))
         say(f"  wrote {args.json}")
     if args.png:
-        from coverage_ros.viz.png import render_plan
+        from coverage_ros.viz.png import density_underlay, render_plan
 
         render_plan(world.grid, tess.labels, result.positions, args.png,
-                    title=f"{args.strategy}: {args.robots} robots, H = {tess.cost:.4g}")
+                    title=f"{args.strategy}: {args.robots} robots, H = {tess.cost:.4g}",
+                    underlay=density_underlay(domain.density)
+                    if domain.density.shape == world.grid.shape else None)
         say(f"  wrote {args.png}")
     if args.record:
         record(args.record, domain, world, result, args.robots, radius)

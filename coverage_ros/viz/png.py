@@ -78,3 +78,21 @@ def render_plan(grid: GridMap, labels: np.ndarray | None, trajectories: np.ndarr
     path = Path(path)
     img.save(path)
     return path
+
+
+def density_underlay(density: np.ndarray) -> np.ndarray | None:
+    """An importance density scaled to [0, 1] for :func:`render_plan`, or None when it is
+    constant over the cells where it is positive (a uniform density shows nothing)."""
+    w = np.asarray(density, dtype=np.float64)
+    pos = w[w > 0]
+    if len(pos) == 0 or float(pos.max() - pos.min()) <= 1e-12 * float(pos.max()):
+        return None
+    return w / float(pos.max())
+
+
+def padded_tracks(starts: np.ndarray, tracks: list[list[tuple[float, float]]]) -> np.ndarray:
+    """``(T, n, 2)`` trajectories for :func:`render_plan` from each robot's start and its list
+    of positions (of any length; a short one is held at its last point)."""
+    rows = [[tuple(s[:2])] + list(t) for s, t in zip(starts, tracks, strict=True)]
+    T = max(len(r) for r in rows)
+    return np.array([[r[min(k, len(r) - 1)] for r in rows] for k in range(T)], dtype=np.float64)

@@ -79,13 +79,11 @@ class WebViewerServer:
 
     @property
     def grpc_url(self) -> str:
-        return f"rerun+http://{LOCALHOST}:{self.grpc_port}/proxy"
+        return grpc_proxy_url(self.grpc_port)
 
     @property
     def web_url(self) -> str:
-        from urllib.parse import quote
-
-        return f"http://{LOCALHOST}:{self.web_port}/?url={quote(self.grpc_url, safe='')}"
+        return web_viewer_url(self.web_port, self.grpc_port)
 
     def stop(self) -> None:
         if self.proc.poll() is None:
@@ -95,3 +93,31 @@ class WebViewerServer:
             except subprocess.TimeoutExpired:
                 self.proc.kill()
                 self.proc.wait()
+
+
+def grpc_proxy_url(grpc_port: int) -> str:
+    return f"rerun+http://{LOCALHOST}:{grpc_port}/proxy"
+
+
+def web_viewer_url(web_port: int, grpc_port: int) -> str:
+    """The address a browser opens: the web viewer, pointed at the gRPC proxy."""
+    from urllib.parse import quote
+
+    return f"http://{LOCALHOST}:{web_port}/?url={quote(grpc_proxy_url(grpc_port), safe='')}"
+
+
+def free_ports(count: int) -> list[int]:
+    """``count`` distinct TCP ports free on 127.0.0.1 right now (the kernel's choice), so that a
+    second run on the machine never collides with the first one's viewer."""
+    import socket
+
+    socks = []
+    try:
+        for _ in range(count):
+            sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+            sock.bind((LOCALHOST, 0))
+            socks.append(sock)
+        return [s.getsockname()[1] for s in socks]
+    finally:
+        for sock in socks:
+            sock.close()

@@ -163,3 +163,45 @@ def test_serve_web_takes_free_ports_and_prints_the_viewer_address(tmp_path):
             sock.close()
     assert proc.returncode == 0, err[-3000:]
     assert "already in use" not in (out / "logs" / "bridge.log").read_text()
+
+
+@pytest.mark.integration
+@pytest.mark.slow
+def test_a_second_simulation_on_the_domain_stops_the_team_with_one_line(tmp_path):
+    """Someone starts another world node on the team's domain mid-run: the launcher and the
+    robots notice the second /clock (or the clock going back), say so and stop, instead of
+    running on a mixture of two simulations."""
+    domain = domain_id(7)
+    out = tmp_path / "team"
+    proc = subprocess.Popen(
+        [str(REPO / ".venv" / "bin" / "coverage-team"), "--world", "empty", "--robots", "2",
+         "--duration", "120", "--no-markers", "--out", str(out), "--domain-id", str(domain)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        lines = []
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline:
+            line = proc.stderr.readline()
+            lines.append(line)
+            if "team ready" in line or not line:
+                break
+        assert any("team ready" in line for line in lines), "".join(lines)
+        with NodeProcess.world_node(domain, "world:=empty", "num_robots:=1"):
+            _, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    assert proc.returncode == 1, err[-2000:]
+    last = err.strip().splitlines()[-1]
+    assert last.startswith("coverage-team: error: ") and "/clock" in last, err[-2000:]
+
+
+def test_the_clock_guard_sees_a_second_clock_and_time_going_back():
+    from coverage_ros.nodes.plumbing import ClockGuard
+
+    guard = ClockGuard(jump_back=1.0)
+    assert guard.check_time(10.0) == guard.check_time(10.5) == ""
+    assert guard.check_time(9.8) == ""  # jitter of a few clock periods is not a jump
+    assert "went back from 10.5 s to 3.0 s" in guard.check_time(3.0)
+    assert guard.check_publishers(1) == "" and "2 nodes publish /clock" in \
+        guard.check_publishers(2)

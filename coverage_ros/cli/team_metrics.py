@@ -39,7 +39,7 @@ from coverage_ros.core.metrics import coverage_ratio, mass_deviation
 from coverage_ros.core.world.region import Region
 from coverage_ros.core.world.robot import NUMBER_FIELDS
 from coverage_ros.nodes import conversions as conv
-from coverage_ros.nodes.plumbing import quiet_subscription
+from coverage_ros.nodes.plumbing import ClockGuard, quiet_subscription
 from coverage_ros.nodes.region_input import REGION_QOS, REGION_TOPIC, RegionInput
 
 CONVERGED_BAND = 0.02  # H within 2 % of its final value counts as converged
@@ -63,6 +63,7 @@ class TeamTracker:
         rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
         self.node = Node("coverage_team")
         self.sim_time = 0.0
+        self.clock_guard, self.clock_error, self._clock_checked = ClockGuard(), "", 0.0
         self.ready_at: float | None = None
         self.poses: dict[int, np.ndarray] = {}
         self.tracks: dict[int, list[tuple[float, float]]] = {}  # driven paths, for the picture
@@ -101,7 +102,9 @@ class TeamTracker:
         self.region_set_at = self.sim_time
 
     def _on_clock(self, msg: Clock) -> None:
-        self.sim_time = max(self.sim_time, conv.from_time_msg(msg.clock))
+        t = conv.from_time_msg(msg.clock)
+        self.clock_error = self.clock_error or self.clock_guard.check_time(t)
+        self.sim_time = max(self.sim_time, t)
 
     def _on_status(self, msg: DiagnosticArray) -> None:
         for st in msg.status:
@@ -198,6 +201,13 @@ class TeamTracker:
         self._progress(end, final=True)
 
     def _check_children(self, starting: bool = False) -> None:
+        now = time.monotonic()
+        if now - self._clock_checked >= 1.0:  # a graph query: once a second is enough
+            self._clock_checked = now
+            self.clock_error = self.clock_error or self.clock_guard.check_publishers(
+                self.node.count_publishers("/clock"))
+        if self.clock_error:
+            raise RuntimeError(f"{self.clock_error}; stopping the team")
         world = self.procs.children.get("world")
         if world is not None and not world.alive:
             raise RuntimeError(f"world_node exited ({world.popen.returncode}):\n"

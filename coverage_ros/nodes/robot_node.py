@@ -48,6 +48,7 @@ from coverage_ros.nodes.plumbing import (
     MAP_QOS,
     SCAN_QOS,
     TEAM_QOS,
+    ClockGuard,
     UpdateWorker,
     WarnThrottle,
     quiet_publisher,
@@ -119,6 +120,9 @@ class RobotNode(Node):
             self._build(inputs.world.grid)
         wall = Clock(clock_type=ClockType.STEADY_TIME)
         self.create_timer(DISCOVERY_PERIOD, self._discover, clock=wall)
+        if self.get_parameter("use_sim_time").value:
+            self._clock_guard = ClockGuard()
+            self.create_timer(1.0, self._check_clock, clock=wall)
         self._worker = UpdateWorker(
             self._update, self.config.update_load,
             on_error=lambda exc: self._warn("update", f"coverage update failed: {exc!r}"))
@@ -301,6 +305,13 @@ class RobotNode(Node):
             self._warn(f"state{robot_id}", f"dropped coverage_state of robot {robot_id}: {why}")
 
     # ------------------------------------------------------------------ loops
+    def _check_clock(self) -> None:
+        """A second simulation on this domain would mix two teams: say so and stop."""
+        error = self._clock_guard.check_publishers(self.count_publishers("/clock")) or \
+            self._clock_guard.check_time(self._now())
+        if error:
+            raise FatalConfigError(f"robot {self.config.controller.robot_id}: {error}")
+
     def _now(self) -> float:
         return self.get_clock().now().nanoseconds * 1e-9
 
@@ -363,8 +374,6 @@ class RobotNode(Node):
         if self.config.drive:
             v, w = c.command(now, dt)
             self._publish_cmd(v, w, now)
-        if now < self._last_state:  # sim time went back (a restarted simulation)
-            self._last_state = -math.inf
         if now - self._last_state >= 0.999 / self.config.state_rate:
             # The state with the current position between updates: neighbours' safety filters
             # need fresh positions (the coverage period is too slow for that). Before the first

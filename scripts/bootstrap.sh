@@ -119,8 +119,61 @@ bootstrap_env() {
     export PYTHONUNBUFFERED=1
 }
 
+bootstrap_tools() {
+    # nftables: the lossy-link tests and scripts/bench_faults drop packets inside a network
+    # namespace with it (this kernel has no netem). A Debian package; installed when missing
+    # and we are root with apt-get (otherwise those tests say what is missing).
+    if ! command -v nft >/dev/null 2>&1 && [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
+        _say "installing nftables (Debian package, for the lossy-link tests)"
+        if ! timeout 600 apt-get install -y -q nftables >/dev/null 2>&1; then
+            timeout 600 apt-get update -q >/dev/null 2>&1 || true
+            timeout 600 apt-get install -y -q nftables >/dev/null 2>&1 ||
+                _say "warning: could not install nftables; the lossy-link tests will fail"
+        fi
+    fi
+}
+
+bootstrap_interfaces() {
+    # tf2_msgs (for /tf and /tf_static) is not on PyPI: build it from interfaces/tf2_msgs with
+    # the rosidl generators and ament_cmake wheels, gcc and cmake, and install it into the venv
+    # (no sourcing needed afterwards). Without it the world node publishes no /tf.
+    local want
+    want="$(cd "$COVERAGE_ROS_ROOT" && _hash_of requirements-interfaces.txt \
+        interfaces/tf2_msgs/package.xml interfaces/tf2_msgs/CMakeLists.txt \
+        interfaces/tf2_msgs/msg/*.msg interfaces/cmake/*.cmake)"
+    if _stamp_ok interfaces "$want" && "$VENV/bin/python" -c "import tf2_msgs.msg" 2>/dev/null; then
+        return 0
+    fi
+    if ! command -v cmake >/dev/null 2>&1 || ! command -v g++ >/dev/null 2>&1; then
+        if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
+            _say "installing cmake and g++ (Debian packages, to build tf2_msgs)"
+            timeout 900 apt-get install -y -q cmake g++ >/dev/null 2>&1 || true
+        fi
+    fi
+    _say "building tf2_msgs into .venv (first run: about 30 s)"
+    local build="$COVERAGE_ROS_ROOT/build/interfaces/tf2_msgs"
+    (
+        set -e
+        "$VENV/bin/python" -m pip install --disable-pip-version-check -q \
+            -r "$COVERAGE_ROS_ROOT/requirements-interfaces.txt"
+        rm -rf "$build"
+        mkdir -p "$(dirname "$build")"
+        export PATH="$VENV/bin:$PATH" CMAKE_PREFIX_PATH="$VENV" AMENT_PREFIX_PATH="$VENV"
+        cmake -S "$COVERAGE_ROS_ROOT/interfaces/tf2_msgs" -B "$build" -DCMAKE_BUILD_TYPE=Release \
+            -DBUILD_TESTING=OFF -DCMAKE_INSTALL_PREFIX="$VENV" \
+            -DPython3_EXECUTABLE="$VENV/bin/python" \
+            -DCMAKE_PROJECT_INCLUDE="$COVERAGE_ROS_ROOT/interfaces/cmake/drop_missing_include_dirs.cmake" \
+            > "$build.configure.log" 2>&1
+        cmake --build "$build" -j2 > "$build.build.log" 2>&1
+        cmake --install "$build" > "$build.install.log" 2>&1
+    ) && "$VENV/bin/python" -c "import tf2_msgs.msg" 2>/dev/null && _stamp_set interfaces "$want" \
+        || _say "warning: building tf2_msgs failed (logs: $build.*.log); the world node will publish no /tf"
+}
+
 bootstrap_all() {
     bootstrap_venv
     bootstrap_colcon
+    bootstrap_tools
+    bootstrap_interfaces
     bootstrap_env
 }

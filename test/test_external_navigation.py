@@ -57,11 +57,11 @@ def test_drive_false_is_checked_with_the_rest_of_the_parameters():
 
 @pytest.mark.integration
 @pytest.mark.slow
-def test_a_team_whose_navigator_drives_it_converges(tmp_path):
-    """Three robots with drive: false on the empty world, driven by a stand-in navigator that
-    only sees their goal_pose topics: no robot node publishes cmd_vel, each goal differs from
-    the previous one by more than the resend distance, and the team spreads as one that
-    drives itself does."""
+def test_a_team_with_its_own_navigation_and_localization_converges(tmp_path):
+    """Three robots set up as on a Nav2 robot: drive: false, driven by a stand-in navigator
+    that only sees their goal_pose topics, and pose_source: tf (the pose from /tf, as AMCL
+    gives it). No robot node publishes cmd_vel, each goal differs from the previous one by more
+    than the resend distance, and the team spreads as one that drives itself does."""
     domain = domain_id(3)
     result = tmp_path / "nav.json"
     nav = NodeProcess([sys.executable, str(REPO / "test" / "nav_stub.py"), str(result),
@@ -71,7 +71,8 @@ def test_a_team_whose_navigator_drives_it_converges(tmp_path):
         proc = subprocess.run(
             [str(REPO / ".venv" / "bin" / "coverage-team"), "--quiet", "--world", "empty",
              "--robots", "3", "--duration", "45", "--seed", "2", "--out", str(out),
-             "--domain-id", str(domain), "--robot-param", "drive:=false"],
+             "--domain-id", str(domain), "--robot-param", "drive:=false",
+             "--robot-param", "pose_source:=tf"],
             capture_output=True, text=True, timeout=300)
         assert proc.returncode == 0, proc.stderr[-3000:]
         assert nav.stop() == 0, nav.output()[-2000:]
@@ -88,3 +89,5 @@ def test_a_team_whose_navigator_drives_it_converges(tmp_path):
         assert (steps > 0.25).all(), steps
     for r in summary["robots"]:
         assert r["path_length"] > 0.3, r
+        log = (out / "logs" / f"robot_{r['id']}.log").read_text()
+        assert f"pose from /tf (map -> robot_{r['id']}/base_link)" in log, log[-2000:]

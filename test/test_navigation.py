@@ -170,6 +170,13 @@ def test_a_region_of_interest_moves_the_goal_into_it_and_clearing_it_moves_it_ba
     assert c.region is region  # a refused region changes nothing
     c.set_region(Region())
     assert c.update(2.0).decision.goal == pytest.approx(whole, abs=1e-9)
+    # A neighbour in the region takes all of it: this robot's cell holds none, and it heads
+    # for the region's nearest point instead of staying where it is.
+    c.set_region(region)
+    c.neighbours.receive(1, {"x": 3.2, "y": 2.2}, now=3.0)
+    seek = c.update(3.0).decision
+    assert seek.mode == "seek" and not seek.converged
+    assert seek.goal == pytest.approx([2.8, 1.8], abs=0.06)  # the square's nearest corner
 
 
 def test_vectorized_shortcut_equals_the_segment_by_segment_greedy():

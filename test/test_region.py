@@ -87,7 +87,7 @@ def test_a_polygon_published_mid_run_draws_the_team_into_it(tmp_path):
     states = {i: client.subscribe(f"/robot_{i}/coverage_state", JointState) for i in range(3)}
     pub = client.node.create_publisher(PolygonStamped, REGION_TOPIC, REGION_QOS)
     square = parse_region_text(SQUARE)
-    proc = subprocess.Popen(TEAM + ["--world", "empty", "--robots", "3", "--duration", "55",
+    proc = subprocess.Popen(TEAM + ["--world", "empty", "--robots", "3", "--duration", "45",
                                     "--seed", "1", "--out", str(out),
                                     "--domain-id", str(domain)],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
@@ -118,7 +118,7 @@ def test_a_polygon_published_mid_run_draws_the_team_into_it(tmp_path):
     H0, H1 = region_cost(world, square, before), region_cost(world, square, final)
     print(f"H over the region: {H0:.2f} when published -> {H1:.2f} at the end")
     assert H1 <= 0.6 * H0, (H0, H1)
-    assert summary["region"]["polygons"] == pytest.approx(square.tolist())
+    assert np.allclose(summary["region"]["polygons"], [square.tolist()])
     assert summary["metrics"]["H"] == pytest.approx(H1, rel=0.05)  # scored over the region
     for i in range(3):
         log = (out / "logs" / f"robot_{i}.log").read_text()

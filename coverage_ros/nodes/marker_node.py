@@ -73,10 +73,10 @@ class MarkerNode(Node):
         self._idle: dict[int, int] = {}
         self._heard: dict[int, float] = {}  # robot id -> time.monotonic() of its last state
         self._shown: set[int] = set()  # robots whose markers the last array added
-        self.regions = RegionInput(self, lambda region: None, self._throttle.warn)
         self._region_shown = 0  # polygons in the last array
         self._topic_re = re.compile(rf"^/{re.escape(self.prefix)}(\d+)/coverage_state$")
         self._throttle = WarnThrottle(self.get_logger().warning)
+        self.regions = RegionInput(self, lambda region: None, self._throttle.warn)
         self.create_timer(DISCOVERY_PERIOD, self._discover)
         self.create_timer(1.0 / p["rate"], self._publish)
 

@@ -62,6 +62,9 @@ PARAMETERS: dict[str, tuple[Any, str]] = {  # name: (default, description)
                    "tracking_rate"),
     "comm_range": (0.0, "[m] neighbours farther than this are ignored; 0: no limit"),
     "neighbour_timeout": (2.0, "[s] a neighbour silent this long is ignored"),
+    "pose_source": ("ground_truth", "where the robot's pose comes from: 'ground_truth' "
+                    "(pose_topic) or 'tf' (map -> base_link from /tf, as AMCL or slam_toolbox "
+                    "give it)"),
     "pose_topic": ("ground_truth", "nav_msgs/Odometry with the robot pose in the map frame"),
     "scan_topic": ("scan", "sensor_msgs/LaserScan of the robot's lidar"),
     "use_scan": (True, "use the lidar in the safety filter (always on for sensor strategies)"),
@@ -107,6 +110,7 @@ class RobotNodeConfig:
     tracking_rate: float = 10.0
     state_rate: float = 2.5
     pose_topic: str = "ground_truth"
+    pose_source: str = "ground_truth"  # or "tf"
     scan_topic: str = "scan"
     use_scan: bool = True
     use_stamped_cmd_vel: bool = False
@@ -140,6 +144,9 @@ class RobotNodeConfig:
             if not self.goal_topic:
                 raise ConfigError.at("goal_topic", "is empty but drive is false", "",
                                      "the navigator's goal topic, e.g. goal_pose")
+        if self.pose_source not in ("ground_truth", "tf"):
+            raise ConfigError.at("pose_source", "unknown pose source", self.pose_source,
+                                 "'ground_truth' or 'tf'")
         if not (math.isfinite(self.goal_resend_distance) and self.goal_resend_distance >= 0):
             raise ConfigError.at("goal_resend_distance", "must be a number >= 0 [m]",
                                  self.goal_resend_distance)
@@ -260,7 +267,8 @@ def load_robot_inputs(values: dict[str, Any], namespace: str) -> RobotInputs:
         controller=controller, world=values["world"], map_topic=values["map_topic"],
         control_rate=values["control_rate"], update_load=values["update_load"],
         tracking_rate=values["tracking_rate"], state_rate=values["state_rate"],
-        pose_topic=values["pose_topic"], scan_topic=values["scan_topic"],
+        pose_topic=values["pose_topic"], pose_source=values["pose_source"],
+        scan_topic=values["scan_topic"],
         use_scan=values["use_scan"], use_stamped_cmd_vel=values["use_stamped_cmd_vel"],
         robot_prefix=prefix, connectivity=values["connectivity"], explore=explore,
         map_free=map_free,

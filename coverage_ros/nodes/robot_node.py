@@ -56,7 +56,9 @@ from coverage_ros.nodes.plumbing import (
 )
 from coverage_ros.nodes.region_input import RegionInput
 from coverage_ros.nodes.robot_config import PARAMETERS, load_robot_inputs
+from coverage_ros.nodes.robot_requests import RobotRequests
 from coverage_ros.nodes.runner import FatalConfigError, declare_parameters, run_node
+from coverage_ros.nodes.tf_input import TfPoseInput
 
 DISCOVERY_PERIOD = 1.0  # [s] wall time between looks at the ROS graph for new neighbours
 #: [s] wall time a robot listens for neighbours after its first pose before its first update
@@ -67,7 +69,7 @@ STATE_TYPE = "sensor_msgs/msg/JointState"
 PENDING_SCANS = 5
 
 
-class RobotNode(Node):
+class RobotNode(RobotRequests, Node):
     """See module docstring."""
 
     def __init__(self) -> None:
@@ -99,7 +101,10 @@ class RobotNode(Node):
         self.cell_pub = publisher(OccupancyGrid, "cell")
         self.polygon_pub = publisher(PolygonStamped, "cell_polygon")
         self.state_pub = publisher(JointState, "coverage_state")
-        self.create_subscription(Odometry, self.config.pose_topic, self._on_pose, TEAM_QOS)
+        if self.config.pose_source == "tf":  # map -> base_link, as AMCL or slam_toolbox give it
+            self.tf_input = TfPoseInput(self, self.frames, self._take_pose, self._warn)
+        else:
+            self.create_subscription(Odometry, self.config.pose_topic, self._on_pose, TEAM_QOS)
         if self.config.teleop_topic:
             self.create_subscription(Twist, self.config.teleop_topic, self._on_teleop, TEAM_QOS)
         self.create_service(SetBool, "set_manual", self._on_set_manual)
@@ -133,6 +138,8 @@ class RobotNode(Node):
                   else f"map from {self.config.map_topic or self.config.world}")
         if self.config.manual:
             source += f"; manual, driven by {self.config.teleop_topic}"
+        if self.config.pose_source == "tf":
+            source += f"; pose from /tf ({conv.MAP_FRAME} -> {self.frames.base_link})"
         self.get_logger().info(f"robot {cc.robot_id}: strategy {cc.strategy.name}, {source}; "
                                f"{cc.robot.describe()}")
 
@@ -187,11 +194,17 @@ class RobotNode(Node):
         if not all(math.isfinite(v) for v in pose):
             self._warn("pose", f"dropped a non-finite pose {pose} on {self.config.pose_topic}")
             return
+        self._take_pose(pose, conv.from_time_msg(msg.header.stamp))
+
+    def _take_pose(self, pose, stamp: float) -> None:
+        """The robot's pose in the map frame at ``stamp`` [s] (from pose_topic or /tf)."""
+        if self.controller is None:
+            return
         self.controller.set_pose(pose)
         if self._first_pose is None:
             self._first_pose = time.monotonic()
         if self.exchange is not None:
-            self._poses.add(conv.from_time_msg(msg.header.stamp), pose)
+            self._poses.add(stamp, pose)
             self._map_pending_scans()
 
     def _on_scan(self, msg: LaserScan) -> None:
@@ -225,47 +238,6 @@ class RobotNode(Node):
                 self._warn("scanpose", f"dropped a scan at t={stamp:.2f} s: no pose near it")
                 continue
             self.controller.integrate_scan(scan, pose, self._now())
-
-    def _on_teleop(self, msg: Twist) -> None:
-        c = self.controller
-        if c is None or not c.manual:
-            return
-        v, w = float(msg.linear.x), float(msg.angular.z)
-        if not (math.isfinite(v) and math.isfinite(w)):
-            self._warn("teleop", f"dropped a non-finite teleop command ({v}, {w}) on "
-                       f"{self.config.teleop_topic}")
-            return
-        c.teleop(v, w, self._now())
-
-    def _on_set_manual(self, request, response):
-        c = self.controller
-        if c is None:
-            response.success, response.message = False, "no map yet"
-            return response
-        if request.data and not self.config.drive:
-            response.success = False
-            response.message = "drive is false: the robot's own navigator drives it"
-            return response
-        c.set_manual(bool(request.data))
-        response.success = True
-        response.message = ("manual: driven by " + self.config.teleop_topic if request.data
-                            else "autonomous")
-        self.get_logger().info(f"robot {self.config.controller.robot_id}: {response.message}")
-        return response
-
-    def _set_region(self, region) -> None:
-        if self.controller is not None:  # else applied when the map comes (_build)
-            self.controller.set_region(region)
-
-    def _on_pause(self, request, response):
-        self._paused = bool(request.data)
-        if self.controller is not None:
-            self.controller.set_paused(self._paused)
-            self.goals.hold(conv.to_time_msg(self._now()), self.controller.pose, self._paused)
-        response.success = True
-        response.message = "paused" if self._paused else "resumed"
-        self.get_logger().info(f"robot {self.config.controller.robot_id}: {response.message}")
-        return response
 
     def _discover(self) -> None:
         """Subscribe to every new /<prefix><k>/coverage_state topic (k != own id), and when

@@ -33,6 +33,7 @@ from coverage_ros.nodes.plumbing import (
     quiet_publisher,
 )
 from coverage_ros.nodes.runner import declare_parameters, run_node
+from coverage_ros.nodes.tf_output import TfOutput
 from coverage_ros.sim.world import Scan, SimConfig, World
 from coverage_ros.worlds import resolve_world_path
 
@@ -55,6 +56,7 @@ class WorldNodeConfig:
     status_rate_hz: float = 1.0  # [Hz] wall time
     robot_prefix: str = "robot_"
     publish_map: bool = True
+    publish_tf: bool = True
     sim: SimConfig = field(default_factory=SimConfig)
 
     def __post_init__(self) -> None:
@@ -97,6 +99,8 @@ _PARAMETERS = {  # name: (default, description)
     "robot_prefix": ("robot_", "robot namespaces and frame prefixes are <prefix><id>"),
     "publish_map": (True, "publish the true map on /map (false: the robots explore an unknown "
                     "map)"),
+    "publish_tf": (True, "publish /tf (map -> odom -> base_link per robot) and /tf_static "
+                   "(base_link -> base_scan)"),
 }
 
 
@@ -138,6 +142,7 @@ class WorldNode(Node):
         self.clock_pub = self.create_publisher(Clock, "/clock", TEAM_QOS)
         self.map_pub = self.create_publisher(OccupancyGrid, "/map", MAP_QOS)
         self.status_pub = self.create_publisher(DiagnosticArray, "/world/robots", TEAM_QOS)
+        self.tf = TfOutput(self) if self.config.publish_tf else None
         self.create_subscription(String, "/world/spawn", self._on_spawn, TEAM_QOS)
         self.create_subscription(Int32, "/world/remove", self._on_remove, TEAM_QOS)
         if team_path:
@@ -200,9 +205,13 @@ class WorldNode(Node):
                                   event_callbacks=quiet_publisher()),
             self.create_publisher(LaserScan, frames.topic("scan"), SCAN_QOS,
                                   event_callbacks=quiet_publisher()))
+        if self.tf is not None:
+            self.tf.set_robot(robot_id, frames, conv.to_time_msg(self.sim.time))
 
     def _close_io(self, robot_id: int) -> None:
         io = self.io.pop(robot_id)
+        if self.tf is not None:
+            self.tf.set_robot(robot_id, None, conv.to_time_msg(self.sim.time))
         self.destroy_subscription(io.cmd_sub)
         for pub in (io.odom_pub, io.truth_pub, io.scan_pub):
             self.destroy_publisher(pub)
@@ -294,6 +303,9 @@ class WorldNode(Node):
                 io.truth_pub.publish(conv.odometry_msg(
                     stamp, conv.MAP_FRAME, io.frames.base_link, robot.pose(), twist,
                     out=io.truth_msg))
+        if self.tf is not None:
+            self.tf.publish(stamp, {rid: ((r.odom.x, r.odom.y, r.odom.yaw), r.pose())
+                                    for rid, r in self.sim.robots.items()})
 
     def _publish_scan(self, scan: Scan) -> None:
         io = self.io.get(scan.robot_id)

@@ -30,11 +30,13 @@ Conventions (REP 103 / REP 105 / REP 117)
   ``x``, ``y`` (the cell centre [m], ``map`` frame), ``hits``, ``misses`` (the sender's counts);
   see :mod:`.evidence`.
 
+* Transforms (``/tf``, ``/tf_static``): ``tf2_msgs/TFMessage`` of planar ``TransformStamped``;
+  see :mod:`.tf`.
 * RViz markers (``/coverage/markers``): one marker per robot and kind, id = robot id, namespace =
   kind; see :mod:`.markers`.
 
 The conversions are grouped by topic kind in :mod:`.basics`, :mod:`.grids`, :mod:`.motion`,
-:mod:`.team`, :mod:`.evidence` and :mod:`.markers`, and all re-exported here: nodes use
+:mod:`.team`, :mod:`.evidence`, :mod:`.markers` and :mod:`.tf`, and all re-exported here: nodes use
 ``conv.<name>``.
 
 Arrays cross the message boundary with ``array.array`` (``tobytes``/``np.frombuffer``): element-
@@ -84,6 +86,7 @@ from coverage_ros.nodes.conversions.team import (
     pose_stamped_to_pose,
     scan_to_points,
 )
+from coverage_ros.nodes.conversions.tf import TFMessage, tf_message, transform_msg, transforms_of
 
 __all__ = [
     "MAP_FRAME",
@@ -91,6 +94,7 @@ __all__ = [
     "RobotFrames",
     "RobotMarkers",
     "SpawnRequest",
+    "TFMessage",
     "cell_grid_msg",
     "cell_grid_to_grid",
     "clock_msg",
@@ -120,7 +124,10 @@ __all__ = [
     "robot_markers",
     "scan_to_points",
     "team_markers",
+    "tf_message",
     "to_time_msg",
+    "transform_msg",
+    "transforms_of",
     "twist_to_command",
     "yaw_to_quaternion",
 ]

@@ -1,0 +1,115 @@
+"""/tf like a real robot's: the frame math, tf2_msgs built with the upstream type hash, the
+world node's REP 105 chain per robot, and robots that take their pose from it."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+from rosutil import NodeProcess, RosClient, domain_id
+
+from coverage_ros.core.control.frames import FrameTree, compose, invert
+
+#: tf2_msgs/msg/TFMessage as every Jazzy install reports it (ros2 topic info -v).
+UPSTREAM_HASH = "RIHS01_e369d0f05a23ae52508854b66f6aa0437f3449d652e8cbf22d5abe85d020f087"
+
+poses = st.tuples(st.floats(-50, 50), st.floats(-50, 50), st.floats(-math.pi, math.pi))
+
+
+@given(poses, poses, poses)
+def test_compose_is_associative_and_invert_undoes_it(a, b, c):
+    left, right = compose(compose(a, b), c), compose(a, compose(b, c))
+    assert left[:2] == pytest.approx(right[:2], abs=1e-9)
+    assert math.cos(left[2] - right[2]) == pytest.approx(1.0)
+    ident = compose(a, invert(a))
+    assert ident[:2] == pytest.approx((0.0, 0.0), abs=1e-9) and math.sin(ident[2]) == \
+        pytest.approx(0.0, abs=1e-12)
+
+
+def test_the_tree_walks_from_base_link_up_to_map():
+    tree = FrameTree()
+    assert tree.lookup("map", "r/base_link") is None
+    tree.set("map", "r/odom", (1.0, 0.0, math.pi / 2), 5.0)
+    tree.set("r/odom", "r/base_footprint", (2.0, 0.0, 0.0), 6.0)
+    tree.set("/r/base_footprint", "r/base_link", (0.0, 0.0, 0.0), -math.inf)  # static
+    pose, stamp = tree.lookup("map", "r/base_link")
+    assert pose == pytest.approx((1.0, 2.0, math.pi / 2)) and stamp == 5.0
+    tree.set("map", "r/odom", (9.0, 9.0, 0.0), 4.0)  # older than the one kept: ignored
+    assert tree.lookup("map", "r/base_link")[0] == pytest.approx((1.0, 2.0, math.pi / 2))
+    tree.set("r/base_link", "map", (0.0, 0.0, 0.0), 7.0)  # someone publishes a loop
+    assert tree.lookup("world", "r/base_link") is None  # bounded, not endless
+    with pytest.raises(ValueError, match="not finite"):
+        tree.set("map", "x", (math.nan, 0.0, 0.0), 1.0)
+    with pytest.raises(ValueError, match="two different frames"):
+        tree.set("a", "a", (0.0, 0.0, 0.0), 1.0)
+
+
+def test_tf2_msgs_is_built_with_the_upstream_type_hash():
+    from tf2_msgs.msg import TFMessage
+
+    client = RosClient(domain_id(9), "hash_check")
+    try:
+        client.node.create_publisher(TFMessage, "/tf", 10)
+        info = client.node.get_publishers_info_by_topic("/tf")
+        assert [str(i.topic_type_hash) for i in info] == [UPSTREAM_HASH]
+        assert info[0].topic_type == "tf2_msgs/msg/TFMessage"
+    finally:
+        client.close()
+
+
+@pytest.mark.integration
+def test_the_world_publishes_each_robots_chain_consistent_with_ground_truth():
+    """Two robots driving with odometry noise: for each, map -> odom -> base_link composed
+    equals its ground truth at the same stamp, odom -> base_link is its odometry, and the
+    drift shows up in map -> odom; base_link -> base_scan is static."""
+    from geometry_msgs.msg import Twist
+    from nav_msgs.msg import Odometry
+    from tf2_msgs.msg import TFMessage
+
+    from coverage_ros.nodes import conversions as conv
+    from coverage_ros.nodes.tf_input import TF_STATIC_QOS
+
+    domain = domain_id(9)
+    with NodeProcess.world_node(domain, "world:=empty", "num_robots:=2", "seed:=4",
+                                "odom_noise_trans:=0.05", "odom_noise_rot:=0.05") as world:
+        client = RosClient(domain)
+        try:
+            tfs = client.subscribe("/tf", TFMessage, 100)
+            static = client.subscribe("/tf_static", TFMessage, TF_STATIC_QOS)
+            truth = {i: client.subscribe(f"/robot_{i}/ground_truth", Odometry) for i in (0, 1)}
+            cmd = {i: client.node.create_publisher(Twist, f"/robot_{i}/cmd_vel", 10)
+                   for i in (0, 1)}
+            drive = Twist()
+            drive.linear.x, drive.angular.z = 0.2, 0.4
+            for _ in range(60):
+                for pub in cmd.values():
+                    pub.publish(drive)
+                client.spin_for(0.1)
+            client.spin_until(lambda: static and all(truth.values()), 10, "tf_static")
+        finally:
+            client.close()
+        assert world.alive()
+    statics = {(p, c) for m in static for p, c, _, _ in conv.transforms_of(m)}
+    assert statics == {(f"robot_{i}/base_link", f"robot_{i}/base_scan") for i in (0, 1)}
+    by_stamp: dict = {}
+    for m in tfs:
+        for parent, child, pose, stamp in conv.transforms_of(m):
+            by_stamp.setdefault(stamp, FrameTree()).set(parent, child, pose, stamp)
+    checked, drift = 0, 0.0
+    for i in (0, 1):
+        for msg in truth[i][-20:]:
+            t = conv.from_time_msg(msg.header.stamp)
+            tree = by_stamp.get(t)
+            if tree is None:
+                continue
+            chain, _ = tree.lookup("map", f"robot_{i}/base_link")
+            want = conv.odometry_to_pose(msg)
+            assert chain[:2] == pytest.approx(want[:2], abs=1e-6)
+            assert math.cos(chain[2] - want[2]) == pytest.approx(1.0, abs=1e-9)
+            drift = max(drift, float(np.hypot(*tree.links[f"robot_{i}/odom"].pose[:2])))
+            checked += 1
+    assert checked >= 10
+    assert drift > 1e-4  # the odometry noise is in map -> odom

@@ -157,3 +157,18 @@ class RosClient:
         self.executor.shutdown()
         self.node.destroy_node()
         rclpy.try_shutdown(context=self.context)
+
+
+def spin_until_exit(client: RosClient, proc: subprocess.Popen, timeout: float) -> str:
+    """Spin ``client`` while ``proc`` (a launcher started with ``start_new_session``) runs, at
+    most ``timeout`` s; its stderr. A process group that outlives that is killed."""
+    deadline = time.monotonic() + timeout
+    try:
+        while proc.poll() is None and time.monotonic() < deadline:
+            client.spin_for(0.2)
+        return proc.communicate(timeout=30)[1]
+    finally:
+        if proc.poll() is None:
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()

@@ -6,14 +6,13 @@ from __future__ import annotations
 import json
 import math
 import subprocess
-import time
 
 import numpy as np
 import pytest
 from conftest import REPO
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from rosutil import RosClient, domain_id
+from rosutil import RosClient, domain_id, spin_until_exit
 
 from coverage_ros.core.strategies.base import MODES, mode_code, mode_name
 from coverage_ros.core.strategies.tangentbug.bug import BugMode
@@ -107,13 +106,8 @@ def test_a_team_shows_in_rviz_markers_and_a_robot_that_leaves_is_cleared(tmp_pat
          "--out", str(out), "--domain-id", str(domain)],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
     try:
-        deadline = time.monotonic() + 240
-        while proc.poll() is None and time.monotonic() < deadline:
-            client.spin_for(0.2)
-        _, err = proc.communicate(timeout=30)
+        err = spin_until_exit(client, proc, 240)
     finally:
-        if proc.poll() is None:
-            proc.kill()
         client.close()
     assert proc.returncode == 0, err[-3000:]
     summary = json.loads((out / "summary.json").read_text())

@@ -4,13 +4,14 @@ inside, and a live team that re-spreads into a polygon published on /coverage/re
 from __future__ import annotations
 
 import json
+import os
+import signal
 import subprocess
-import time
 
 import numpy as np
 import pytest
 from conftest import REPO
-from rosutil import RosClient, domain_id
+from rosutil import RosClient, domain_id, spin_until_exit
 
 from coverage_ros.core.geodesic.domain import CoverageDomain
 from coverage_ros.core.geodesic.tessellation import Generator, tessellate
@@ -100,13 +101,10 @@ def test_a_polygon_published_mid_run_draws_the_team_into_it(tmp_path):
         at_publish = [conv.coverage_state_values(states[i][-1]) for i in range(3)]
         pub.publish(conv.polygon_msg(conv.to_time_msg(0.0), np.array([[0, 0], [1, 1.0]])))
         pub.publish(conv.polygon_msg(conv.to_time_msg(0.0), square))
-        deadline = time.monotonic() + 200
-        while proc.poll() is None and time.monotonic() < deadline:
-            client.spin_for(0.2)
-        _, err = proc.communicate(timeout=30)
+        err = spin_until_exit(client, proc, 200)
     finally:
         if proc.poll() is None:
-            proc.kill()
+            os.killpg(proc.pid, signal.SIGKILL)
         client.close()
     assert proc.returncode == 0, err[-3000:]
     summary = json.loads((out / "summary.json").read_text())

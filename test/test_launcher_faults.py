@@ -7,6 +7,7 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -205,3 +206,40 @@ def test_the_clock_guard_sees_a_second_clock_and_time_going_back():
     assert "went back from 10.5 s to 3.0 s" in guard.check_time(3.0)
     assert guard.check_publishers(1) == "" and "2 nodes publish /clock" in \
         guard.check_publishers(2)
+
+
+@pytest.mark.integration
+@pytest.mark.slow
+def test_a_restarted_robot_rejoins_and_the_team_reconverges(tmp_path):
+    """Robot 1's process is killed mid-run and started again with the same id (its body stays,
+    as a robot whose software crashed): it rejoins, nobody counts it lost, and the team ends
+    spread out."""
+    out = tmp_path / "team"
+    proc = subprocess.run(
+        [str(REPO / ".venv" / "bin" / "coverage-team"), "--quiet", "--world", "empty",
+         "--robots", "3", "--duration", "45", "--seed", "2", "--restart", "1@15",
+         "--no-markers", "--out", str(out), "--domain-id", str(domain_id(29))],
+        capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    summary = json.loads((out / "summary.json").read_text())
+    robots = {r["id"]: r for r in summary["robots"]}
+    assert robots[1]["restarted_at"] == [pytest.approx(15.0, abs=1.0)]
+    assert all("lost_at" not in r for r in robots.values())
+    log = (out / "logs" / "robot_1.log").read_text()
+    assert log.count("robot 1: strategy geodesic") == 2  # two processes, one log
+    updates = [int(n) for n in re.findall(r"(\d+) coverage updates", log)]
+    assert len(updates) == 1 and updates[0] >= 20  # the second one covered until the end
+    m = summary["metrics"]
+    assert m["H"] <= 0.5 * m["H_start"], m
+    assert all(r["collisions"] == 0 for r in robots.values())
+
+
+def test_faults_are_checked_before_anything_starts():
+    from coverage_ros.cli.team import _faults
+
+    assert _faults(["0@5"], ["1@3", "0@2"], 2) == [(2.0, 0, "restart"), (3.0, 1, "restart"),
+                                                    (5.0, 0, "kill")]
+    for kills, restarts, message in [([], ["2@3"], "out of range"), ([], ["1"], "ID@SECONDS"),
+                                     (["1@3"], ["1@4"], "killed"), ([], ["0@-1"], ">= 0")]:
+        with pytest.raises(ConfigError, match=message):
+            _faults(kills, restarts, 2)

@@ -19,6 +19,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
 import yaml
 
 PACKAGE = "coverage_ros"
@@ -93,9 +94,11 @@ class ProcessSet:
         self.log_dir = log_dir
         self.children: dict[str, Child] = {}
 
-    def start(self, name: str, cmd: list[str]) -> Child:
+    def start(self, name: str, cmd: list[str], append: bool = False) -> Child:
+        """Start ``cmd`` as child ``name`` (replacing a dead one of that name); its output goes
+        to ``<log_dir>/<name>.log`` (``append``: after what the previous one wrote)."""
         log = self.log_dir / f"{name}.log"
-        with open(log, "wb") as fh:
+        with open(log, "ab" if append else "wb") as fh:
             popen = subprocess.Popen(cmd, env=self.env, stdout=fh, stderr=subprocess.STDOUT,
                                      stdin=subprocess.DEVNULL, start_new_session=True,
                                      preexec_fn=_die_with_parent)
@@ -137,3 +140,43 @@ class ProcessSet:
         except OSError:
             return ""
         return "\n".join(text[-lines:])
+
+
+class ProcessStats:
+    """CPU [% of one core] and memory (RSS) of every child process, sampled once a second."""
+
+    PERIOD = 1.0  # [s] wall
+
+    def __init__(self, procs) -> None:
+        import psutil
+
+        self.procs = procs
+        self.handles = {}
+        for name, child in procs.children.items():
+            with contextlib.suppress(psutil.Error):
+                self.handles[name] = psutil.Process(child.popen.pid)
+                self.handles[name].cpu_percent(None)  # starts the CPU time window
+        self.cpu: dict[str, list[float]] = {n: [] for n in self.handles}
+        self.rss: dict[str, float] = dict.fromkeys(self.handles, 0.0)
+        self.last = time.monotonic()
+
+    def sample(self, now: float) -> None:
+        import psutil
+
+        if now - self.last < self.PERIOD:
+            return
+        self.last = now
+        for name, h in self.handles.items():
+            with contextlib.suppress(psutil.Error):
+                self.cpu[name].append(h.cpu_percent(None))
+                self.rss[name] = max(self.rss[name], h.memory_info().rss / 2**20)
+
+    def report(self) -> dict:
+        per = {n: {"cpu_percent": round(float(np.mean(c)), 1) if c else None,
+                   "rss_mb_peak": round(self.rss[n], 1)} for n, c in self.cpu.items()}
+        robots = [v for n, v in per.items() if n.startswith("robot_") and v["cpu_percent"]]
+        return {"per_process": per, "robot_mean": {
+            "cpu_percent": round(float(np.mean([r["cpu_percent"] for r in robots])), 1)
+            if robots else None,
+            "rss_mb_peak": round(float(np.mean([r["rss_mb_peak"] for r in robots])), 1)
+            if robots else None}}

@@ -110,22 +110,34 @@ def build_parser() -> argparse.ArgumentParser:
                          "/coverage/region")
     ap.add_argument("--no-markers", action="store_true",
                     help="do not start marker_node (RViz markers on /coverage/markers)")
+    ap.add_argument("--restart", action="append", default=[], metavar="ID@SECONDS",
+                    help="kill robot ID's process at that sim time and start it again at once "
+                         "(its body stays): a crashed node that comes back")
     ap.add_argument("--stats", action="store_true",
                     help="sample CPU and memory of every process into summary.json")
     ap.add_argument("--quiet", action="store_true", help="no progress display")
     return ap
 
 
-def _kills(specs: list[str], n: int) -> list[tuple[float, int]]:
+def _faults(kills: list[str], restarts: list[str], n: int) -> list[tuple[float, int, str]]:
+    """``--kill`` and ``--restart`` ``ID@SECONDS`` items, sorted by time."""
     out = []
-    for spec in specs:
-        try:
-            rid, t = spec.split("@")
-            out.append((float(t), int(rid)))
-        except ValueError:
-            raise ConfigError.at("--kill", "must be ID@SECONDS", spec) from None
-        if not 0 <= out[-1][1] < n:
-            raise ConfigError.at("--kill", f"robot id out of range 0..{n - 1}", spec)
+    for option, action, specs in (("--kill", "kill", kills), ("--restart", "restart", restarts)):
+        for spec in specs:
+            try:
+                rid, t = spec.split("@")
+                out.append((float(t), int(rid), action))
+            except ValueError:
+                raise ConfigError.at(option, "must be ID@SECONDS", spec) from None
+            if not 0 <= out[-1][1] < n:
+                raise ConfigError.at(option, f"robot id out of range 0..{n - 1}", spec)
+            if not (math.isfinite(out[-1][0]) and out[-1][0] >= 0):
+                raise ConfigError.at(option, "needs a time >= 0 [s]", spec)
+    killed = {rid: t for t, rid, action in out if action == "kill"}
+    for t, rid, action in out:
+        if action == "restart" and killed.get(rid, math.inf) <= t:
+            raise ConfigError.at("--restart", f"robot {rid} is killed (--kill) before that",
+                                 f"{rid}@{t:g}")
     return sorted(out)
 
 
@@ -194,7 +206,7 @@ def run(args: argparse.Namespace) -> int:
     args.robots = len(team)
     specs = [m.spec for m in team]
     radius = max(s.radius for s in specs)
-    kills = _kills(args.kill, args.robots)
+    faults = _faults(args.kill, args.restart, args.robots)
     load = args.update_load if args.update_load is not None else default_update_load(args.robots)
     if not (math.isfinite(load) and 0 < load <= 1):
         raise ConfigError.at("--update-load", "must be a fraction in (0, 1]", load)
@@ -234,7 +246,10 @@ def run(args: argparse.Namespace) -> int:
                 for sig in (signal.SIGINT, signal.SIGTERM)}
     t_wall0 = time.monotonic()
     try:
-        tracker = TeamTracker(domain, world, team, args, kills, procs, say, region)
+        commands: dict[int, list[str]] = {}
+        tracker = TeamTracker(domain, world, team, args, faults, procs, say, region,
+                              relaunch=lambda rid: procs.start(f"robot_{rid}", commands[rid],
+                                                               append=True))
         # Robots first: they load while the world starts, then wait for /map and /clock.
         for member in team:
             params = {"robot_id": member.id, "use_sim_time": True, "strategy": args.strategy,
@@ -245,6 +260,7 @@ def run(args: argparse.Namespace) -> int:
                       **spec_parameters(member.spec)}
             cmd = executable("robot_node") + ros_args(f"/robot_{member.id}", **params)
             cmd += [a for k, v in extra.items() for a in ("-p", f"{k}:={v}")]
+            commands[member.id] = cmd
             procs.start(f"robot_{member.id}", cmd)
         procs.start("world", executable("world_node") + ros_args(
             world=str(world_path), team=str((out / "team.yaml").resolve()), seed=args.seed,

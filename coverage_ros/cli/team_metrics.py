@@ -2,8 +2,8 @@
 
 It listens to ``/clock``, ``/world/robots`` (poses, collisions, path lengths, separations:
 a few messages a second for the whole team, so that the monitor takes little of the CPU the
-robots need) and every robot's ``coverage_state``; shows progress; kills robots on schedule;
-and at the end computes the summary metrics (definitions in README "Team launcher"):
+robots need) and every robot's ``coverage_state``; shows progress; kills and restarts robots
+on schedule; and at the end computes the summary metrics (definitions in README "Team launcher"):
 
 * ``H`` / ``H_start``: geodesic coverage cost (density-weighted, as ``coverage-plan``) of the
   final / start positions of the robots still running;
@@ -19,6 +19,7 @@ from __future__ import annotations
 import contextlib
 import math
 import signal
+import subprocess
 import sys
 import time
 
@@ -33,6 +34,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Int32
 from std_srvs.srv import SetBool
 
+from coverage_ros.cli.processes import ProcessStats
 from coverage_ros.cli.team_exploration import TeamExploration
 from coverage_ros.core.geodesic.tessellation import Generator, tessellate
 from coverage_ros.core.metrics import coverage_ratio, mass_deviation
@@ -48,14 +50,16 @@ TRACK_STEP = 0.05  # [m] a robot's path in summary.png gets a point every this f
 
 
 class TeamTracker:
-    def __init__(self, domain, world, team, args, kills, procs, say,
-                 region: Region | None = None) -> None:
+    def __init__(self, domain, world, team, args, faults, procs, say,
+                 region: Region | None = None, relaunch=None) -> None:
+        """``faults``: sorted ``(sim time after ready, robot id, "kill" | "restart")``;
+        ``relaunch(robot_id)`` starts a robot's process again (restarts)."""
         self.domain, self.world, self.args = domain, world, args
         self.base_domain = domain  # the world's density; a region of interest restricts it
         self.region_set_at: float | None = None
         self.team = {m.id: m for m in team}
         self.starts = np.array([m.start for m in team], dtype=np.float64)
-        self.kills = list(kills)
+        self.faults, self.relaunch, self.restarted = list(faults), relaunch, {}
         self.procs, self.say = procs, say
         n = args.robots
         # The launcher handles SIGINT itself (children stopped, a summary written): rclpy's
@@ -174,9 +178,9 @@ class TeamTracker:
             while self.sim_time < end:
                 rclpy.spin_once(self.node, timeout_sec=0.05)
                 self._check_children()
-                while self.kills and self.sim_time - self.ready_at >= self.kills[0][0]:
-                    _, rid = self.kills.pop(0)
-                    self._kill(rid)
+                while self.faults and self.sim_time - self.ready_at >= self.faults[0][0]:
+                    _, rid, action = self.faults.pop(0)
+                    self._kill(rid) if action == "kill" else self._restart(rid)
                 now = time.monotonic()
                 if self.proc_stats is not None:
                     self.proc_stats.sample(now)
@@ -221,6 +225,17 @@ class TeamTracker:
                 self.say(f"\n  robot {i} exited ({child.popen.returncode}):\n"
                          f"{self.procs.tail(child)}")
                 self.lost[i] = self.sim_time
+
+    def _restart(self, rid: int) -> None:
+        """The robot's process dies (SIGKILL) and starts again at once with the same id and
+        parameters; its body stays where it is, as a robot whose software crashed would."""
+        t = self.sim_time - self.ready_at
+        self.say(f"\n  restarting robot {rid} at sim time {t:.1f} s")
+        self.procs.signal(f"robot_{rid}", signal.SIGKILL)
+        with contextlib.suppress(subprocess.TimeoutExpired):
+            self.procs.children[f"robot_{rid}"].popen.wait(timeout=3.0)
+        self.relaunch(rid)
+        self.restarted.setdefault(rid, []).append(round(t, 2))
 
     def _kill(self, rid: int) -> None:
         self.say(f"\n  killing robot {rid} at sim time {self.sim_time:.1f} s")
@@ -283,7 +298,8 @@ class TeamTracker:
                 "collisions": int(float(st.get("collisions", 0))),
                 "spec": self.team[i].spec.numbers(), "role": self.team[i].role,
                 "body": self._body(st),
-                **({"lost_at": round(self.lost[i], 2)} if i in self.lost else {})})
+                **({"lost_at": round(self.lost[i], 2)} if i in self.lost else {}),
+                **({"restarted_at": self.restarted[i]} if i in self.restarted else {})})
         H = float(tess.cost) if tess is not None else math.nan
         return {
             "world": str(self.world.source), "strategy": self.args.strategy,
@@ -309,21 +325,16 @@ class TeamTracker:
         }
 
     def picture(self, path) -> None:
-        """``summary.png``: the map, the importance density under the final cells, each
-        robot's driven path from its start (ring) to its end (disc)."""
-        from coverage_ros.viz.png import density_underlay, padded_tracks, render_plan
+        """``summary.png`` (:func:`coverage_ros.viz.png.render_team`)."""
+        from coverage_ros.viz.png import render_team
 
         alive = self._present()
         P = np.array([self.poses[i][:2] for i in alive]).reshape(-1, 2)
-        labels = None
-        if len(P):
-            own = tessellate(self.domain, self._generators(alive, P)).labels
-            labels = np.where(own >= 0, np.asarray(alive)[np.maximum(own, 0)], -1)
+        own = tessellate(self.domain, self._generators(alive, P)).labels if len(P) else None
         n = self.args.robots
-        tracks = padded_tracks(self.starts, [self.tracks.get(i, []) for i in range(n)])
-        render_plan(self.world.grid, labels, tracks, path, robot_ids=list(range(n)),
-                    title=f"{self.args.strategy}: {n} robots, {self.sim_time:.0f} s",
-                    underlay=density_underlay(self.domain.density))
+        render_team(path, self.world.grid, own, alive, self.starts,
+                    [self.tracks.get(i, []) for i in range(n)], self.domain.density,
+                    f"{self.args.strategy}: {n} robots, {self.sim_time:.0f} s")
 
     @staticmethod
     def _body(status: dict[str, str]) -> dict[str, float]:
@@ -343,46 +354,6 @@ class TeamTracker:
     def close(self) -> None:
         self.node.destroy_node()
         rclpy.try_shutdown()
-
-
-class ProcessStats:
-    """CPU [% of one core] and memory (RSS) of every child process, sampled once a second."""
-
-    PERIOD = 1.0  # [s] wall
-
-    def __init__(self, procs) -> None:
-        import psutil
-
-        self.procs = procs
-        self.handles = {}
-        for name, child in procs.children.items():
-            with contextlib.suppress(psutil.Error):
-                self.handles[name] = psutil.Process(child.popen.pid)
-                self.handles[name].cpu_percent(None)  # starts the CPU time window
-        self.cpu: dict[str, list[float]] = {n: [] for n in self.handles}
-        self.rss: dict[str, float] = dict.fromkeys(self.handles, 0.0)
-        self.last = time.monotonic()
-
-    def sample(self, now: float) -> None:
-        import psutil
-
-        if now - self.last < self.PERIOD:
-            return
-        self.last = now
-        for name, h in self.handles.items():
-            with contextlib.suppress(psutil.Error):
-                self.cpu[name].append(h.cpu_percent(None))
-                self.rss[name] = max(self.rss[name], h.memory_info().rss / 2**20)
-
-    def report(self) -> dict:
-        per = {n: {"cpu_percent": round(float(np.mean(c)), 1) if c else None,
-                   "rss_mb_peak": round(self.rss[n], 1)} for n, c in self.cpu.items()}
-        robots = [v for n, v in per.items() if n.startswith("robot_") and v["cpu_percent"]]
-        return {"per_process": per, "robot_mean": {
-            "cpu_percent": round(float(np.mean([r["cpu_percent"] for r in robots])), 1)
-            if robots else None,
-            "rss_mb_peak": round(float(np.mean([r["rss_mb_peak"] for r in robots])), 1)
-            if robots else None}}
 
 
 def summary_table(summary: dict) -> str:

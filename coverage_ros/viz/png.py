@@ -96,3 +96,17 @@ def padded_tracks(starts: np.ndarray, tracks: list[list[tuple[float, float]]]) -
     rows = [[tuple(s[:2])] + list(t) for s, t in zip(starts, tracks, strict=True)]
     T = max(len(r) for r in rows)
     return np.array([[r[min(k, len(r) - 1)] for r in rows] for k in range(T)], dtype=np.float64)
+
+
+def render_team(path, grid: GridMap, own: np.ndarray | None, alive: list[int],
+                starts: np.ndarray, tracks: list[list[tuple[float, float]]],
+                density: np.ndarray, title: str) -> Path:
+    """A team run's picture (``coverage-team``'s ``summary.png``): ``own (H, W)`` cell labels
+    indexing ``alive`` (robot ids), each robot's start and driven ``tracks``, the importance
+    ``density`` under the cells."""
+    labels = None
+    if own is not None:
+        labels = np.where(own >= 0, np.asarray(alive)[np.maximum(own, 0)], -1)
+    return render_plan(grid, labels, padded_tracks(starts, tracks), path,
+                       robot_ids=list(range(len(starts))), title=title,
+                       underlay=density_underlay(density))

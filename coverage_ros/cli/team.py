@@ -322,7 +322,8 @@ def _report(args, out: Path, tracker, procs: ProcessSet, viewer, wall: float,
     tracker.picture(out / "summary.png")
     if not args.quiet:
         print(summary_table(summary))
-    say(f"coverage-team: wrote {out / 'summary.json'}; logs in {out / 'logs'}")
+    say(f"coverage-team: wrote {out / 'summary.json'} and {out / 'summary.png'}; logs in "
+        f"{out / 'logs'}")
     if args.record:
         say(f"  recording: {out / 'recording.rrd'}  (open it with: rerun {out / 'recording.rrd'})")
     if viewer is not None:

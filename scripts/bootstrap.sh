@@ -119,18 +119,26 @@ bootstrap_env() {
     export PYTHONUNBUFFERED=1
 }
 
+_apt_install() {  # _apt_install WHAT PACKAGE...: Debian packages, when root with apt-get
+    local what="$1"; shift
+    [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null || {
+        _say "warning: $* missing and cannot be installed here (needs root and apt-get): $what"
+        return 0; }
+    _say "installing $* (Debian packages, $what)"
+    if ! timeout 900 apt-get install -y -q "$@" >/dev/null 2>&1; then
+        timeout 600 apt-get update -q >/dev/null 2>&1 || true
+        timeout 900 apt-get install -y -q "$@" >/dev/null 2>&1 ||
+            _say "warning: could not install $*; $what will fail"
+    fi
+}
+
 bootstrap_tools() {
     # nftables: the lossy-link tests and scripts/bench_faults drop packets inside a network
-    # namespace with it (this kernel has no netem). A Debian package; installed when missing
-    # and we are root with apt-get (otherwise those tests say what is missing).
-    if ! command -v nft >/dev/null 2>&1 && [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
-        _say "installing nftables (Debian package, for the lossy-link tests)"
-        if ! timeout 600 apt-get install -y -q nftables >/dev/null 2>&1; then
-            timeout 600 apt-get update -q >/dev/null 2>&1 || true
-            timeout 600 apt-get install -y -q nftables >/dev/null 2>&1 ||
-                _say "warning: could not install nftables; the lossy-link tests will fail"
-        fi
-    fi
+    # namespace with it (this kernel has no netem).
+    command -v nft >/dev/null 2>&1 || _apt_install "for the lossy-link tests" nftables
+    # Chromium and its WebDriver: the test that loads --serve-web's viewer in a headless browser.
+    { command -v chromium >/dev/null 2>&1 && command -v chromedriver >/dev/null 2>&1; } ||
+        _apt_install "for the web viewer test" chromium chromium-driver
 }
 
 bootstrap_interfaces() {

@@ -124,12 +124,16 @@ def test_an_interrupt_at_any_moment_leaves_nothing_behind(tmp_path, when):
 
 @pytest.mark.integration
 @pytest.mark.slow
-def test_serve_web_takes_free_ports_and_prints_the_viewer_address(tmp_path):
+def test_serve_web_takes_free_ports_and_shows_the_team_in_a_browser(tmp_path):
     """Another run holds the default ports (9090, 9876): the web viewer still comes up, on
-    ports the kernel gave, and its address is printed on the console even with --quiet."""
-    import re
+    ports the kernel gave, and its address is printed on the console even with --quiet. A
+    headless Chromium opens that address and the viewer in it holds the team: the map, cells,
+    robots, paths and the H and mass plots (read back from the recording the viewer saves)."""
     import socket
     import urllib.request
+
+    from browser import HeadlessViewer
+    from rerun.chunk import RrdReader
 
     held = []
     for port in (9090, 9876):
@@ -141,9 +145,12 @@ def test_serve_web_takes_free_ports_and_prints_the_viewer_address(tmp_path):
     out = tmp_path / "team"
     proc = subprocess.Popen(
         [str(REPO / ".venv" / "bin" / "coverage-team"), "--quiet", "--world", "empty",
-         "--robots", "2", "--duration", "15", "--serve-web", "--no-markers", "--out", str(out),
+         "--robots", "2", "--duration", "45", "--serve-web", "--no-markers", "--out", str(out),
          "--domain-id", str(domain_id(6))],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    want = {"/world/map", "/world/cells", "/world/robots", "/world/goals", "/metrics/H"}
+    want |= {f"/{kind}/robot_{i}" for kind in ("world/trajectories", "world/plans",
+                                               "metrics/mass") for i in range(2)}
     try:
         line = proc.stderr.readline()
         m = re.match(r"coverage-team: web viewer at (http://127\.0\.0\.1:(\d+)/\?url=\S+)", line)
@@ -156,6 +163,18 @@ def test_serve_web_takes_free_ports_and_prints_the_viewer_address(tmp_path):
                 break
             time.sleep(0.5)
         assert page, "the web viewer never answered"
+        with HeadlessViewer(m.group(1)) as viewer:
+            viewer.wait_started()
+            seen: set[str] = set()
+            for attempt in range(30):
+                rrd = viewer.save_recording(tmp_path / f"browser-{attempt}.rrd")
+                seen = set(RrdReader(rrd).store().schema().entity_paths())
+                if want <= seen:
+                    break
+                time.sleep(1.0)
+            viewer.screenshot(tmp_path / "browser.png")
+            assert viewer.panic() is None, viewer.panic()
+        assert want <= seen, f"the browser's viewer lacks {sorted(want - seen)} (has {seen})"
         _, err = proc.communicate(timeout=200)
     finally:
         if proc.poll() is None:

@@ -1,0 +1,85 @@
+"""A headless Chromium (Debian's ``chromium`` and ``chromium-driver``, driven by selenium) that
+opens the rerun web viewer and hands back what the viewer holds, for tests."""
+
+from __future__ import annotations
+
+import base64
+import shutil
+import time
+from pathlib import Path
+
+# The viewer's page keeps its WebHandle in window._handle once the app has started;
+# save_recording() encodes the recording it shows as .rrd bytes.
+SAVE_RECORDING = """
+const done = arguments[arguments.length - 1];
+try {
+  const bytes = window._handle.save_recording();
+  let text = '';
+  for (let i = 0; i < bytes.length; i += 0x8000) {
+    text += String.fromCharCode.apply(null, bytes.subarray(i, i + 0x8000));
+  }
+  done(btoa(text));
+} catch (e) {
+  done('error: ' + e);
+}
+"""
+
+
+def chromium_paths() -> tuple[str, str]:
+    browser, driver = shutil.which("chromium"), shutil.which("chromedriver")
+    if not (browser and driver):
+        raise RuntimeError("chromium and chromedriver are needed (Debian: apt install chromium "
+                           "chromium-driver; scripts/bootstrap.sh installs them when root)")
+    return browser, driver
+
+
+class HeadlessViewer:
+    """``with HeadlessViewer(url) as viewer: viewer.recording(...)`` - Chromium without a GPU
+    (the viewer falls back to WebGL on SwiftShader, its "software rasterizer")."""
+
+    def __init__(self, url: str, size: tuple[int, int] = (1280, 800)) -> None:
+        from selenium import webdriver
+        from selenium.webdriver.chrome.service import Service
+
+        browser, driver = chromium_paths()
+        options = webdriver.ChromeOptions()
+        options.binary_location = browser
+        for arg in ("--headless=new", "--no-sandbox", "--disable-gpu", "--use-angle=swiftshader",
+                    "--enable-unsafe-swiftshader", f"--window-size={size[0]},{size[1]}"):
+            options.add_argument(arg)
+        self.driver = webdriver.Chrome(options=options, service=Service(driver))
+        self.driver.set_script_timeout(60)
+        self.driver.get(url)
+
+    def __enter__(self) -> HeadlessViewer:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.driver.quit()
+
+    def wait_started(self, timeout: float = 90.0) -> None:
+        """Until the wasm app runs (its handle exists), or raise with the page's last words."""
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            if self.driver.execute_script("return typeof window._handle !== 'undefined'"):
+                return
+            time.sleep(0.5)
+        raise AssertionError(f"the web viewer did not start within {timeout:g} s: "
+                             f"{self.driver.find_element('id', 'center_text').text!r}")
+
+    def panic(self) -> str | None:
+        return self.driver.execute_script(
+            "return window._handle.has_panicked() ? (window._handle.panic_message() || '?') "
+            ": null")
+
+    def save_recording(self, path: Path) -> Path:
+        """The recording the viewer holds right now, written to ``path`` (.rrd)."""
+        text = self.driver.execute_async_script(SAVE_RECORDING)
+        if text.startswith("error: "):
+            raise AssertionError(f"the viewer could not save its recording: {text}")
+        path.write_bytes(base64.b64decode(text))
+        return path
+
+    def screenshot(self, path: Path) -> Path:
+        self.driver.save_screenshot(str(path))
+        return path

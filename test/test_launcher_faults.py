@@ -68,6 +68,13 @@ def test_a_domain_with_someone_else_on_it_is_not_picked():
 @pytest.mark.parametrize(("args", "message"), [
     (["--robots", "500", "--world", "l_shape"], "--robots: 500 robots"),
     (["--domain-id", "300"], "--domain-id: must be in 0..232"),
+    # Robots on other hosts while discovery stays on this one (LOCALHOST): never found.
+    (["--robots", "3", "--remote-robots", "2"], "--remote-robots: robots on other hosts need "
+     "DDS discovery beyond this host"),
+    (["--robots", "3", "--remote-robots", "3"], "--remote-robots: robot id out of range 0..2"),
+    (["--robots", "3", "--remote-robots", "1", "--discovery-server", "127.0.0.1",
+      "--restart", "1@5"], "--kill/--restart: cannot reach a robot on another host"),
+    (["--discovery-server", "localhost:x"], "--discovery-server: must be IPV4[:PORT]"),
 ])
 def test_impossible_runs_are_refused_before_anything_starts(tmp_path, args, message):
     out = tmp_path / "team"

@@ -26,6 +26,14 @@ import yaml
 from coverage_ros.cli.domains import acquire_domain
 from coverage_ros.cli.processes import ProcessSet, executable, parameter_text, ros_args
 from coverage_ros.cli.team_metrics import TeamTracker, summary_table
+from coverage_ros.cli.team_network import (
+    check_reach,
+    parse_discovery_address,
+    parse_remote_robots,
+    remote_command,
+    start_discovery_server,
+    write_remote_script,
+)
 from coverage_ros.cli.team_setup import build_team
 from coverage_ros.core.geodesic.domain import CoverageDomain
 from coverage_ros.core.strategies import EXPLORERS, STRATEGIES, strategy_choice
@@ -41,6 +49,7 @@ from coverage_ros.worlds import resolve_world_path
 #: (everything is gone within 10 s).
 INTERRUPT_GRACE = 4.0
 STARTUP_TIMEOUT = 90.0  # [s] wall time for the world and robots to come up (16 robots, 2 cores)
+REMOTE_STARTUP_TIMEOUT = 600.0  # [s] ... when robots on other hosts are started by hand
 PROGRESS_PERIOD = 0.5  # [s] wall time between progress refreshes
 #: [s] wall time between coverage cost evaluations for the progress bar (a tessellation of a
 #: large map costs ~0.5 s of CPU that the robots need more).
@@ -115,6 +124,14 @@ def build_parser() -> argparse.ArgumentParser:
                          "(its body stays): a crashed node that comes back")
     ap.add_argument("--stats", action="store_true",
                     help="sample CPU and memory of every process into summary.json")
+    ap.add_argument("--remote-robots", metavar="ID,ID,...",
+                    help="robots whose processes run on other hosts: the world simulates them, "
+                    "the launcher prints (and writes to <out>/remote/) the command for each "
+                    "host and waits for them to join")
+    ap.add_argument("--discovery-server", nargs="?", const="127.0.0.1", metavar="IPV4[:PORT]",
+                    help="run a Fast DDS discovery server on this address (default "
+                    "127.0.0.1:11811) and make every process a client of it "
+                    "(ROS_DISCOVERY_SERVER) instead of simple discovery")
     ap.add_argument("--quiet", action="store_true", help="no progress display")
     return ap
 
@@ -207,6 +224,13 @@ def run(args: argparse.Namespace) -> int:
     specs = [m.spec for m in team]
     radius = max(s.radius for s in specs)
     faults = _faults(args.kill, args.restart, args.robots)
+    remote = parse_remote_robots(args.remote_robots, args.robots)
+    if any(rid in remote for _, rid, _ in faults):
+        raise ConfigError.at("--kill/--restart", "cannot reach a robot on another host",
+                             sorted({rid for _, rid, _ in faults if rid in remote}))
+    discovery = (parse_discovery_address(args.discovery_server)
+                 if args.discovery_server is not None else None)
+    check_reach(dict(os.environ), remote, discovery is not None)
     load = args.update_load if args.update_load is not None else default_update_load(args.robots)
     if not (math.isfinite(load) and 0 < load <= 1):
         raise ConfigError.at("--update-load", "must be a fraction in (0, 1]", load)
@@ -228,13 +252,19 @@ def run(args: argparse.Namespace) -> int:
     env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     env["ROS_DOMAIN_ID"] = str(domain_id)
     env["PYTHONUNBUFFERED"] = "1"
+    if discovery is not None:
+        env["ROS_DISCOVERY_SERVER"] = "{}:{}".format(*discovery)
+        env["ROS_SUPER_CLIENT"] = "TRUE"  # robots find neighbours in the graph: see all of it
     # The launcher's own monitor node joins the same domain.
-    os.environ["ROS_DOMAIN_ID"] = env["ROS_DOMAIN_ID"]
-    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = env["ROS_AUTOMATIC_DISCOVERY_RANGE"]
+    for key in ("ROS_DOMAIN_ID", "ROS_AUTOMATIC_DISCOVERY_RANGE", "ROS_DISCOVERY_SERVER",
+                "ROS_SUPER_CLIENT"):
+        if key in env:
+            os.environ[key] = env[key]
     say = (lambda *_: None) if args.quiet else (lambda m: print(m, file=sys.stderr, flush=True))
+    reach = (f"server {env['ROS_DISCOVERY_SERVER']}" if discovery is not None
+             else env["ROS_AUTOMATIC_DISCOVERY_RANGE"])
     say(f"coverage-team: {args.robots} x {args.strategy} on {world_path} for {args.duration:g} "
-        f"s sim time (ROS_DOMAIN_ID={domain_id}, discovery "
-        f"{env['ROS_AUTOMATIC_DISCOVERY_RANGE']}); output in {out}")
+        f"s sim time (ROS_DOMAIN_ID={domain_id}, discovery {reach}); output in {out}")
 
     procs = ProcessSet(env, out / "logs")
     interrupted = False
@@ -246,6 +276,8 @@ def run(args: argparse.Namespace) -> int:
                 for sig in (signal.SIGINT, signal.SIGTERM)}
     t_wall0 = time.monotonic()
     try:
+        if discovery is not None:
+            start_discovery_server(procs, discovery)
         commands: dict[int, list[str]] = {}
         tracker = TeamTracker(domain, world, team, args, faults, procs, say, region,
                               relaunch=lambda rid: procs.start(f"robot_{rid}", commands[rid],
@@ -261,7 +293,12 @@ def run(args: argparse.Namespace) -> int:
             cmd = executable("robot_node") + ros_args(f"/robot_{member.id}", **params)
             cmd += [a for k, v in extra.items() for a in ("-p", f"{k}:={v}")]
             commands[member.id] = cmd
-            procs.start(f"robot_{member.id}", cmd)
+            if member.id in remote:  # printed even with --quiet: someone has to run it
+                script = write_remote_script(out / "remote" / f"robot_{member.id}.sh", env, cmd)
+                print(f"coverage-team: start robot {member.id} on its host ({script}):\n  "
+                      f"{remote_command(env, cmd)}", file=sys.stderr, flush=True)
+            else:
+                procs.start(f"robot_{member.id}", cmd)
         procs.start("world", executable("world_node") + ros_args(
             world=str(world_path), team=str((out / "team.yaml").resolve()), seed=args.seed,
             real_time_factor=float(args.rtf), clock_rate_hz=float(args.clock_rate),
@@ -270,7 +307,8 @@ def run(args: argparse.Namespace) -> int:
         viewer = _start_viz(args, procs, out, radius, world_path, say)
         if not args.no_markers:
             procs.start("markers", executable("marker_node") + ros_args(use_sim_time=True))
-        tracker.run(STARTUP_TIMEOUT, PROGRESS_PERIOD, METRICS_PERIOD)
+        tracker.run(REMOTE_STARTUP_TIMEOUT if remote else STARTUP_TIMEOUT, PROGRESS_PERIOD,
+                    METRICS_PERIOD)
     except KeyboardInterrupt:
         interrupted = True
     except RuntimeError as exc:

@@ -1,0 +1,87 @@
+"""A team across hosts: network namespaces joined by veth links and a bridge stand for machines
+(world node and two robots on one, two robots on another), with simple discovery over their
+subnet and with a Fast DDS discovery server. The three-host runs against a one-host reference
+are in ``scripts/bench_faults``."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import pytest
+from conftest import shared_map
+from rosutil import domain_id
+
+from coverage_ros.bench.faults import have_tools
+from coverage_ros.bench.hosts import hosts_network, run_across_hosts
+from coverage_ros.cli.plan import main as plan_main
+
+pytestmark = [pytest.mark.integration, pytest.mark.slow]
+
+RECEIVE = """
+import socket
+s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+s.bind(("{}", 7399)); s.settimeout(20)
+print(s.recv(64).decode())
+"""
+SEND = """
+import socket, sys, time
+s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+for _ in range(50):
+    s.sendto(b"hello", ("{}", 7399)); time.sleep(0.1)
+try:  # the machine's real networks are not reachable from a host
+    s.connect(("8.8.8.8", 53)); print("outside reachable")
+except OSError as exc:
+    print("outside unreachable", exc.errno)
+"""
+
+
+def test_hosts_reach_each_other_only_through_their_links():
+    assert have_tools() == ""
+    with hosts_network(2) as (a, b):
+        receiver = subprocess.Popen(["ip", "netns", "exec", b.namespace, sys.executable, "-c",
+                                     RECEIVE.format(b.address)], stdout=subprocess.PIPE,
+                                    text=True)
+        sent = subprocess.run(["ip", "netns", "exec", a.namespace, sys.executable, "-c",
+                               SEND.format(b.address)], capture_output=True, text=True,
+                              timeout=60)
+        assert receiver.communicate(timeout=30)[0].strip() == "hello"
+        assert sent.stdout.strip().startswith("outside unreachable"), sent.stdout + sent.stderr
+        routes = subprocess.run(["ip", "-n", a.namespace, "-j", "route", "show"],
+                                capture_output=True, text=True, check=True).stdout
+        assert all(r["dst"] != "default" for r in json.loads(routes)), routes
+
+
+@pytest.mark.parametrize("discovery_server", [False, True], ids=["simple", "server"])
+def test_a_team_split_over_two_hosts_covers_as_on_one(tmp_path, discovery_server):
+    sandbox = shared_map("tb3_sandbox")
+    plan = tmp_path / "plan.json"
+    assert plan_main(["--map", str(sandbox), "--robots", "4", "--seed", "5", "--json",
+                      str(plan), "--quiet"]) == 0
+    planned = json.loads(plan.read_text())["H"]
+    out = tmp_path / "team"
+    # With the discovery server the hosts have no multicast route at all: simple discovery
+    # could not join them, so a team that works found itself through the server.
+    with hosts_network(2, multicast=not discovery_server) as hosts:
+        run = run_across_hosts(hosts, out, [
+            "--world", str(sandbox), "--robots", "4", "--duration", "40", "--seed", "5",
+            "--no-markers", "--domain-id", str(domain_id(24 if discovery_server else 25))],
+            remote={2: 1, 3: 1}, discovery_server=discovery_server)
+    m = run.summary["metrics"]
+    print(f"{'server' if discovery_server else 'simple'}: H {m['H']:.2f} (start "
+          f"{m['H_start']:.2f}, plan {planned:.2f}), packets {run.packets}")
+    assert run.placement[2] == run.placement[3] == hosts[1].namespace
+    assert m["H"] <= 0.6 * m["H_start"] and m["H"] <= 1.3 * planned, (m, planned)
+    assert all(r["collisions"] == 0 for r in run.summary["robots"]), run.summary["robots"]
+    # Each side found the robots of the other host, and that traffic crossed the links.
+    logs = {i: (out / "logs" / f"robot_{i}.log").read_text() for i in range(4)}
+    for i, others in ((0, (2, 3)), (3, (0, 1))):
+        for j in others:
+            assert f"neighbour {j} found" in logs[i], logs[i][-2000:]
+    assert min(run.packets.values()) > 500, run.packets
+    script = (out / "remote" / "robot_3.sh").read_text()
+    assert "ros2 run coverage_ros robot_node --ros-args -r __ns:=/robot_3" in script
+    if discovery_server:
+        assert f"ROS_DISCOVERY_SERVER={hosts[0].address}:11811" in script
+        assert (out / "logs" / "discovery.log").read_text().count("Server is running") == 1

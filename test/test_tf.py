@@ -92,11 +92,11 @@ def test_the_world_publishes_each_robots_chain_consistent_with_ground_truth():
         finally:
             client.close()
         assert world.alive()
-    statics = {(p, c) for m in static for p, c, _, _ in conv.transforms_of(m)}
+    statics = {(p, c) for m in static for p, c, _, _ in conv.transforms_of(m)[0]}
     assert statics == {(f"robot_{i}/base_link", f"robot_{i}/base_scan") for i in (0, 1)}
     by_stamp: dict = {}
     for m in tfs:
-        for parent, child, pose, stamp in conv.transforms_of(m):
+        for parent, child, pose, stamp in conv.transforms_of(m)[0]:
             by_stamp.setdefault(stamp, FrameTree()).set(parent, child, pose, stamp)
     checked, drift = 0, 0.0
     for i in (0, 1):

@@ -85,6 +85,7 @@ class RobotNode(RobotRequests, Node):
         self._subs: dict[int, object] = {}
         self._last_tick = None
         self._first_pose: float | None = None  # [s] monotonic
+        self._pose_stamp = -math.inf  # [s] stamp of the last pose taken from pose_topic
         self._last_state = -math.inf
         self._paused = False  # asked before the map came: applied when the controller is built
 
@@ -191,10 +192,17 @@ class RobotNode(RobotRequests, Node):
                        f"{conv.MAP_FRAME!r}) on {self.config.pose_topic}")
             return
         pose = conv.odometry_to_pose(msg)
-        if not all(math.isfinite(v) for v in pose):
-            self._warn("pose", f"dropped a non-finite pose {pose} on {self.config.pose_topic}")
+        stamp = conv.from_time_msg(msg.header.stamp)
+        problem = (conv.stamp_problem(msg.header.stamp)
+                   or conv.quaternion_problem(msg.pose.pose.orientation)
+                   or (None if all(math.isfinite(v) for v in pose) else f"{pose} is not finite")
+                   or (None if stamp >= self._pose_stamp else f"stamp {stamp:.3f} s is older "
+                       f"than the last pose's ({self._pose_stamp:.3f} s)"))
+        if problem is not None:
+            self._warn("pose", f"dropped a pose on {self.config.pose_topic}: {problem}")
             return
-        self._take_pose(pose, conv.from_time_msg(msg.header.stamp))
+        self._pose_stamp = stamp
+        self._take_pose(pose, stamp)
 
     def _take_pose(self, pose, stamp: float) -> None:
         """The robot's pose in the map frame at ``stamp`` [s] (from pose_topic or /tf)."""

@@ -38,7 +38,11 @@ class TfPoseInput:
                                  lambda m: self._on_tf(m, static=True), TF_STATIC_QOS)
 
     def _on_tf(self, msg, static: bool = False) -> None:
-        for parent, child, pose, stamp in conv.transforms_of(msg):
+        good, dropped = conv.transforms_of(msg)
+        if dropped:
+            self._warn("tf", f"dropped {len(dropped)} transforms on "
+                       f"{'/tf_static' if static else '/tf'}, e.g. {dropped[0]}")
+        for parent, child, pose, stamp in good:
             try:
                 self.tree.set(parent, child, pose, -math.inf if static else stamp)
             except ValueError as exc:

@@ -11,6 +11,9 @@ from geometry_msgs.msg import Quaternion
 from rosgraph_msgs.msg import Clock
 
 MAP_FRAME = "map"
+#: A quaternion whose squared norm is farther than this from 1 is not an orientation (tf2 drops
+#: such transforms with the same tolerance).
+QUATERNION_TOLERANCE = 0.01
 
 
 # ---------------------------------------------------------------------------- time and angles
@@ -23,6 +26,21 @@ def to_time_msg(seconds: float) -> Time:
 def from_time_msg(stamp: Time) -> float:
     """``builtin_interfaces/Time`` -> seconds."""
     return stamp.sec + stamp.nanosec * 1e-9
+
+
+def stamp_problem(stamp: Time) -> str | None:
+    """Why ``stamp`` is impossible (nanosec not below 1e9), or None."""
+    if not 0 <= stamp.nanosec < 1_000_000_000:
+        return f"stamp nanosec {stamp.nanosec} is not below 1e9"
+    return None
+
+
+def quaternion_problem(q: Quaternion) -> str | None:
+    """Why ``q`` is not an orientation (non-finite, or not of unit length), or None."""
+    norm2 = q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w
+    if not (math.isfinite(norm2) and abs(norm2 - 1.0) <= QUATERNION_TOLERANCE):
+        return f"orientation ({q.x:g}, {q.y:g}, {q.z:g}, {q.w:g}) is not a unit quaternion"
+    return None
 
 
 def clock_msg(seconds: float) -> Clock:

@@ -11,7 +11,9 @@ from geometry_msgs.msg import TransformStamped
 
 from coverage_ros.nodes.conversions.basics import (
     from_time_msg,
+    quaternion_problem,
     quaternion_to_yaw,
+    stamp_problem,
     yaw_to_quaternion,
 )
 
@@ -40,12 +42,19 @@ def tf_message(transforms: list[TransformStamped]):
     return msg
 
 
-def transforms_of(msg) -> list[tuple[str, str, tuple[float, float, float], float]]:
-    """``(parent, child, (x, y, yaw), stamp [s])`` of each transform in a ``TFMessage``."""
-    out = []
+def transforms_of(msg) -> tuple[list[tuple[str, str, tuple[float, float, float], float]],
+                                 list[str]]:
+    """``(parent, child, (x, y, yaw), stamp [s])`` of each well-formed transform in a
+    ``TFMessage``, and why each of the others is not (an impossible stamp, a rotation that is
+    not a unit quaternion)."""
+    out, dropped = [], []
     for t in msg.transforms:
+        problem = stamp_problem(t.header.stamp) or quaternion_problem(t.transform.rotation)
+        if problem is not None:
+            dropped.append(f"{t.header.frame_id!r} <- {t.child_frame_id!r}: {problem}")
+            continue
         tr = t.transform.translation
         out.append((t.header.frame_id, t.child_frame_id,
                     (tr.x, tr.y, quaternion_to_yaw(t.transform.rotation)),
                     from_time_msg(t.header.stamp)))
-    return out
+    return out, dropped

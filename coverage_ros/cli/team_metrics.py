@@ -11,7 +11,9 @@ on schedule; and at the end computes the summary metrics (definitions in README 
 * ``coverage_ratio``: free area within its sensing radius and line of sight of some robot;
 * ``min_separation``: smallest distance between two robot centres during the run (the
   simulator checks every physics step);
-* ``converged_at``: first sim time from which H stayed within 2 % of its final value.
+* ``converged_at``: first sim time from which H stayed within 2 % of its final value;
+* ``H_series``: ``[[t, H], ...]``, H every METRICS_PERIOD of wall time (t: sim time since the
+  team was ready).
 """
 
 from __future__ import annotations
@@ -315,6 +317,8 @@ class TeamTracker:
                 "coverage_ratio": coverage_ratio(self.world.grid, P, sensing),
                 "min_separation": self.min_sep if math.isfinite(self.min_sep) else None,
                 "converged_at": self._converged_at(H),
+                "H_series": [[round(t - (self.ready_at or 0.0), 2), round(h, 6)]
+                             for t, h in self.H_samples if math.isfinite(h)],
             },
             "region": {"polygons": [p.round(4).tolist() for p in self.regions.region.polygons],
                        "set_at": None if self.region_set_at is None or self.ready_at is None

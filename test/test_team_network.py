@@ -1,0 +1,71 @@
+"""The launcher's pieces for a team across hosts (no DDS here; test_hosts.py runs the team)."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import pytest
+
+from coverage_ros.cli.team_network import (
+    check_reach,
+    discovery_server_executable,
+    parse_discovery_address,
+    parse_remote_robots,
+    remote_command,
+    write_remote_script,
+)
+from coverage_ros.errors import ConfigError
+
+
+def test_remote_robot_ids_are_checked():
+    assert parse_remote_robots(None, 4) == [] and parse_remote_robots("3,1", 4) == [1, 3]
+    for text, message in (("1,x", "robot ids separated by commas"), ("4", "out of range 0..3"),
+                          ("2,2", "names a robot twice")):
+        with pytest.raises(ConfigError, match=message):
+            parse_remote_robots(text, 4)
+
+
+def test_discovery_server_address():
+    assert parse_discovery_address("10.0.0.1") == ("10.0.0.1", 11811)
+    assert parse_discovery_address("10.0.0.1:7400") == ("10.0.0.1", 7400)
+    for text in ("localhost", "10.0.0.1:x", "10.0.0.1:70000", "300.1.1.1"):
+        with pytest.raises(ConfigError, match="--discovery-server"):
+            parse_discovery_address(text)
+
+
+def test_remote_robots_need_discovery_beyond_this_host():
+    with pytest.raises(ConfigError, match="LOCALHOST"):
+        check_reach({}, [2])
+    with pytest.raises(ConfigError, match="LOCALHOST"):
+        check_reach({"ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}, [2])
+    check_reach({}, [])  # nobody remote
+    check_reach({"ROS_AUTOMATIC_DISCOVERY_RANGE": "SUBNET"}, [2])
+    check_reach({"ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST", "ROS_STATIC_PEERS": "10.0.0.2"},
+                [2])
+    check_reach({}, [2], server=True)
+
+
+def test_the_remote_command_is_what_to_run_on_the_other_host(tmp_path):
+    env = {"ROS_DOMAIN_ID": "142", "ROS_AUTOMATIC_DISCOVERY_RANGE": "SUBNET", "HOME": "/x"}
+    cmd = [sys.executable, "-m", "coverage_ros.nodes.robot_node", "--ros-args", "-r",
+           "__ns:=/robot_3", "-p", "robot_id:=3", "-p", "strategy_params:={a: 1}"]
+    line = remote_command(env, cmd)
+    assert line.startswith("export ROS_DOMAIN_ID=142 ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET; ")
+    assert "ros2 run coverage_ros robot_node --ros-args -r __ns:=/robot_3 -p robot_id:=3 " \
+        "-p 'strategy_params:={a: 1}'" in line
+    assert "HOME" not in line
+    show = "import os; print(*(os.environ[k] for k in ('ROS_DOMAIN_ID', " \
+        "'ROS_AUTOMATIC_DISCOVERY_RANGE')))"
+    script = write_remote_script(tmp_path / "remote" / "robot_3.sh", env,
+                                 [sys.executable, "-c", show])
+    out = subprocess.run(["sh", str(script)], capture_output=True, text=True, check=True,
+                         env={"PATH": "/usr/bin:/bin"}).stdout
+    assert out.split() == ["142", "SUBNET"]
+
+
+def test_the_discovery_server_of_the_wheels_runs():
+    exe, env = discovery_server_executable()
+    proc = subprocess.run([exe, "--help"], capture_output=True, text=True, timeout=30,
+                          env={"PATH": "/usr/bin:/bin", **env})
+    assert "Server" in proc.stdout + proc.stderr, proc.stdout + proc.stderr

@@ -66,7 +66,8 @@ def test_a_team_split_over_two_hosts_covers_as_on_one(tmp_path, discovery_server
     with hosts_network(2, multicast=not discovery_server) as hosts:
         run = run_across_hosts(hosts, out, [
             "--world", str(sandbox), "--robots", "4", "--duration", "40", "--rtf", "2",
-            "--seed", "5", "--no-markers", "--domain-id", str(domain_id(24 if discovery_server else 25))],
+            "--seed", "5", "--no-markers",
+            "--domain-id", str(domain_id(24 if discovery_server else 25))],
             remote={2: 1, 3: 1}, discovery_server=discovery_server)
     m = run.summary["metrics"]
     print(f"{'server' if discovery_server else 'simple'}: H {m['H']:.2f} (start "

@@ -52,8 +52,8 @@ def test_a_team_still_covers_when_a_fifth_of_its_packets_are_lost(tmp_path):
     planned = json.loads(plan.read_text())["H"]
     with lossy_namespace(20) as ns:
         summary = run_team_in(ns, tmp_path / "team", [
-            "--world", str(sandbox), "--robots", "4", "--duration", "60", "--seed", "5",
-            "--no-markers", "--domain-id", str(domain_id(8))])
+            "--world", str(sandbox), "--robots", "4", "--duration", "60", "--rtf", "2",
+            "--seed", "5", "--no-markers", "--domain-id", str(domain_id(8))])
     m = summary["metrics"]
     print(f"20 % loss: H {m['H']:.2f} (start {m['H_start']:.2f}, plan {planned:.2f})")
     assert m["H"] <= 1.3 * planned, (m, planned)

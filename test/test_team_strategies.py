@@ -88,7 +88,7 @@ def test_a_mixed_team_from_a_team_file(tmp_path, sandbox):
     team_file.write_text(MIXED_TEAM)
     out = tmp_path / "team"
     summary = run_team(out, "--world", str(sandbox), "--team", str(team_file),
-                       "--duration", "60", "--seed", str(SEED), offset=23)
+                       "--duration", "60", "--rtf", "2", "--seed", str(SEED), offset=23)
     world = load_world(sandbox)
     want = {0: (0.105, 0.22, 1.2), 1: (0.105, 0.22, 1.2), 2: (0.16, 0.15, 0.6),
             3: (0.16, 0.15, 0.6)}

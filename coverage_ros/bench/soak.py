@@ -95,6 +95,9 @@ def soak_section(duration: float, folder: Path, say, robots: int = 8, world: str
     per_process = {f"{name}[{pid}]": g for (pid, name), s in samples.items()
                    if (g := growth(s)) is not None}
     worst = max(per_process, key=per_process.get) if per_process else None
+    worst_series = next((s for (pid, name), s in samples.items()
+                         if f"{name}[{pid}]" == worst), [])
+    stride = max(len(worst_series) // 30, 1)
     wall = time.monotonic() - t0
     first = next((b for t, b in logs_half if t >= wall / 2), logs_half[-1][1])
     total = _folder_bytes(out / "logs")
@@ -105,6 +108,7 @@ def soak_section(duration: float, folder: Path, say, robots: int = 8, world: str
             "robots": robots, "restarts": restarts,
             "rss_growth": round(per_process[worst], 4) if worst else None,
             "rss_growth_worst_process": worst,
+            "rss_mb_worst_series": [[round(t), round(r, 1)] for t, r in worst_series[::stride]],
             "rss_growth_per_process": {k: round(v, 4) for k, v in sorted(per_process.items())},
             "rss_mb_last": {name: round(s[-1][1], 1) for (_, name), s in samples.items()},
             "log_bytes": total, "log_bytes_first_half": first,

@@ -94,12 +94,15 @@ class ProcessSet:
         self.log_dir = log_dir
         self.children: dict[str, Child] = {}
 
-    def start(self, name: str, cmd: list[str], append: bool = False) -> Child:
+    def start(self, name: str, cmd: list[str], append: bool = False,
+              extra_env: dict[str, str] | None = None) -> Child:
         """Start ``cmd`` as child ``name`` (replacing a dead one of that name); its output goes
-        to ``<log_dir>/<name>.log`` (``append``: after what the previous one wrote)."""
+        to ``<log_dir>/<name>.log`` (``append``: after what the previous one wrote);
+        ``extra_env`` is added to the set's environment for this child only."""
         log = self.log_dir / f"{name}.log"
+        env = {**self.env, **(extra_env or {})}
         with open(log, "ab" if append else "wb") as fh:
-            popen = subprocess.Popen(cmd, env=self.env, stdout=fh, stderr=subprocess.STDOUT,
+            popen = subprocess.Popen(cmd, env=env, stdout=fh, stderr=subprocess.STDOUT,
                                      stdin=subprocess.DEVNULL, start_new_session=True,
                                      preexec_fn=_die_with_parent)
         child = Child(name, popen, log)

@@ -93,24 +93,18 @@ def discovery_server_executable() -> tuple[str, dict[str, str]]:
     return str(exe), {"LD_LIBRARY_PATH": ":".join(folders + ([previous] if previous else []))}
 
 
-def start_discovery_server(procs, address: tuple[str, int]) -> str:
-    """Run the server as the launcher's child ``discovery``; ``ROS_DISCOVERY_SERVER`` value."""
+def start_discovery_server(procs, address: tuple[str, int]) -> None:
+    """Run the server as the launcher's child ``discovery``; return once it says it runs."""
     exe, lib_env = discovery_server_executable()
     host, port = address
-    saved = dict(procs.env)
-    procs.env.update(lib_env)
-    try:
-        child = procs.start("discovery", [exe, "-i", "0", "-l", host, "-p", str(port)])
-    finally:
-        procs.env.clear()
-        procs.env.update(saved)
+    child = procs.start("discovery", [exe, "-i", "0", "-l", host, "-p", str(port)],
+                        extra_env=lib_env)
     deadline = time.monotonic() + DISCOVERY_START_TIMEOUT
     while "Server is running" not in child.log.read_text(errors="replace"):
         if not child.alive or time.monotonic() > deadline:
             raise RuntimeError(f"the discovery server on {host}:{port} did not start:\n"
                                f"{procs.tail(child)}")
         time.sleep(0.05)
-    return f"{host}:{port}"
 
 
 def _exports(env: dict[str, str]) -> list[str]:

@@ -12,7 +12,9 @@ control periods. Timed, interleaved in one process so machine-speed drift affect
   (:func:`coverage_ros.core.geodesic.reference.paper_cell`), on the same inputs.
 
 A second table shows how the update time follows the robot's own cell area: k x k robots on
-n x n grids; equal n/k means equal cell area.
+n x n grids; equal n/k means equal cell area. First of all, the offline team step
+(:mod:`coverage_ros.bench.team_step`): lloyd and geodesic per step, plain against accelerated
+Lloyd.
 
 Progress goes to stderr; the last stdout line is JSON.
 """
@@ -181,7 +183,16 @@ def main(argv: list[str] | None = None) -> int:
                     help="fast updates before and after each reference run")
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--no-scaling", action="store_true")
+    ap.add_argument("--team-step-only", action="store_true",
+                    help="only the offline team step on the 'gaussians' world")
     args = ap.parse_args(argv)
+    from coverage_ros.bench.team_step import bench_team_step
+
+    _say("offline team step: 8 robots on world 'gaussians' (402 x 402 cells)")
+    team_step = bench_team_step(7, 7, _say)
+    if args.team_step_only:
+        print(json.dumps({"team_step": team_step}))
+        return 0
     rounds = (args.rounds + [args.rounds[-1]] * len(args.sizes))[:len(args.sizes)]
     grids = []
     for n, r in zip(args.sizes, rounds, strict=True):
@@ -190,7 +201,7 @@ def main(argv: list[str] | None = None) -> int:
         _say(f"  fast {row['update_ms']} ms (paper mode), {row['visibility_ms']} ms (visibility),"
              f" reference {row['reference_ms']} ms, speedup {row['speedup']}x")
         grids.append(row)
-    result = {"grids": grids}
+    result = {"grids": grids, "team_step": team_step}
     if not args.no_scaling:
         _say("update time against own cell area (k x k robots on n x n cells)")
         result["scaling"] = bench_scaling([(200, 2), (400, 4), (800, 8), (200, 4), (400, 8)],

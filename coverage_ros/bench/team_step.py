@@ -1,0 +1,102 @@
+"""Offline team step on the scale scenario (``scripts/bench_core``; world ``gaussians``: 20 m x
+20 m at 5 cm, three Gaussians, eight robots starting in a corner).
+
+* ``lloyd_ms`` - the whole team's vectorized Lloyd step
+  (:class:`coverage_ros.core.offline.lloyd_team.EuclideanTeam`), against ``lloyd_robots_ms``,
+  the same step as eight decentralized ``lloyd`` updates (what ``coverage-plan
+  --solver decentralized`` and the robots run), timed interleaved in rounds on the same
+  positions; ``lloyd_speedup`` is the median over rounds of their ratio.
+* ``geodesic_ms`` - the eight robots' decentralized geodesic updates of one team step (the
+  ``coverage-plan --strategy geodesic`` iteration) at the positions of the plain Lloyd run.
+* ``plain`` / ``accelerated`` - :func:`coverage_ros.core.offline.lloyd_team.solve_lloyd` from the
+  corner: tessellations to converge, tessellations until H was within 0.1 % of the plain run's
+  final H, final H and wall time.
+"""
+
+from __future__ import annotations
+
+import statistics
+import time
+
+import numpy as np
+
+from coverage_ros.core.geodesic.domain import CoverageDomain
+from coverage_ros.core.geodesic.euclidean import euclidean_cell
+from coverage_ros.core.geodesic.tessellation import Generator
+from coverage_ros.core.offline.lloyd_team import EuclideanTeam, solve_lloyd
+from coverage_ros.core.strategies import (
+    Neighbour,
+    Observation,
+    SharedState,
+    StrategyContext,
+    make_strategy,
+)
+from coverage_ros.core.world import load_world
+from coverage_ros.worlds import resolve_world_path
+
+WORLD = "gaussians"
+
+
+def _robots_step(domain: CoverageDomain, P: np.ndarray) -> list:
+    gens = [Generator(p) for p in P]
+    return [euclidean_cell(domain, g, gens[:i] + gens[i + 1:]) for i, g in enumerate(gens)]
+
+
+def _geodesic_step(robots: list, P: np.ndarray) -> None:
+    shared = [SharedState(position=p.copy(), weight=0.0, mass=0.0) for p in P]
+    for i, robot in enumerate(robots):
+        obs = Observation(i, np.array([*P[i], 0.0]), 0.0)
+        robot.update(obs, [Neighbour(j, shared[j]) for j in range(len(P)) if j != i])
+
+
+def bench_team_step(rounds: int, per_round: int, say) -> dict:
+    world = load_world(resolve_world_path(WORLD))
+    domain = CoverageDomain.from_world(world, world.robot_spec(0).radius)
+    starts = np.array([[s.x, s.y] for s in world.starts])
+    team = EuclideanTeam(domain)
+    out: dict = {"world": WORLD, "robots": len(starts),
+                 "grid": [domain.shape[1], domain.shape[0]]}
+    runs, walls = {}, {}
+    for solver in ("lloyd", "accelerated"):
+        t0 = time.perf_counter()
+        runs[solver] = solve_lloyd(team, starts, solver=solver, tolerance=0.005, max_steps=2000)
+        walls[solver] = time.perf_counter() - t0
+    ref_H = runs["lloyd"].H
+    for name, solver in (("plain", "lloyd"), ("accelerated", "accelerated")):
+        r = runs[solver]
+        out[name] = {"steps": r.steps, "converged": r.converged, "H": round(r.cost, 4),
+                     "steps_within_0.1%_of_plain_H": r.steps_within(ref_H),
+                     "wall_time_s": round(walls[solver], 3)}
+        say(f"  {name} Lloyd: {r.steps} steps, H {r.cost:.5g}, within 0.1 % of the plain H after "
+            f"{r.steps_within(ref_H)} steps, {walls[solver]:.2f} s")
+    path = runs["lloyd"].positions
+    fast, slow, ratios = [], [], []
+    for k in range(rounds):  # interleaved: positions along the plain run, start to end
+        P = path[min(k * len(path) // rounds, len(path) - 1)]
+        f = []
+        for _ in range(per_round):
+            t = time.perf_counter()
+            team.step(P)
+            f.append(time.perf_counter() - t)
+        t = time.perf_counter()
+        _robots_step(domain, P)
+        s = time.perf_counter() - t
+        fast.extend(f)
+        slow.append(s)
+        ratios.append(s / statistics.median(f))
+    out["lloyd_ms"] = round(statistics.median(fast) * 1e3, 2)
+    out["lloyd_robots_ms"] = round(statistics.median(slow) * 1e3, 1)
+    out["lloyd_speedup"] = round(statistics.median(ratios), 1)
+    say(f"  lloyd team step {out['lloyd_ms']} ms (8 decentralized updates "
+        f"{out['lloyd_robots_ms']} ms, {out['lloyd_speedup']}x)")
+    robots = [make_strategy("geodesic", StrategyContext(domain=domain, robot_id=i))
+              for i in range(len(starts))]
+    geo = []
+    for k in range(rounds):
+        P = path[min(k * len(path) // rounds, len(path) - 1)]
+        t = time.perf_counter()
+        _geodesic_step(robots, P)
+        geo.append(time.perf_counter() - t)
+    out["geodesic_ms"] = round(statistics.median(geo) * 1e3, 1)
+    say(f"  geodesic team step (8 decentralized updates) {out['geodesic_ms']} ms")
+    return out

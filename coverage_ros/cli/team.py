@@ -322,7 +322,7 @@ def run(args: argparse.Namespace) -> int:
         else:
             robots = [n for n in procs.children if n.startswith("robot_")]
             procs.stop(robots)
-            procs.stop(["bridge"], timeout=15.0)  # let the recording be flushed and closed
+            procs.stop(["bridge"], timeout=30.0)  # let the recording be closed and indexed
             procs.stop(["world"])
             procs.stop()
         for sig, previous in handlers.items():

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import contextlib
 import math
+import os
 import re
 import sys
 from dataclasses import dataclass
@@ -76,6 +77,7 @@ class BridgeConfig:
     """The node's parameters, validated (meanings: _PARAMETERS and README)."""
 
     record_path: str = ""
+    record_index: bool = True
     connect_url: str = ""
     serve_web: bool = False
     web_port: int = 9090
@@ -135,6 +137,8 @@ class BridgeConfig:
 
 _PARAMETERS = {  # name: (default, description)
     "record_path": ("", "write the recording to this .rrd file"),
+    "record_index": (True, "when the bridge stops, rewrite the file compacted and with "
+                     "rerun's chunk index (rerun rrd optimize); it is never held in memory"),
     "connect_url": ("", "stream to a running viewer, e.g. rerun+http://127.0.0.1:9876/proxy"),
     "serve_web": (False, "host a web viewer (and its gRPC proxy) on 127.0.0.1"),
     "web_port": (9090, "HTTP port of the web viewer (serve_web)"),
@@ -176,7 +180,7 @@ class RerunBridge(Node):
         urls = [u for u in (cfg.connect_url, self.web and self.web.grpc_url) if u]
         try:
             self.rec.set_outputs(FilePath(cfg.record_path).expanduser() if cfg.record_path
-                                 else None, urls)
+                                 else None, urls, footer=False)
         except Exception:
             self.close()
             raise
@@ -344,10 +348,20 @@ class RerunBridge(Node):
 def _close(node: RerunBridge) -> None:
     node.close()
     if node.config.record_path:
-        print(f"rerun_bridge: wrote {node.config.record_path}", file=sys.stderr)
+        path = FilePath(node.config.record_path).expanduser()
+        if node.config.record_index:
+            from coverage_ros.viz.recording import index_recording
+
+            problem = index_recording(path)
+            if problem is not None:
+                print(f"rerun_bridge: warning: {problem}", file=sys.stderr)
+        print(f"rerun_bridge: wrote {path}", file=sys.stderr)
 
 
 def main(args=None) -> int:
+    # The file is written without rerun's in-memory chunk index (indexed at the end instead):
+    # rerun's warning about that, once per run, would only alarm (set before rerun loads).
+    os.environ.setdefault("RUST_LOG", "warn,re_log_encoding::rrd::file_sink=error")
     return run_node("rerun_bridge", RerunBridge, args, cleanup=_close)
 
 

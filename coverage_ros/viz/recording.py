@@ -30,6 +30,10 @@ views; the default blueprint looks at the floor from above.
 
 from __future__ import annotations
 
+import os
+import shutil
+import subprocess
+import sys
 import uuid
 from collections.abc import Iterable, Sequence
 from pathlib import Path
@@ -102,12 +106,14 @@ class CoverageRecorder:
         self.stream.save(str(path), default_blueprint=self.blueprint())
 
     def set_outputs(self, record_path: str | Path | None = None,
-                    connect_urls: Iterable[str] = ()) -> None:
-        """Write to a file and/or stream to viewers (gRPC), all at once."""
+                    connect_urls: Iterable[str] = (), footer: bool = True) -> None:
+        """Write to a file and/or stream to viewers (gRPC), all at once. ``footer``: end the
+        file with rerun's chunk index, which rerun keeps in memory until then (it grows with
+        every chunk: leave it out for live recordings of unbounded length)."""
         rr = self.rr
         sinks = [rr.GrpcSink(url) for url in connect_urls]
         if record_path:
-            sinks.insert(0, rr.FileSink(str(record_path)))
+            sinks.insert(0, rr.FileSink(str(record_path), write_footer=footer))
         self.stream.set_sinks(*sinks, default_blueprint=self.blueprint())
 
     def send_blueprint(self) -> None:
@@ -315,3 +321,28 @@ class CoverageRecorder:
             self.stream.log(f"/metrics/mass/robot_{rid}",
                             rr.SeriesLines(names=f"robot_{rid}", colors=[robot_color(rid)]),
                             static=True)
+
+
+def index_recording(path: Path, timeout: float = 120.0) -> str | None:
+    """Rewrite the finished recording ``path`` compacted and ending with rerun's chunk index
+    (``rerun rrd optimize``; what ``rerun rrd verify`` and random access want) into a file
+    beside it, then swap it in. A live recording is written without the index, which rerun would
+    hold in memory for the whole run. Returns None, or why the file was left as it was (still a
+    valid recording, without the index)."""
+    exe = Path(sys.executable).with_name("rerun")
+    found = str(exe) if exe.is_file() else shutil.which("rerun")
+    if found is None:
+        return f"left {path} without rerun's chunk index: no 'rerun' executable found"
+    tmp = path.with_name(path.name + ".indexing")
+    try:
+        done = subprocess.run([found, "rrd", "optimize", str(path), "-o", str(tmp)],
+                              capture_output=True, text=True, timeout=timeout)
+    except (OSError, subprocess.TimeoutExpired) as exc:
+        tmp.unlink(missing_ok=True)
+        return f"left {path} without rerun's chunk index: {exc}"
+    if done.returncode != 0:
+        tmp.unlink(missing_ok=True)
+        last = (done.stderr.strip().splitlines() or [f"exit code {done.returncode}"])[-1]
+        return f"left {path} without rerun's chunk index: rerun rrd optimize: {last}"
+    os.replace(tmp, path)
+    return None

@@ -140,6 +140,22 @@ def test_coverage_plan_solver_option(tmp_path, capsys):
     data = json.loads(out.read_text())
     assert data["solver"] == "accelerated" and data["converged"]
     assert data["iterations"] >= 1 and data["wall_time_s"] > 0 and 0 < data["H"] < data["H_start"]
-    assert main(["--map", "field", "--robots", "4", "--strategy", "geodesic", "--solver",
+    assert main(["--map", "field", "--robots", "4", "--strategy", "tangentbug", "--solver",
                  "lloyd", "--quiet"]) == 2
-    assert "--solver: needs --strategy lloyd" in capsys.readouterr().err
+    assert "--solver: needs --strategy lloyd or geodesic" in capsys.readouterr().err
+
+
+def test_geodesic_team_solver_reaches_the_decentralized_runs_cost(tmp_path):
+    """coverage-plan --strategy geodesic: the whole team's step (one shared search per step)
+    ends where every robot's own updates end, at the same cost."""
+    runs = {}
+    for solver in ("decentralized", "lloyd", "accelerated"):
+        out = tmp_path / f"{solver}.json"
+        assert main(["--map", "l_shape", "--robots", "4", "--strategy", "geodesic", "--solver",
+                     solver, "--json", str(out), "--quiet"]) == 0
+        runs[solver] = json.loads(out.read_text())
+    ref = runs["decentralized"]
+    for solver in ("lloyd", "accelerated"):
+        assert runs[solver]["converged"]
+        assert runs[solver]["H"] == pytest.approx(ref["H"], rel=0.02), (solver, runs)
+        assert runs[solver]["H"] < 0.5 * ref["H_start"]

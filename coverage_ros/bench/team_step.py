@@ -6,8 +6,11 @@
   the same step as eight decentralized ``lloyd`` updates (what ``coverage-plan
   --solver decentralized`` and the robots run), timed interleaved in rounds on the same
   positions; ``lloyd_speedup`` is the median over rounds of their ratio.
-* ``geodesic_ms`` - the eight robots' decentralized geodesic updates of one team step (the
-  ``coverage-plan --strategy geodesic`` iteration) at the positions of the plain Lloyd run.
+* ``geodesic_ms`` - the geodesic team step (:class:`coverage_ros.core.offline.lloyd_team.
+  GeodesicTeam`: one shared search, cells settled by line of sight first) against
+  ``geodesic_robots_ms``, the eight robots' own decentralized geodesic updates (the ``coverage-plan
+  --strategy geodesic --solver decentralized`` iteration), at positions of the plain Lloyd run;
+  then plain and accelerated generalized Lloyd with the geodesic team step.
 * ``plain`` / ``accelerated`` - :func:`coverage_ros.core.offline.lloyd_team.solve_lloyd` from the
   corner: tessellations to converge, tessellations until H was within 0.1 % of the plain run's
   final H, final H and wall time.
@@ -23,7 +26,7 @@ import numpy as np
 from coverage_ros.core.geodesic.domain import CoverageDomain
 from coverage_ros.core.geodesic.euclidean import euclidean_cell
 from coverage_ros.core.geodesic.tessellation import Generator
-from coverage_ros.core.offline.lloyd_team import EuclideanTeam, solve_lloyd
+from coverage_ros.core.offline.lloyd_team import EuclideanTeam, GeodesicTeam, solve_lloyd
 from coverage_ros.core.strategies import (
     Neighbour,
     Observation,
@@ -91,12 +94,31 @@ def bench_team_step(rounds: int, per_round: int, say) -> dict:
         f"{out['lloyd_robots_ms']} ms, {out['lloyd_speedup']}x)")
     robots = [make_strategy("geodesic", StrategyContext(domain=domain, robot_id=i))
               for i in range(len(starts))]
-    geo = []
+    geo_team = GeodesicTeam(domain)
+    geo, geo_robots, geo_ratios = [], [], []
     for k in range(rounds):
         P = path[min(k * len(path) // rounds, len(path) - 1)]
+        f = []
+        for j in range(max(per_round // 2, 1)):  # a new search each time: robots drift
+            t = time.perf_counter()
+            geo_team.step(P + 1e-3 * (j + 1))
+            f.append(time.perf_counter() - t)
         t = time.perf_counter()
         _geodesic_step(robots, P)
-        geo.append(time.perf_counter() - t)
+        s = time.perf_counter() - t
+        geo.extend(f)
+        geo_robots.append(s)
+        geo_ratios.append(s / statistics.median(f))
     out["geodesic_ms"] = round(statistics.median(geo) * 1e3, 1)
-    say(f"  geodesic team step (8 decentralized updates) {out['geodesic_ms']} ms")
+    out["geodesic_robots_ms"] = round(statistics.median(geo_robots) * 1e3, 1)
+    out["geodesic_speedup"] = round(statistics.median(geo_ratios), 1)
+    say(f"  geodesic team step {out['geodesic_ms']} ms (8 decentralized updates "
+        f"{out['geodesic_robots_ms']} ms, {out['geodesic_speedup']}x)")
+    for name, solver in (("geodesic_plain", "lloyd"), ("geodesic_accelerated", "accelerated")):
+        t0 = time.perf_counter()
+        r = solve_lloyd(geo_team, starts, solver=solver, tolerance=0.005, max_steps=2000)
+        out[name] = {"steps": r.steps, "converged": r.converged, "H": round(r.cost, 4),
+                     "wall_time_s": round(time.perf_counter() - t0, 3)}
+        say(f"  {name.replace('_', ' ')}: {r.steps} steps, H {r.cost:.5g}, "
+            f"{out[name]['wall_time_s']:.1f} s")
     return out

@@ -21,7 +21,12 @@ from coverage_ros.cli.plan_explore import plan_exploration
 from coverage_ros.core.geodesic.domain import CoverageDomain
 from coverage_ros.core.geodesic.tessellation import Generator, tessellate
 from coverage_ros.core.metrics import mass_deviation
-from coverage_ros.core.offline.lloyd_team import SOLVERS, EuclideanTeam, solve_lloyd
+from coverage_ros.core.offline.lloyd_team import (
+    SOLVERS,
+    EuclideanTeam,
+    GeodesicTeam,
+    solve_lloyd,
+)
 from coverage_ros.core.offline.runner import OfflineConfig, OfflineResult, run_offline
 from coverage_ros.core.strategies import EXPLORERS, STRATEGIES, StrategyContext, strategy_choice
 from coverage_ros.core.world import WorldSpec, load_world
@@ -52,9 +57,9 @@ def build_parser() -> argparse.ArgumentParser:
                     help="[m] converged when no robot moves more than this")
     ap.add_argument("--solver", default="decentralized",
                     choices=("decentralized",) + SOLVERS,
-                    help="with --strategy lloyd: 'lloyd' / 'accelerated' run the whole team's "
-                    "vectorized step (plain / Anderson-accelerated Lloyd) instead of every "
-                    "robot's own update")
+                    help="with --strategy lloyd or geodesic: 'lloyd' / 'accelerated' run the "
+                    "whole team's step at once (plain / Anderson-accelerated Lloyd) instead of "
+                    "every robot's own update")
     ap.add_argument("--connectivity", type=int, default=8, choices=(8, 16))
     ap.add_argument("--explore", action="store_true",
                     help="the robots start with no map and explore it (simulated lidar)")
@@ -81,8 +86,9 @@ def run(args: argparse.Namespace) -> dict:
     choice = strategy_choice(args.strategy,
                              yaml_mapping(args.strategy_params, "--strategy-params"),
                              "--strategy-params", explore=args.explore)
-    if args.solver != "decentralized" and (args.strategy != "lloyd" or args.explore):
-        raise ConfigError.at("--solver", "needs --strategy lloyd (and no --explore)",
+    if args.solver != "decentralized" and (args.strategy not in ("lloyd", "geodesic")
+                                           or args.explore):
+        raise ConfigError.at("--solver", "needs --strategy lloyd or geodesic (and no --explore)",
                              args.solver, "decentralized")
     if args.until_explored is not None and not (args.explore and 0 < args.until_explored <= 1):
         raise ConfigError.at("--until-explored", "needs --explore and a fraction in (0, 1]",
@@ -116,7 +122,9 @@ def run(args: argparse.Namespace) -> dict:
                              config=OfflineConfig(max_iterations=args.max_iterations),
                              progress=progress)
     else:
-        result = _solve_team(args, domain, [s.power_weight for s in specs], starts, progress)
+        team = EuclideanTeam(domain) if args.strategy == "lloyd" else \
+            GeodesicTeam(domain, choice.params.method)
+        result = _solve_team(args, team, [s.power_weight for s in specs], starts, progress)
     final = result.positions[-1]
     weights = [s.power_weight for s in specs]
     tess = tessellate(domain, [Generator(p, w) for p, w in zip(final, weights, strict=True)])
@@ -159,11 +167,12 @@ def run(args: argparse.Namespace) -> dict:
     return summary
 
 
-def _solve_team(args, domain: CoverageDomain, weights: list[float], starts: np.ndarray,
-                progress) -> OfflineResult:
-    """The team's vectorized Lloyd (``--solver``); update times are whole team steps."""
+def _solve_team(args, team: EuclideanTeam | GeodesicTeam, weights: list[float],
+                starts: np.ndarray, progress) -> OfflineResult:
+    """The whole team's (generalized) Lloyd step at once (``--solver``); update times are
+    whole team steps."""
     t0 = time.perf_counter()
-    sol = solve_lloyd(EuclideanTeam(domain), starts[:, :2], np.array(weights), args.solver,
+    sol = solve_lloyd(team, starts[:, :2], np.array(weights), args.solver,
                       tolerance=args.tolerance, max_steps=args.max_iterations,
                       progress=progress)
     step = (time.perf_counter() - t0) / sol.steps

@@ -38,6 +38,7 @@ from coverage_ros.core.geodesic.tessellation import (
     source_row,
     star_shaped,
 )
+from coverage_ros.core.geodesic.visible_first import visible_first_search
 
 __all__ = ["CellResult", "SearchCache", "geodesic_cell"]
 
@@ -202,20 +203,27 @@ def _shared_search(domain: CoverageDomain, local: LocalGraph, gens: Sequence[Gen
     multi-source Dijkstra memoized in the domain: robots that share a domain and see the same
     generators (a team run in one process) search it once. The sources are ordered by
     position, so every robot's search is the same one."""
-    key = ("shared_search", method,
+    key = (method,
            tuple(sorted((float(g.position[0]), float(g.position[1])) for g in gens)))
     order = sorted(range(len(gens)), key=lambda k: (float(gens[k].position[0]),
                                                     float(gens[k].position[1])))
     first = local.n + 1
-    memo = domain._cache.get(key)
+    # One search kept (the latest): a team solver makes a new one every step.
+    held = domain._cache.get("shared_search")
+    memo = held[1] if held is not None and held[0] == key else None
     if memo is None:
-        csr = local.with_sources([source_row(domain, local, snaps[k], math.inf, method)
-                                  for k in order])
-        dist, pred, src = dijkstra(csr, directed=True, indices=np.arange(first, first + len(gens)),
-                                   min_only=True, return_predecessors=True)
-        label = np.where(src >= 0, src - first, -1)
-        label[0] = -1
-        domain._cache[key] = memo = (dist, pred, label)
+        if method == "visibility" and local.covers_all:
+            memo = visible_first_search(domain, local, [snaps[k] for k in order])
+        else:
+            csr = local.with_sources([source_row(domain, local, snaps[k], math.inf, method)
+                                      for k in order])
+            dist, pred, src = dijkstra(csr, directed=True,
+                                       indices=np.arange(first, first + len(gens)),
+                                       min_only=True, return_predecessors=True)
+            label = np.where(src >= 0, src - first, -1)
+            label[0] = -1
+            memo = (dist, pred, label)
+        domain._cache["shared_search"] = (key, memo)
     dist, pred, label = memo
     own_label = order.index(0)
     own = np.flatnonzero(label[1:first] == own_label) + 1

@@ -37,7 +37,9 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
+from coverage_ros.core.geodesic.cell import geodesic_cell
 from coverage_ros.core.geodesic.domain import CoverageDomain
+from coverage_ros.core.geodesic.tessellation import Generator
 from coverage_ros.errors import ConfigError
 
 SOLVERS = ("lloyd", "accelerated")
@@ -147,6 +149,32 @@ class EuclideanTeam:
         return self._to_map(xy[int(np.argmin(((xy - cf) ** 2).sum(axis=1)))])
 
 
+class GeodesicTeam:
+    """The same team step with geodesic power Voronoi cells and the generalized Lloyd control
+    (Bhattacharya et al. 2014): every robot's :func:`geodesic_cell` over the whole domain, which
+    with equal weights share one search (memoized in the domain; most cells are settled by line
+    of sight before it, :mod:`coverage_ros.core.geodesic.visible_first`). ``centroids`` are the
+    virtual centroids (position + control), ``goals`` their reachable part."""
+
+    def __init__(self, domain: CoverageDomain, method: str = "auto") -> None:
+        self.domain = domain
+        self.method = method
+
+    def step(self, positions: np.ndarray, weights: np.ndarray | None = None) -> TeamStep:
+        P = np.asarray(positions, dtype=np.float64).reshape(-1, 2)
+        R = np.zeros(len(P)) if weights is None else np.asarray(weights, dtype=np.float64)
+        gens = [Generator(p, r) for p, r in zip(P, R, strict=True)]
+        cells = [geodesic_cell(self.domain, g, gens[:i] + gens[i + 1:], method=self.method,
+                               whole=True) for i, g in enumerate(gens)]
+        labels = np.full(self.domain.shape, -1, dtype=np.int32)
+        for i, c in enumerate(cells):
+            labels.ravel()[c.nodes] = i
+        return TeamStep(P, labels, np.array([c.mass for c in cells]),
+                        np.array([c.cost for c in cells]),
+                        P + np.array([c.control for c in cells]),
+                        np.array([c.goal for c in cells]))
+
+
 @dataclass
 class LloydSolution:
     positions: np.ndarray  # (T + 1, n, 2) [m]: the accepted positions, start first
@@ -167,7 +195,8 @@ class LloydSolution:
         return None
 
 
-def solve_lloyd(team: EuclideanTeam, starts: np.ndarray, weights: np.ndarray | None = None,
+def solve_lloyd(team: EuclideanTeam | GeodesicTeam, starts: np.ndarray,
+                weights: np.ndarray | None = None,
                 solver: str = "lloyd", tolerance: float = 0.02, max_steps: int = 1000,
                 memory: int = 6, start_below_cells: float = 4.0,
                 progress: Callable[[int, float], None] | None = None) -> LloydSolution:

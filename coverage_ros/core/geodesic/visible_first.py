@@ -1,0 +1,173 @@
+"""The whole domain's multi-source search (equal weights, ``visibility`` sources) without
+searching where the answer is already known.
+
+In ``visibility`` mode every source is joined to each free cell in its line of sight at the
+straight-line distance, and no path is shorter than the straight line (Euclidean metric). So a
+cell ``q`` in line of sight of the generator ``k`` that is nearest to it in straight-line
+distance (tie bias included) is settled before any search: its distance is ``|q - p_k|``, its
+label ``k``, its shortest-path parent the source itself - every other generator's path to it is
+at least its own straight line, which is no shorter. Only the remaining cells (hidden from that
+generator behind an obstacle) need a Dijkstra, and only over themselves and the settled cells
+bordering them: a shortest path into the hidden region can be taken to leave the settled region
+for good at its last settled cell. On an open map nothing is left to search.
+
+The arrays returned are those of the full search (``dist``, ``pred``, ``label`` over the local
+ids of the whole-domain search graph: sink 0, nodes, then one source per generator), so
+:func:`coverage_ros.core.geodesic.cell._shared_search` uses them as it would its own.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import dijkstra
+
+from coverage_ros.core.geodesic.domain import CoverageDomain, tie_bias
+from coverage_ros.core.geodesic.local_search import LocalGraph
+
+
+def visible_first_search(domain: CoverageDomain, local: LocalGraph,
+                         snaps: list) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(dist, pred, label)`` of the min-only multi-source search from the generators whose
+    :meth:`CoverageDomain.snap` results are ``snaps`` (in source order) on the whole-domain
+    search graph ``local`` (module docstring)."""
+    n = local.n
+    first = n + 1
+    k_gens = len(snaps)
+    res = domain.resolution
+    free = local.seedable
+    centers = local.centers
+    # Straight-line seed cost of every free cell from every generator; the snap edges (the
+    # generator's own and adjacent cells, or the nearest free cell when it stands on a blocked
+    # one) are seeds too, at their own cost.
+    grids = np.array([s[2] for s in snaps])
+    biases = np.array([tie_bias(g) for g in grids])
+    H, W = domain.shape  # the whole-domain graph's local ids are node ids + 1 (row-major)
+    cx, cy = np.arange(W) + 0.5, np.arange(H) + 0.5
+    best = np.full((H, W), np.inf)
+    winner = np.full((H, W), -1, dtype=np.int64)
+    for k in range(k_gens):  # squared distances separate into a row and a column term
+        d = np.sqrt((cy[:, None] - grids[k, 1]) ** 2 + (cx[None, :] - grids[k, 0]) ** 2)
+        d *= res
+        d += biases[k]
+        np.putmask(winner, d < best, k)
+        np.minimum(best, d, out=best)
+    best, winner = best.ravel(), winner.ravel()
+    best[~free] = np.inf
+    winner[~free] = -1
+    snap_best: list[tuple[np.ndarray, np.ndarray]] = []
+    for k, (nodes, costs, _) in enumerate(snaps):
+        lid = local.local_of(nodes)
+        keep = lid > 0
+        snap_best.append((lid[keep] - 1, costs[keep]))
+        for i, c in zip(lid[keep] - 1, costs[keep], strict=True):
+            if c < best[i]:
+                best[i], winner[i] = c, k
+    # Settled: in line of sight of the winner (snap seeds of the winner count as seen).
+    settled = np.zeros(n, dtype=bool)
+    for k in range(k_gens):
+        mine = np.flatnonzero(winner == k)
+        if len(mine) == 0:
+            continue
+        d2 = ((centers[mine] - grids[k]) ** 2).sum(axis=1)
+        reach = math.sqrt(float(d2.max()))
+        settled[mine] = domain.visible_mask(grids[k], centers[mine], reach)
+        own_snap = snap_best[k][0]
+        settled[own_snap[winner[own_snap] == k]] = True
+    dist = np.full(first + k_gens, np.inf)
+    pred = np.full(first + k_gens, -9999, dtype=np.int32)
+    label = np.full(first + k_gens, -1, dtype=np.int64)
+    ids = np.flatnonzero(settled)
+    dist[ids + 1] = best[ids]
+    pred[ids + 1] = first + winner[ids]
+    label[ids + 1] = winner[ids]
+    hidden = np.flatnonzero(free & ~settled)
+    if len(hidden):
+        _search_hidden(domain, local, hidden, settled, dist, pred, label, grids, biases,
+                       snap_best)
+    return dist, pred, label
+
+
+def _search_hidden(domain: CoverageDomain, local: LocalGraph, hidden: np.ndarray,
+                   settled: np.ndarray, dist: np.ndarray, pred: np.ndarray, label: np.ndarray,
+                   grids: np.ndarray, biases: np.ndarray,
+                   snap_best: list[tuple[np.ndarray, np.ndarray]]) -> None:
+    """Dijkstra over the hidden cells from their settled neighbours and from every generator's
+    own seeds among them (in line of sight, or snap edges); fills the arrays in place."""
+    n = local.n
+    first = n + 1
+    res = domain.resolution
+    k_gens = len(grids)
+    nb, edge = local.nb[hidden], local.edge[hidden]  # local ids (1..n; 0 = sink)
+    # Edge costs of the whole-domain graph, row of each hidden node (node id = local id - 1).
+    full = local.with_sources([])
+    border = np.unique(nb[edge & settled[np.maximum(nb - 1, 0)] & (nb > 0)]) - 1
+    sub = np.concatenate([hidden, border])  # sub index -> node index
+    pos = np.full(n, -1, dtype=np.int64)
+    pos[sub] = np.arange(len(sub))
+    m = len(sub)
+    # Hidden rows: their graph edges within the sub-graph; border rows: edges into hidden cells.
+    rows, cols, vals = [], [], []
+    for start in (hidden, border):
+        lo = full.indptr[start + 1]
+        hi = full.indptr[start + 2]
+        counts = (hi - lo).astype(np.int64)
+        r = np.repeat(start, counts)
+        idx = np.repeat(lo.astype(np.int64) - np.cumsum(counts) + counts, counts) \
+            + np.arange(int(counts.sum()))
+        c = full.indices[idx].astype(np.int64) - 1
+        ok = c >= 0
+        r, c, v = r[ok], c[ok], full.data[idx][ok]
+        inside = pos[c] >= 0
+        if start is border:
+            inside &= ~settled[c]
+        rows.append(pos[r[inside]])
+        cols.append(pos[c[inside]])
+        vals.append(v[inside])
+    # One virtual source per generator: to its border cells at their settled distance, and to
+    # the hidden cells it sees or snaps to at its straight-line / snap cost.
+    hc = local.centers[hidden]
+    for k in range(k_gens):
+        mine = border[label[border + 1] == k]
+        rows.append(np.full(len(mine), m + k))
+        cols.append(pos[mine])
+        vals.append(dist[mine + 1])
+        d2 = ((hc - grids[k]) ** 2).sum(axis=1)
+        if len(d2):
+            seen = domain.visible_mask(grids[k], hc, math.sqrt(float(d2.max())))
+            rows.append(np.full(int(seen.sum()), m + k))
+            cols.append(pos[hidden[seen]])
+            vals.append(np.sqrt(d2[seen]) * res + biases[k])
+        snap_nodes, snap_costs = snap_best[k]
+        hid = pos[snap_nodes] >= 0
+        hid &= ~settled[snap_nodes]
+        rows.append(np.full(int(hid.sum()), m + k))
+        cols.append(pos[snap_nodes[hid]])
+        vals.append(snap_costs[hid])
+    size = m + k_gens
+    d, p, src = dijkstra(_min_duplicates(rows, cols, vals, size), directed=True,
+                         indices=np.arange(m, size), min_only=True, return_predecessors=True)
+    h = np.arange(len(hidden))
+    reached = np.isfinite(d[h])
+    lid = hidden[h[reached]] + 1
+    dist[lid] = d[h[reached]]
+    label[lid] = src[h[reached]] - m
+    parent = p[h[reached]]
+    from_source = parent >= m
+    mapped = np.where(from_source, first + (parent - m), sub[np.minimum(parent, m - 1)] + 1)
+    pred[lid] = mapped
+
+
+def _min_duplicates(rows: list[np.ndarray], cols: list[np.ndarray], vals: list[np.ndarray],
+                    size: int) -> csr_matrix:
+    """A CSR graph keeping the cheapest of duplicate edges (scipy would add them up)."""
+    r = np.concatenate(rows).astype(np.int64)
+    c = np.concatenate(cols).astype(np.int64)
+    v = np.maximum(np.concatenate(vals), 1e-12)
+    order = np.lexsort((v, c, r))
+    r, c, v = r[order], c[order], v[order]
+    first = np.ones(len(r), dtype=bool)
+    first[1:] = (r[1:] != r[:-1]) | (c[1:] != c[:-1])
+    return csr_matrix((v[first], (r[first], c[first])), shape=(size, size))

@@ -1,0 +1,64 @@
+"""The whole-domain shared search that settles cells by line of sight first
+(coverage_ros.core.geodesic.visible_first) gives every robot the same cell, distances and
+control as its own pruned search and as the centralized tessellation."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import WORLDS
+
+from coverage_ros.core.geodesic.cell import geodesic_cell
+from coverage_ros.core.geodesic.domain import CoverageDomain
+from coverage_ros.core.geodesic.euclidean import euclidean_labels
+from coverage_ros.core.geodesic.tessellation import Generator, tessellate
+from coverage_ros.core.world import load_world
+
+
+def _points(domain: CoverageDomain, n_free: int, n_blocked: int, seed: int) -> np.ndarray:
+    """Random free points, and points on blocked cells (robots inside the inflated margin)."""
+    rng = np.random.default_rng(seed)
+    xmin, ymin, xmax, ymax = domain.geometry.extent()
+    free, blocked = [], []
+    while len(free) < n_free or len(blocked) < n_blocked:
+        p = rng.uniform([xmin + 0.2, ymin + 0.2], [xmax - 0.2, ymax - 0.2])
+        (free if domain.is_free_point(p) else blocked).append(p)
+    return np.array(free[:n_free] + blocked[:n_blocked])
+
+
+@pytest.mark.parametrize("world, seed, blocked", [
+    ("office", 1, 0), ("office", 2, 2), ("l_shape", 3, 1), ("u_shape", 4, 0),
+    ("gaussians", 5, 0),
+])
+def test_shared_search_cells_equal_each_robots_own_search(world, seed, blocked):
+    domain = CoverageDomain.from_world(load_world(WORLDS / f"{world}.yaml"), 0.105)
+    P = _points(domain, 6 - blocked, blocked, seed)
+    gens = [Generator(p) for p in P]
+    tess = tessellate(domain, gens)
+    labels = np.full(domain.shape, -1)
+    for i, g in enumerate(gens):
+        others = gens[:i] + gens[i + 1:]
+        shared = geodesic_cell(domain, g, others, whole=True)
+        own = geodesic_cell(domain, g, others)  # pruned local search, its own code path
+        assert np.array_equal(np.sort(shared.nodes), np.sort(own.nodes))
+        order_s, order_o = np.argsort(shared.nodes), np.argsort(own.nodes)
+        assert np.allclose(shared.distances[order_s], own.distances[order_o], rtol=1e-12,
+                           atol=1e-12)
+        assert shared.mass == pytest.approx(own.mass, rel=1e-12)
+        assert shared.cost == pytest.approx(own.cost, rel=1e-9)
+        assert np.allclose(shared.covector, own.covector, rtol=1e-9, atol=1e-12)
+        assert np.allclose(shared.goal, own.goal, atol=1e-9)
+        labels.ravel()[shared.nodes] = i
+    assert np.array_equal(labels, tess.labels)
+    if world in ("office", "u_shape"):
+        # walls make some geodesic cells differ from the straight-line ones: the search of the
+        # cells hidden from their nearest robot ran, not only the line-of-sight shortcut
+        assert (tess.labels != euclidean_labels(domain, gens)).any()
+
+
+def test_one_search_is_kept_per_domain():
+    domain = CoverageDomain.from_world(load_world(WORLDS / "l_shape.yaml"), 0.105)
+    for seed in range(4):
+        gens = [Generator(p) for p in _points(domain, 3, 0, seed)]
+        geodesic_cell(domain, gens[0], gens[1:], whole=True)
+    assert sum(1 for k in domain._cache if "shared" in str(k)) == 1

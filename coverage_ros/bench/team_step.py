@@ -18,6 +18,7 @@
 
 from __future__ import annotations
 
+import itertools
 import statistics
 import time
 
@@ -52,6 +53,27 @@ def _geodesic_step(robots: list, P: np.ndarray) -> None:
         robot.update(obs, [Neighbour(j, shared[j]) for j in range(len(P)) if j != i])
 
 
+def _interleaved(path: np.ndarray, rounds: int, per_round: int, fast, slow) -> tuple:
+    """Rounds at positions along ``path``: ``per_round`` calls of ``fast``, one of ``slow``;
+    the median times [ms] and the median over rounds of their ratio (the host's speed
+    changes stay out of it)."""
+    f_all, s_all, ratios = [], [], []
+    for k in range(rounds):
+        P = path[min(k * len(path) // rounds, len(path) - 1)]
+        f = []
+        for _ in range(per_round):
+            t = time.perf_counter()
+            fast(P)
+            f.append(time.perf_counter() - t)
+        t = time.perf_counter()
+        slow(P)
+        s_all.append(time.perf_counter() - t)
+        f_all.extend(f)
+        ratios.append(s_all[-1] / statistics.median(f))
+    return (round(statistics.median(f_all) * 1e3, 2), round(statistics.median(s_all) * 1e3, 1),
+            round(statistics.median(ratios), 1))
+
+
 def bench_team_step(rounds: int, per_round: int, say) -> dict:
     world = load_world(resolve_world_path(WORLD))
     domain = CoverageDomain.from_world(world, world.robot_spec(0).radius)
@@ -73,47 +95,18 @@ def bench_team_step(rounds: int, per_round: int, say) -> dict:
         say(f"  {name} Lloyd: {r.steps} steps, H {r.cost:.5g}, within 0.1 % of the plain H after "
             f"{r.steps_within(ref_H)} steps, {walls[solver]:.2f} s")
     path = runs["lloyd"].positions
-    fast, slow, ratios = [], [], []
-    for k in range(rounds):  # interleaved: positions along the plain run, start to end
-        P = path[min(k * len(path) // rounds, len(path) - 1)]
-        f = []
-        for _ in range(per_round):
-            t = time.perf_counter()
-            team.step(P)
-            f.append(time.perf_counter() - t)
-        t = time.perf_counter()
-        _robots_step(domain, P)
-        s = time.perf_counter() - t
-        fast.extend(f)
-        slow.append(s)
-        ratios.append(s / statistics.median(f))
-    out["lloyd_ms"] = round(statistics.median(fast) * 1e3, 2)
-    out["lloyd_robots_ms"] = round(statistics.median(slow) * 1e3, 1)
-    out["lloyd_speedup"] = round(statistics.median(ratios), 1)
-    say(f"  lloyd team step {out['lloyd_ms']} ms (8 decentralized updates "
-        f"{out['lloyd_robots_ms']} ms, {out['lloyd_speedup']}x)")
     robots = [make_strategy("geodesic", StrategyContext(domain=domain, robot_id=i))
               for i in range(len(starts))]
     geo_team = GeodesicTeam(domain)
-    geo, geo_robots, geo_ratios = [], [], []
-    for k in range(rounds):
-        P = path[min(k * len(path) // rounds, len(path) - 1)]
-        f = []
-        for j in range(max(per_round // 2, 1)):  # a new search each time: robots drift
-            t = time.perf_counter()
-            geo_team.step(P + 1e-3 * (j + 1))
-            f.append(time.perf_counter() - t)
-        t = time.perf_counter()
-        _geodesic_step(robots, P)
-        s = time.perf_counter() - t
-        geo.extend(f)
-        geo_robots.append(s)
-        geo_ratios.append(s / statistics.median(f))
-    out["geodesic_ms"] = round(statistics.median(geo) * 1e3, 1)
-    out["geodesic_robots_ms"] = round(statistics.median(geo_robots) * 1e3, 1)
-    out["geodesic_speedup"] = round(statistics.median(geo_ratios), 1)
-    say(f"  geodesic team step {out['geodesic_ms']} ms (8 decentralized updates "
-        f"{out['geodesic_robots_ms']} ms, {out['geodesic_speedup']}x)")
+    drift = itertools.count(1)
+    for kind, fast, slow, per in (
+            ("lloyd", team.step, lambda P: _robots_step(domain, P), per_round),
+            # a new shared search every time: the robots drift between steps
+            ("geodesic", lambda P: geo_team.step(P + 1e-3 * next(drift)),
+             lambda P: _geodesic_step(robots, P), max(per_round // 2, 1))):
+        f_ms, s_ms, ratio = _interleaved(path, rounds, per, fast, slow)
+        out[f"{kind}_ms"], out[f"{kind}_robots_ms"], out[f"{kind}_speedup"] = f_ms, s_ms, ratio
+        say(f"  {kind} team step {f_ms} ms (8 decentralized updates {s_ms} ms, {ratio}x)")
     for name, solver in (("geodesic_plain", "lloyd"), ("geodesic_accelerated", "accelerated")):
         t0 = time.perf_counter()
         r = solve_lloyd(geo_team, starts, solver=solver, tolerance=0.005, max_steps=2000)

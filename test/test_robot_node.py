@@ -182,7 +182,7 @@ def test_update_worker_keeps_within_its_cpu_budget():
         assert len(worker.cpu_ms) >= 8
         assert requests < 5000  # most requests were refused while waiting
         used = np.cumsum(worker.cpu_ms) / 1e3
-        allowed = burst + load * (np.array(worker.starts[1:]) - worker.created)
+        allowed = burst + load * (np.array(list(worker.starts)[1:]) - worker.created)
         assert np.all(used[:-1] <= allowed + 1e-6)
         assert len(errors) == 1 and isinstance(errors[0], ValueError)
         assert "coverage updates" in worker.summary()

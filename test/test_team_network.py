@@ -9,6 +9,7 @@ import pytest
 
 from coverage_ros.cli.team_network import (
     check_reach,
+    discovery_advice,
     discovery_server_executable,
     parse_discovery_address,
     parse_remote_robots,
@@ -69,3 +70,11 @@ def test_the_discovery_server_of_the_wheels_runs():
     proc = subprocess.run([exe, "--help"], capture_output=True, text=True, timeout=30,
                           env={"PATH": "/usr/bin:/bin", **env})
     assert "Server" in proc.stdout + proc.stderr, proc.stdout + proc.stderr
+
+
+def test_big_teams_with_simple_discovery_are_told_of_the_discovery_server():
+    assert discovery_advice(20, server=False) is None
+    assert discovery_advice(68, server=True) is None
+    text = discovery_advice(68, server=False)
+    assert text.startswith("warning: 68 DDS participants with simple discovery")
+    assert "--discovery-server" in text

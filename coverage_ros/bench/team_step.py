@@ -86,7 +86,7 @@ def bench_team_step(rounds: int, per_round: int, say) -> dict:
         t0 = time.perf_counter()
         runs[solver] = solve_lloyd(team, starts, solver=solver, tolerance=0.005, max_steps=2000)
         walls[solver] = time.perf_counter() - t0
-    ref_H = runs["lloyd"].H
+    ref_H = runs["lloyd"].cost
     for name, solver in (("plain", "lloyd"), ("accelerated", "accelerated")):
         r = runs[solver]
         out[name] = {"steps": r.steps, "converged": r.converged, "H": round(r.cost, 4),

@@ -28,6 +28,7 @@ from coverage_ros.cli.processes import ProcessSet, executable, parameter_text, r
 from coverage_ros.cli.team_metrics import TeamTracker, summary_table
 from coverage_ros.cli.team_network import (
     check_reach,
+    discovery_advice,
     parse_discovery_address,
     parse_remote_robots,
     remote_command,
@@ -265,6 +266,8 @@ def run(args: argparse.Namespace) -> int:
              else env["ROS_AUTOMATIC_DISCOVERY_RANGE"])
     say(f"coverage-team: {args.robots} x {args.strategy} on {world_path} for {args.duration:g} "
         f"s sim time (ROS_DOMAIN_ID={domain_id}, discovery {reach}); output in {out}")
+    if (advice := discovery_advice(args.robots + 4, discovery is not None)) is not None:
+        print(f"coverage-team: {advice}", file=sys.stderr, flush=True)
 
     procs = ProcessSet(env, out / "logs")
     interrupted = False

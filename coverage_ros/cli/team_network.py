@@ -77,6 +77,22 @@ def check_reach(env: dict[str, str], remote: list[int], server: bool = False) ->
             "robots' hosts>), or --discovery-server <this host's address>")
 
 
+#: DDS participants on one host beyond which simple discovery is not to be relied on
+#: (scripts/bench_discovery: 16 and 36 participants all saw each other within seconds; of 64,
+#: only 11 had seen all others 90 s after the last came up, the discovery server took 38 s).
+SIMPLE_DISCOVERY_LIMIT = 40
+
+
+def discovery_advice(participants: int, server: bool) -> str | None:
+    """A warning for a run whose ``participants`` (robots, world, viewers, launcher) may not all
+    find each other with simple discovery; None when all is well."""
+    if server or participants <= SIMPLE_DISCOVERY_LIMIT:
+        return None
+    return (f"warning: {participants} DDS participants with simple discovery: on one host "
+            f"beyond {SIMPLE_DISCOVERY_LIMIT} some may not find the others for minutes "
+            "(scripts/bench_discovery); --discovery-server makes them")
+
+
 def discovery_server_executable() -> tuple[str, dict[str, str]]:
     """The ``fast-discovery-server`` of this environment and the ``LD_LIBRARY_PATH`` it needs
     (the ROS wheels keep their shared libraries in ``<venv>/lib`` and ``*.libs`` folders)."""

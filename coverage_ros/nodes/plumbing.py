@@ -42,6 +42,7 @@ from __future__ import annotations
 import math
 import threading
 import time
+from collections import deque
 from collections.abc import Callable
 
 import numpy as np
@@ -100,6 +101,29 @@ class WarnThrottle:
         return True
 
 
+#: Calls whose CPU times :class:`UpdateWorker` keeps for its summary's median (bounded memory).
+RECENT_CALLS = 4096
+_LIBC: list = []  # [the C library, or None where it has no malloc_trim], once looked up
+
+
+def release_free_memory() -> None:
+    """Hand heap memory that is free again back to the operating system (glibc's
+    ``malloc_trim``; nothing elsewhere). glibc keeps freed heap pages, so without it a robot's
+    RSS stays at the high-water mark of its largest update ever - e.g. of the large cell it had
+    while a neighbour was restarting - instead of following what it uses (~1 ms)."""
+    if not _LIBC:
+        import ctypes
+        import ctypes.util
+
+        try:
+            libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
+            _LIBC.append(libc if hasattr(libc, "malloc_trim") else None)
+        except OSError:
+            _LIBC.append(None)
+    if _LIBC[0] is not None:
+        _LIBC[0].malloc_trim(0)
+
+
 class UpdateWorker:
     """Runs ``run(now)`` on its own thread when asked, one call at a time, and keeps the CPU
     time of the calls within ``load`` of one core on average (see the module's thread rules).
@@ -126,8 +150,11 @@ class UpdateWorker:
         self.created = time.monotonic()
         self._credit = burst  # [s] CPU time
         self._credit_at = self.created
-        self.cpu_ms: list[float] = []  # CPU time of every call
-        self.starts: list[float] = []  # [s] monotonic start of every call
+        self.calls = 0
+        self.cpu_ms: deque[float] = deque(maxlen=RECENT_CALLS)  # CPU time of recent calls
+        self.cpu_ms_max = 0.0
+        self.starts: deque[float] = deque(maxlen=RECENT_CALLS)  # [s] monotonic, recent calls
+        self.first_start = math.nan  # [s] monotonic start of the first call
         self._thread = threading.Thread(target=self._loop, name="coverage-update", daemon=True)
         self._thread.start()
 
@@ -152,10 +179,15 @@ class UpdateWorker:
                 if self._on_error is not None:
                     self._on_error(exc)
             finally:
+                release_free_memory()
                 cpu = time.thread_time() - cpu0
                 self._refill(start)
                 self._credit -= cpu
+                self.calls += 1
                 self.cpu_ms.append(1e3 * cpu)
+                self.cpu_ms_max = max(self.cpu_ms_max, 1e3 * cpu)
+                if self.calls == 1:
+                    self.first_start = start
                 self.starts.append(start)
                 self._busy = False
 
@@ -167,13 +199,13 @@ class UpdateWorker:
 
     def summary(self) -> str:
         """One line on the calls so far: count, mean period, CPU per call."""
-        n = len(self.cpu_ms)
+        n = self.calls
         if n == 0:
             return "no coverage updates"
-        period = (self.starts[-1] - self.starts[0]) / (n - 1) if n > 1 else math.nan
-        cpu = np.asarray(self.cpu_ms)
+        period = (self.starts[-1] - self.first_start) / (n - 1) if n > 1 else math.nan
         return (f"{n} coverage updates, one every {period:.2f} s wall; CPU per update "
-                f"median {np.median(cpu):.1f} ms, max {cpu.max():.1f} ms "
+                f"median {np.median(np.asarray(self.cpu_ms)):.1f} ms (last "
+                f"{len(self.cpu_ms)}), max {self.cpu_ms_max:.1f} ms "
                 f"(update_load {self._load:g})")
 
     def close(self, timeout: float = 5.0) -> None:

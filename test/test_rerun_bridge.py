@@ -570,3 +570,14 @@ def test_a_saved_recording_opens_at_its_end_and_shows_the_region(tmp_path):
     region = read_rrd(path)["/world/region"]
     strips = region[-1][1]["LineStrips3D:strips"][0]
     assert len(strips) == 4  # closed triangle
+
+
+def test_a_recording_that_cannot_be_indexed_is_left_as_it_was(tmp_path):
+    from coverage_ros.viz.recording import index_recording
+
+    bad = tmp_path / "broken.rrd"
+    bad.write_bytes(b"not a recording at all")
+    problem = index_recording(bad)
+    assert problem is not None and "without rerun's chunk index" in problem
+    assert bad.read_bytes() == b"not a recording at all"
+    assert [p.name for p in tmp_path.iterdir()] == ["broken.rrd"]  # no half-written file left

@@ -238,6 +238,9 @@ def solve_lloyd(team: EuclideanTeam | GeodesicTeam, starts: np.ndarray,
                     if trial.cost <= cur.cost:
                         nxt = trial
                 rejected = nxt is None
+        elif xs:  # not (or no longer) engaged: an old history would mix in stale steps
+            xs.clear()
+            fs.clear()
         if nxt is None:
             if len(energies) >= max_steps:
                 break

@@ -75,10 +75,16 @@ def test_readme_documents_every_robot_parameter():
     assert missing == []
 
 
-@pytest.mark.parametrize("module", ["coverage_ros.sim.world", "coverage_ros.cli.plan"])
-def test_simulator_and_planner_import_neither_rclpy_nor_rerun(module):
+@pytest.mark.parametrize("module, forbidden", [
+    ("coverage_ros.sim.world", ("rclpy", "rerun")),
+    ("coverage_ros.cli.plan", ("rclpy", "rerun")),
+    # A robot process carries what it needs and no more (the simulator and the viewer live in
+    # other processes): every robot of a big team would pay for them in memory.
+    ("coverage_ros.nodes.robot_node", ("pymunk", "rerun")),
+])
+def test_processes_import_only_what_they_need(module, forbidden):
     code = (f"import sys, {module}; "
-            "bad = [m for m in sys.modules if m.split('.')[0] in ('rclpy', 'rerun')]; "
+            f"bad = [m for m in sys.modules if m.split('.')[0] in {forbidden!r}]; "
             "print(bad); sys.exit(1 if bad else 0)")
     out = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True,
                          timeout=60)

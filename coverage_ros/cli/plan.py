@@ -1,8 +1,10 @@
 """coverage-plan: run a coverage strategy offline on a map and report where the robots end.
 
 Every robot's decentralized update is run centrally, iteration after iteration, until the
-team converges (see :mod:`coverage_ros.core.offline.runner`). Writes a JSON summary, a PNG picture
-and optionally a rerun recording; prints progress to stderr.
+team converges (see :mod:`coverage_ros.core.offline.runner`); with ``--solver lloyd`` or
+``accelerated`` (strategies lloyd and geodesic) the whole team's step is computed at once
+instead, plain or Anderson-accelerated (:mod:`coverage_ros.core.offline.lloyd_team`). Writes a
+JSON summary, a PNG picture and optionally a rerun recording; prints progress to stderr.
 
     coverage-plan --map ../shared/maps/tb3_sandbox.yaml --robots 6 --json plan.json --png plan.png
 """

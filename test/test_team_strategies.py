@@ -65,7 +65,7 @@ def test_every_strategy_spreads_a_cluster_on_the_live_team(tmp_path, sandbox, be
     # bvc is local (its lidar's view, pillars hide parts of it): where the team settles varies
     # from run to run - 1.03x to 1.42x the best plan over six runs - so it gets 1.5x; lloyd and
     # acvt are held to the issue's 1.3x. tangentbug does not meet it reliably (issue 11 is
-    # open): on 2026-11-23 evening seven runs ended at 1.36x-2.29x (some robots stop "reached"
+    # open): on 2026-11-23 evening seven of eight runs ended at 1.36x-2.29x (robots stop "reached"
     # next to each other after 20 s), also at real time and on the commit before; it is held to
     # the spreading bound above only until that is fixed.
     if strategy != "tangentbug":

@@ -28,6 +28,7 @@ setup(
         "console_scripts": [
             "world_node = coverage_ros.nodes.world_node:main",
             "robot_node = coverage_ros.nodes.robot_node:main",
+            "robot_container = coverage_ros.nodes.robot_container:main",
             "coverage-plan = coverage_ros.cli.plan:main",
             "rerun_bridge = coverage_ros.nodes.rerun_bridge:main",
             "marker_node = coverage_ros.nodes.marker_node:main",

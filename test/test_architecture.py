@@ -81,6 +81,7 @@ def test_readme_documents_every_robot_parameter():
     # A robot process carries what it needs and no more (the simulator and the viewer live in
     # other processes): every robot of a big team would pay for them in memory.
     ("coverage_ros.nodes.robot_node", ("pymunk", "rerun")),
+    ("coverage_ros.nodes.robot_container", ("pymunk", "rerun")),
 ])
 def test_processes_import_only_what_they_need(module, forbidden):
     code = (f"import sys, {module}; "

@@ -49,7 +49,9 @@ def run_team(out, *args: str, offset: int) -> dict:
 
 
 @pytest.mark.parametrize(("strategy", "extra", "offset"), [
-    ("lloyd", (), 16), ("tangentbug", (), 17), ("acvt", (), 18),
+    # lloyd's four robots share one process (robot_container: one node each, the neighbours'
+    # states through the process's one subscription per topic); the others run one each.
+    ("lloyd", ("--robots-per-process", "4"), 16), ("tangentbug", (), 17), ("acvt", (), 18),
     ("bvc", ("--map-free",), 19),  # bvc needs no map: cells, goals and safety from the lidar
 ])
 def test_every_strategy_spreads_a_cluster_on_the_live_team(tmp_path, sandbox, best_plan,
@@ -71,9 +73,17 @@ def test_every_strategy_spreads_a_cluster_on_the_live_team(tmp_path, sandbox, be
     if strategy != "tangentbug":
         assert m["H"] <= (1.5 if strategy == "bvc" else 1.3) * best_plan, (m["H"], best_plan)
     assert all(r["collisions"] == 0 for r in summary["robots"]), summary["robots"]
-    if extra:
-        logs = [(tmp_path / "team" / "logs" / f"robot_{i}.log").read_text() for i in range(4)]
-        assert all("map-free (lidar only)" in log for log in logs)
+    logs = tmp_path / "team" / "logs"
+    if "--map-free" in extra:
+        texts = [(logs / f"robot_{i}.log").read_text() for i in range(4)]
+        assert all("map-free (lidar only)" in text for text in texts)
+    if "--robots-per-process" in extra:
+        assert sorted(p.name for p in logs.glob("robot*.log")) == ["robots_0-3.log"]
+        text = (logs / "robots_0-3.log").read_text()
+        for i in range(4):  # each robot its own node, from start to stop
+            assert f"[robot_{i}.coverage_robot]: robot {i}: strategy lloyd" in text, text[:3000]
+            assert f"[robot_{i}.coverage_robot]: last decision" in text, text[-3000:]
+        assert "4 robots in one process" in text
 
 
 MIXED_TEAM = """\
@@ -91,8 +101,11 @@ def test_a_mixed_team_from_a_team_file(tmp_path, sandbox):
     team_file = tmp_path / "mixed.yaml"
     team_file.write_text(MIXED_TEAM)
     out = tmp_path / "team"
+    # Two robots per process: each node takes its own values from its section of the
+    # process's parameters file.
     summary = run_team(out, "--world", str(sandbox), "--team", str(team_file),
-                       "--duration", "60", "--rtf", "2", "--seed", str(SEED), offset=23)
+                       "--duration", "60", "--rtf", "2", "--seed", str(SEED),
+                       "--robots-per-process", "2", offset=23)
     world = load_world(sandbox)
     want = {0: (0.105, 0.22, 1.2), 1: (0.105, 0.22, 1.2), 2: (0.16, 0.15, 0.6),
             3: (0.16, 0.15, 0.6)}
@@ -103,9 +116,11 @@ def test_a_mixed_team_from_a_team_file(tmp_path, sandbox):
         for source in ("spec", "body"):  # as launched / as the world node simulates it
             got = {k: r[source][k] for k in expected}
             assert got == pytest.approx(expected), (r["id"], source, r[source])
-        log = (out / "logs" / f"robot_{r['id']}.log").read_text()
-        assert f"radius {radius:g} m, v_max {v_max:g} m/s" in log, log[-1500:]
-        assert f"sensor_radius {sensing:g} m, power_weight {sensing:g} m" in log
+        i = r["id"]
+        log = (out / "logs" / ("robots_0-1.log" if i < 2 else "robots_2-3.log")).read_text()
+        line = next(t for t in log.splitlines() if f"[robot_{i}.coverage_robot]: robot {i}:" in t)
+        assert f"radius {radius:g} m, v_max {v_max:g} m/s" in line, line
+        assert f"sensor_radius {sensing:g} m, power_weight {sensing:g} m" in line, line
         assert r["collisions"] == 0
     # Power cells of the final positions: the 1.2 m footprints hold more than the 0.6 m ones,
     # and those still hold a cell at least as large as their own body (weights far above the

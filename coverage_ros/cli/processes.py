@@ -43,6 +43,7 @@ def executable(name: str) -> list[str]:
             return [str(path)]
     modules = {"world_node": "coverage_ros.nodes.world_node",
                "robot_node": "coverage_ros.nodes.robot_node",
+               "robot_container": "coverage_ros.nodes.robot_container",
                "rerun_bridge": "coverage_ros.nodes.rerun_bridge",
                "marker_node": "coverage_ros.nodes.marker_node"}
     return [sys.executable, "-m", modules[name]]
@@ -174,12 +175,23 @@ class ProcessStats:
                 self.cpu[name].append(h.cpu_percent(None))
                 self.rss[name] = max(self.rss[name], h.memory_info().rss / 2**20)
 
-    def report(self) -> dict:
+    def report(self, robots: int | None = None) -> dict:
+        """Per process: mean CPU [% of one core] and peak RSS [MB]; ``robot_mean``: their mean
+        over the robot processes (``robot_<id>`` and ``robots_<a>-<b>``); ``per_robot``: all
+        robot processes' CPU and peak RSS over the number of ``robots``."""
         per = {n: {"cpu_percent": round(float(np.mean(c)), 1) if c else None,
                    "rss_mb_peak": round(self.rss[n], 1)} for n, c in self.cpu.items()}
-        robots = [v for n, v in per.items() if n.startswith("robot_") and v["cpu_percent"]]
-        return {"per_process": per, "robot_mean": {
-            "cpu_percent": round(float(np.mean([r["cpu_percent"] for r in robots])), 1)
-            if robots else None,
-            "rss_mb_peak": round(float(np.mean([r["rss_mb_peak"] for r in robots])), 1)
-            if robots else None}}
+        procs = [v for n, v in per.items()
+                 if n.startswith(("robot_", "robots_")) and v["cpu_percent"] is not None]
+
+        def mean(key: str):
+            return round(float(np.mean([r[key] for r in procs])), 1) if procs else None
+
+        out = {"per_process": per, "robot_processes": len(procs),
+               "robot_mean": {"cpu_percent": mean("cpu_percent"),
+                              "rss_mb_peak": mean("rss_mb_peak")}}
+        if robots and procs:
+            out["per_robot"] = {
+                "cpu_percent": round(sum(r["cpu_percent"] for r in procs) / robots, 2),
+                "rss_mb": round(sum(r["rss_mb_peak"] for r in procs) / robots, 1)}
+        return out

@@ -21,10 +21,8 @@ import sys
 import time
 from pathlib import Path
 
-import yaml
-
 from coverage_ros.cli.domains import acquire_domain
-from coverage_ros.cli.processes import ProcessSet, executable, parameter_text, ros_args
+from coverage_ros.cli.processes import ProcessSet, executable, ros_args
 from coverage_ros.cli.team_metrics import TeamTracker, summary_table
 from coverage_ros.cli.team_network import (
     check_reach,
@@ -35,15 +33,20 @@ from coverage_ros.cli.team_network import (
     start_discovery_server,
     write_remote_script,
 )
+from coverage_ros.cli.team_robots import (
+    default_robots_per_process,
+    default_update_load,
+    plan_processes,
+    robot_params,
+    spec_parameters,
+)
 from coverage_ros.cli.team_setup import build_team
 from coverage_ros.core.geodesic.domain import CoverageDomain
 from coverage_ros.core.strategies import EXPLORERS, STRATEGIES, strategy_choice
 from coverage_ros.core.world import load_planar_world, write_team
 from coverage_ros.core.world.region import Region, parse_region_text
-from coverage_ros.core.world.robot import RobotSpec
 from coverage_ros.core.world.yaml_io import yaml_mapping
 from coverage_ros.errors import ConfigError, CoverageError
-from coverage_ros.nodes.robot_config import SPEC_PARAMETERS
 from coverage_ros.worlds import resolve_world_path
 
 #: [s] wall time the children get to stop cleanly after an interrupt before SIGTERM, then SIGKILL
@@ -112,6 +115,9 @@ def build_parser() -> argparse.ArgumentParser:
                     "strategies); default: each robot's from the world (TurtleBot3: 3.5)")
     ap.add_argument("--robot-param", action="append", default=[], metavar="NAME:=VALUE",
                     help="extra robot_node parameter (repeatable), e.g. strategy_params:={...}")
+    ap.add_argument("--robots-per-process", type=int, default=None, metavar="K",
+                    help="robots sharing one process (robot_container; default: 1 up to "
+                    "8 robots per core, then as many as keep to that many processes)")
     ap.add_argument("--kill", action="append", default=[], metavar="ID@SECONDS",
                     help="kill robot ID's process at that sim time (robot loss experiments)")
     ap.add_argument("--region", action="append", default=[], metavar="x,y;x,y;...",
@@ -157,34 +163,6 @@ def _faults(kills: list[str], restarts: list[str], n: int) -> list[tuple[float, 
             raise ConfigError.at("--restart", f"robot {rid} is killed (--kill) before that",
                                  f"{rid}@{t:g}")
     return sorted(out)
-
-
-def _robot_params(items: list[str]) -> dict[str, str]:
-    """``NAME:=VALUE`` items as robot_node parameters. VALUE is written as on a ``ros2 run``
-    command line, except that a YAML mapping (``strategy_params:={variant: nearest}``) is
-    passed as the string it is meant to be."""
-    params = {}
-    for item in items:
-        if ":=" not in item:
-            raise ConfigError.at("--robot-param", "must be NAME:=VALUE", item)
-        k, v = item.split(":=", 1)
-        try:
-            is_mapping = isinstance(yaml.safe_load(v), dict)
-        except yaml.YAMLError:
-            is_mapping = False
-        params[k.strip()] = parameter_text(v) if is_mapping else v
-    return params
-
-
-#: Fraction of the machine's cores the whole team may spend on coverage updates by default.
-UPDATE_SHARE = 0.15
-
-
-def default_update_load(robots: int) -> float:
-    """Each robot's share of UPDATE_SHARE of the machine's cores for coverage updates, at
-    most 0.1: message handling in every robot process, the world and the launcher need the
-    rest (measured with 16 robots on 2 cores: robots' executors ~100 %, world ~17 %)."""
-    return min(0.1, UPDATE_SHARE * (os.cpu_count() or 1) / max(robots, 1))
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -235,7 +213,11 @@ def run(args: argparse.Namespace) -> int:
     load = args.update_load if args.update_load is not None else default_update_load(args.robots)
     if not (math.isfinite(load) and 0 < load <= 1):
         raise ConfigError.at("--update-load", "must be a fraction in (0, 1]", load)
-    extra = _robot_params(args.robot_param)
+    extra = robot_params(args.robot_param)
+    per_process = (args.robots_per_process if args.robots_per_process is not None
+                   else default_robots_per_process(args.robots))
+    if per_process < 1:
+        raise ConfigError.at("--robots-per-process", "must be >= 1", per_process)
     region = Region(tuple(parse_region_text(t) for t in args.region))
     if args.explore and not region.everywhere:
         raise ConfigError.at("--region", "does not apply to --explore (the density is the "
@@ -281,27 +263,28 @@ def run(args: argparse.Namespace) -> int:
     try:
         if discovery is not None:
             start_discovery_server(procs, discovery)
-        commands: dict[int, list[str]] = {}
+        params = {m.id: {"robot_id": m.id, "use_sim_time": True, "strategy": args.strategy,
+                         "world": str(world_path), "control_rate": float(args.control_rate),
+                         "update_load": float(load), "explore": bool(args.explore),
+                         "strategy_params": args.strategy_params,
+                         "manual": m.role == "human", "map_free": bool(args.map_free),
+                         **spec_parameters(m.spec), **extra} for m in team}
+        processes = plan_processes(params, per_process, {rid for _, rid, _ in faults} |
+                                   set(remote), out / "params")
+        commands = {p.ids[0]: p.cmd for p in processes if len(p.ids) == 1}
         tracker = TeamTracker(domain, world, team, args, faults, procs, say, region,
                               relaunch=lambda rid: procs.start(f"robot_{rid}", commands[rid],
-                                                               append=True))
+                                                               append=True),
+                              process_of={rid: p.name for p in processes for rid in p.ids})
         # Robots first: they load while the world starts, then wait for /map and /clock.
-        for member in team:
-            params = {"robot_id": member.id, "use_sim_time": True, "strategy": args.strategy,
-                      "world": str(world_path), "control_rate": float(args.control_rate),
-                      "update_load": float(load), "explore": bool(args.explore),
-                      "strategy_params": args.strategy_params,
-                      "manual": member.role == "human", "map_free": bool(args.map_free),
-                      **spec_parameters(member.spec)}
-            cmd = executable("robot_node") + ros_args(f"/robot_{member.id}", **params)
-            cmd += [a for k, v in extra.items() for a in ("-p", f"{k}:={v}")]
-            commands[member.id] = cmd
-            if member.id in remote:  # printed even with --quiet: someone has to run it
-                script = write_remote_script(out / "remote" / f"robot_{member.id}.sh", env, cmd)
-                print(f"coverage-team: start robot {member.id} on its host ({script}):\n  "
-                      f"{remote_command(env, cmd)}", file=sys.stderr, flush=True)
+        for proc in processes:
+            if proc.ids[0] in remote:  # printed even with --quiet: someone has to run it
+                rid = proc.ids[0]
+                script = write_remote_script(out / "remote" / f"robot_{rid}.sh", env, proc.cmd)
+                print(f"coverage-team: start robot {rid} on its host ({script}):\n  "
+                      f"{remote_command(env, proc.cmd)}", file=sys.stderr, flush=True)
             else:
-                procs.start(f"robot_{member.id}", cmd)
+                procs.start(proc.name, proc.cmd)
         procs.start("world", executable("world_node") + ros_args(
             world=str(world_path), team=str((out / "team.yaml").resolve()), seed=args.seed,
             real_time_factor=float(args.rtf), clock_rate_hz=float(args.clock_rate),
@@ -371,12 +354,6 @@ def _report(args, out: Path, tracker, procs: ProcessSet, viewer, wall: float,
         with contextlib.suppress(Exception):
             viewer.wait(timeout=0)
     return 0
-
-
-def spec_parameters(spec: RobotSpec) -> dict[str, float]:
-    """robot_node parameters that give it exactly ``spec`` (see nodes/robot_config.py)."""
-    values = spec.numbers()
-    return {param: values[field] for param, field in SPEC_PARAMETERS.items()}
 
 
 def _signal_as_interrupt(signum, frame) -> None:

@@ -53,9 +53,11 @@ TRACK_STEP = 0.05  # [m] a robot's path in summary.png gets a point every this f
 
 class TeamTracker:
     def __init__(self, domain, world, team, args, faults, procs, say,
-                 region: Region | None = None, relaunch=None) -> None:
+                 region: Region | None = None, relaunch=None,
+                 process_of: dict[int, str] | None = None) -> None:
         """``faults``: sorted ``(sim time after ready, robot id, "kill" | "restart")``;
-        ``relaunch(robot_id)`` starts a robot's process again (restarts)."""
+        ``relaunch(robot_id)`` starts a robot's process again (restarts); ``process_of``:
+        the launcher's name of each robot's process (default ``robot_<id>``)."""
         self.domain, self.world, self.args = domain, world, args
         self.base_domain = domain  # the world's density; a region of interest restricts it
         self.region_set_at: float | None = None
@@ -63,6 +65,7 @@ class TeamTracker:
         self.starts = np.array([m.start for m in team], dtype=np.float64)
         self.faults, self.relaunch, self.restarted = list(faults), relaunch, {}
         self.procs, self.say = procs, say
+        self.process_of = process_of or {m.id: f"robot_{m.id}" for m in team}
         n = args.robots
         # The launcher handles SIGINT itself (children stopped, a summary written): rclpy's
         # handler would shut the context down under the tracker's spin instead.
@@ -219,7 +222,7 @@ class TeamTracker:
             raise RuntimeError(f"world_node exited ({world.popen.returncode}):\n"
                                f"{self.procs.tail(world)}")
         for i in self.alive():
-            child = self.procs.children.get(f"robot_{i}")
+            child = self.procs.children.get(self.process_of.get(i, ""))
             if child is not None and not child.alive and starting:
                 raise RuntimeError(f"robot {i} exited during start-up "
                                    f"({child.popen.returncode}):\n{self.procs.tail(child)}")
@@ -323,7 +326,8 @@ class TeamTracker:
             "region": {"polygons": [p.round(4).tolist() for p in self.regions.region.polygons],
                        "set_at": None if self.region_set_at is None or self.ready_at is None
                        else round(max(self.region_set_at - self.ready_at, 0.0), 3)},
-            **({"processes": self.proc_stats.report()} if self.proc_stats is not None else {}),
+            **({"processes": self.proc_stats.report(len(self.team))}
+               if self.proc_stats is not None else {}),
             **({"exploration": self.exploration.summary()}
                if self.exploration is not None else {}),
         }

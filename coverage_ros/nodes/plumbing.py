@@ -198,12 +198,16 @@ class UpdateWorker:
         return self._credit
 
     def summary(self) -> str:
-        """One line on the calls so far: count, mean period, CPU per call."""
+        """One line on the calls so far: count, mean, median and longest period (of the
+        recent calls), CPU per call."""
         n = self.calls
         if n == 0:
             return "no coverage updates"
         period = (self.starts[-1] - self.first_start) / (n - 1) if n > 1 else math.nan
-        return (f"{n} coverage updates, one every {period:.2f} s wall; CPU per update "
+        gaps = np.diff(np.asarray(self.starts))
+        median = float(np.median(gaps)) if len(gaps) else math.nan
+        return (f"{n} coverage updates, one every {period:.2f} s wall (median {median:.2f} "
+                f"s, longest {gaps.max() if len(gaps) else math.nan:.2f} s); CPU per update "
                 f"median {np.median(np.asarray(self.cpu_ms)):.1f} ms (last "
                 f"{len(self.cpu_ms)}), max {self.cpu_ms_max:.1f} ms "
                 f"(update_load {self._load:g})")

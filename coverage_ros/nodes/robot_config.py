@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -233,14 +234,16 @@ def robot_spec(base: RobotSpec, values: dict[str, Any]) -> RobotSpec:
         raise ConfigError(str(exc).replace("parameters: robot.", "parameter ")) from None
 
 
-def load_robot_inputs(values: dict[str, Any], namespace: str) -> RobotInputs:
+def load_robot_inputs(values: dict[str, Any], namespace: str,
+                      load_world: Callable[[str], WorldSpec] | None = None) -> RobotInputs:
     """Validate the declared parameter ``values`` of a node in ``namespace``; load the world
-    file and density they name."""
+    file (through ``load_world``, e.g. one shared by the robots of a process) and density
+    they name."""
     prefix = values["robot_prefix"]
     rid = values["robot_id"] if values["robot_id"] >= 0 else robot_id_from_namespace(
         namespace, prefix)
-    world = load_planar_world(Path(resolve_world_path(values["world"]))) \
-        if values["world"] else None
+    load_world = load_world or (lambda name: load_planar_world(Path(resolve_world_path(name))))
+    world = load_world(values["world"]) if values["world"] else None
     base = world.robot_spec(rid) if world is not None else RobotSpec()
     choice = strategy_choice(values["strategy"],
                              yaml_mapping(values["strategy_params"], "strategy_params"),

@@ -37,9 +37,7 @@ from std_srvs.srv import SetBool
 from coverage_ros.core.control.controller import RobotController
 from coverage_ros.core.control.pose_history import PoseHistory
 from coverage_ros.core.exploration.belief import Belief
-from coverage_ros.core.geodesic.domain import CoverageDomain
 from coverage_ros.core.strategies import Scan
-from coverage_ros.core.world.metric import zeta_on_grid
 from coverage_ros.errors import ConfigError, CoverageError
 from coverage_ros.nodes import conversions as conv
 from coverage_ros.nodes.belief_exchange import OBSERVATIONS, OBSERVATIONS_TYPE, BeliefExchange
@@ -57,6 +55,7 @@ from coverage_ros.nodes.plumbing import (
 from coverage_ros.nodes.region_input import RegionInput
 from coverage_ros.nodes.robot_config import PARAMETERS, load_robot_inputs
 from coverage_ros.nodes.robot_requests import RobotRequests
+from coverage_ros.nodes.robot_shared import SharedInputs, state_topics
 from coverage_ros.nodes.runner import FatalConfigError, declare_parameters, run_node
 from coverage_ros.nodes.tf_input import TfPoseInput
 
@@ -64,7 +63,6 @@ DISCOVERY_PERIOD = 1.0  # [s] wall time between looks at the ROS graph for new n
 #: [s] wall time a robot listens for neighbours after its first pose before its first update
 #: (one look at the ROS graph and their states), so that it does not start with the whole map.
 LISTEN_FIRST = DISCOVERY_PERIOD + 0.5
-STATE_TYPE = "sensor_msgs/msg/JointState"
 #: Scans that wait for the pose after their stamp (a second of a 5 Hz lidar).
 PENDING_SCANS = 5
 
@@ -72,9 +70,16 @@ PENDING_SCANS = 5
 class RobotNode(RobotRequests, Node):
     """See module docstring."""
 
-    def __init__(self) -> None:
-        super().__init__("coverage_robot")
-        inputs = load_robot_inputs(declare_parameters(self, PARAMETERS), self.get_namespace())
+    def __init__(self, cli_args: list[str] | None = None,
+                 shared: SharedInputs | None = None, hub: bool = False) -> None:
+        """``cli_args``: this node's own ROS arguments (namespace, parameters) when several
+        share a process; ``shared``: what the robots of the process share; ``hub``: the
+        process's :class:`StateHub` delivers the neighbours' states (no subscriptions here)."""
+        super().__init__("coverage_robot", cli_args=cli_args)
+        self.shared = shared if shared is not None else SharedInputs()
+        self._own_states = not hub
+        inputs = load_robot_inputs(declare_parameters(self, PARAMETERS), self.get_namespace(),
+                                   self.shared.world)
         self.config = inputs.config
         cc = self.config.controller
         self.frames = conv.RobotFrames.of(self.config.robot_prefix, cc.robot_id)
@@ -150,10 +155,9 @@ class RobotNode(RobotRequests, Node):
         # The world's travel metric on whatever lattice the map came on (exploring: the
         # entropy metric of the strategy instead).
         metric = self._world.metric if self._world is not None else None
-        zeta = None if belief is not None else zeta_on_grid(metric, grid)
-        domain = CoverageDomain.from_grid(grid, self.config.controller.robot.radius,
-                                          self._density, connectivity=self.config.connectivity,
-                                          unknown_is_free=belief is not None, zeta=zeta)
+        domain = self.shared.domain(grid, self.config.controller.robot.radius, self._density,
+                                    self.config.connectivity, belief is not None,
+                                    None if belief is not None else metric)
         self.controller = RobotController(domain, self.config.controller, belief)
         self.controller.set_manual(self.config.manual)
         self.controller.set_paused(self._paused)
@@ -247,38 +251,40 @@ class RobotNode(RobotRequests, Node):
                 continue
             self.controller.integrate_scan(scan, pose, self._now())
 
+    @property
+    def robot_id(self) -> int:
+        return self.config.controller.robot_id
+
     def _discover(self) -> None:
-        """Subscribe to every new /<prefix><k>/coverage_state topic (k != own id), and when
-        exploring to every /<prefix><k>/observations."""
-        prefix = re.escape(self.config.robot_prefix)
-        pattern = re.compile(rf"/{prefix}(\d+)/coverage_state")
-        evidence = re.compile(rf"/{prefix}(\d+)/{OBSERVATIONS}")
-        own = self.config.controller.robot_id
-        for name, types in self.get_topic_names_and_types():
-            m = evidence.fullmatch(name)
-            if m and self.exchange is not None and OBSERVATIONS_TYPE in types and \
-                    int(m.group(1)) != own:
-                self.exchange.listen(int(m.group(1)), name)
-            m = pattern.fullmatch(name)
-            if not m or STATE_TYPE not in types:
-                continue
-            rid = int(m.group(1))
-            if rid == self.config.controller.robot_id or rid in self._subs:
-                continue
-            if self.count_publishers(name) == 0:
-                continue  # only subscribers so far (e.g. a monitor): not a robot yet
+        """Subscribe to every new /<prefix><k>/coverage_state topic (k != own id; unless the
+        process's StateHub does), and when exploring to every /<prefix><k>/observations."""
+        names = self.get_topic_names_and_types()
+        if self.exchange is not None:
+            evidence = re.compile(rf"/{re.escape(self.config.robot_prefix)}(\d+)/{OBSERVATIONS}")
+            for name, types in names:
+                m = evidence.fullmatch(name)
+                if m and OBSERVATIONS_TYPE in types and int(m.group(1)) != self.robot_id:
+                    self.exchange.listen(int(m.group(1)), name)
+        for rid, name in state_topics(names, self.config.robot_prefix) if self._own_states \
+                else ():
+            if rid == self.robot_id or rid in self._subs or self.count_publishers(name) == 0:
+                continue  # (no publisher: only subscribers so far, e.g. a monitor)
             self._subs[rid] = self.create_subscription(
                 JointState, name, lambda msg, rid=rid: self._on_state(rid, msg), TEAM_QOS,
                 event_callbacks=quiet_subscription())
             self.get_logger().info(f"neighbour {rid} found on {name}")
 
     def _on_state(self, robot_id: int, msg: JointState) -> None:
-        if self.controller is None:
-            return
         try:
             values = conv.coverage_state_values(msg)
         except ValueError as exc:
             self._warn(f"state{robot_id}", f"dropped coverage_state of robot {robot_id}: {exc}")
+            return
+        self.take_state(robot_id, values)
+
+    def take_state(self, robot_id: int, values: dict[str, float]) -> None:
+        """A neighbour's parsed coverage_state (from this node's subscription or the hub)."""
+        if self.controller is None:
             return
         why = self.controller.neighbours.receive(robot_id, values, self._now())
         if why:

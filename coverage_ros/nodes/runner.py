@@ -14,7 +14,7 @@ from collections.abc import Callable
 import rclpy
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.exceptions import ParameterException
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 
 from coverage_ros.errors import CoverageError
@@ -40,16 +40,26 @@ def run_node(name: str, make_node: Callable[[], Node], args=None,
 
     ``cleanup(node)`` runs before the node is destroyed, whatever ended the spin; an error in
     it is reported on stderr and does not change the exit code."""
+    return run_nodes(name, lambda: [make_node()], args, cleanup)
+
+
+def run_nodes(name: str, make_nodes: Callable[[], list[Node]], args=None,
+              cleanup: Callable[[Node], None] | None = None) -> int:
+    """:func:`run_node` for several nodes in one process (the composition idiom): all of them
+    on one single-threaded executor; ``cleanup`` runs for each before it is destroyed."""
     rclpy.init(args=args)
     try:
-        node = make_node()
+        nodes = make_nodes()
     except STARTUP_ERRORS as exc:
         print(f"{name}: error: {exc}", file=sys.stderr)
         rclpy.try_shutdown()
         return 2
+    executor = SingleThreadedExecutor()
+    for node in nodes:
+        executor.add_node(node)
     code = 0
     try:
-        rclpy.spin(node)
+        executor.spin()
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except FatalConfigError as exc:
@@ -58,14 +68,17 @@ def run_node(name: str, make_node: Callable[[], Node], args=None,
     except Exception:
         # SIGINT/SIGTERM invalidate the context, possibly while a callback is publishing:
         # that is a shutdown, not a crash.
-        if node.context.ok():
+        if nodes[0].context.ok():
             raise
     finally:
-        if cleanup is not None:
-            try:
-                cleanup(node)
-            except Exception as exc:  # e.g. the context went away mid-publish
-                print(f"{name}: warning: while shutting down: {exc!r}", file=sys.stderr)
-        node.destroy_node()
+        for node in nodes:
+            if cleanup is not None:
+                try:
+                    cleanup(node)
+                except Exception as exc:  # e.g. the context went away mid-publish
+                    print(f"{name}: warning: while shutting down: {exc!r}", file=sys.stderr)
+            executor.remove_node(node)
+            node.destroy_node()
+        executor.shutdown(timeout_sec=0)
         rclpy.try_shutdown()
     return code

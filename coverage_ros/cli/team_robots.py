@@ -1,0 +1,106 @@
+"""The robot processes of ``coverage-team``: their parameters and commands.
+
+Each robot runs as ``robot_node`` in a process of its own, or - ``--robots-per-process K`` -
+up to K robots share a ``robot_container`` process (README "Several robots per process"),
+with their parameters in a parameters file of per-node sections, as for any composed node.
+A robot that ``--kill`` or ``--restart`` targets, or one on another host, always gets a
+process of its own: a fault must take down that robot only.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import yaml
+
+from coverage_ros.cli.processes import executable, ros_args
+from coverage_ros.core.world.robot import RobotSpec
+from coverage_ros.errors import ConfigError
+from coverage_ros.nodes.robot_config import SPEC_PARAMETERS
+
+#: Fraction of the machine's cores the whole team may spend on coverage updates by default.
+UPDATE_SHARE = 0.15
+#: Robot processes per core up to which every robot gets its own process by default (16
+#: robots on 2 cores run at real time that way; beyond it robots share processes).
+PROCESSES_PER_CORE = 8
+
+
+def default_update_load(robots: int) -> float:
+    """Each robot's share of UPDATE_SHARE of the machine's cores for coverage updates, at
+    most 0.1: message handling in every robot process, the world and the launcher need the
+    rest (measured with 16 robots on 2 cores: robots' executors ~100 %, world ~17 %)."""
+    return min(0.1, UPDATE_SHARE * (os.cpu_count() or 1) / max(robots, 1))
+
+
+def default_robots_per_process(robots: int, cores: int | None = None) -> int:
+    """1 while the team has at most PROCESSES_PER_CORE robots per core, else just enough
+    robots per process to keep to that many processes."""
+    cores = cores or os.cpu_count() or 1
+    return max(1, math.ceil(robots / (PROCESSES_PER_CORE * cores)))
+
+
+def robot_params(items: list[str]) -> dict[str, object]:
+    """``--robot-param NAME:=VALUE`` items as robot_node parameter values, read as rcl reads
+    ``-p`` values (YAML), except that a YAML mapping (``strategy_params:={variant:
+    nearest}``) stays the string it is meant to be."""
+    params: dict[str, object] = {}
+    for item in items:
+        if ":=" not in item:
+            raise ConfigError.at("--robot-param", "must be NAME:=VALUE", item)
+        k, v = item.split(":=", 1)
+        try:
+            value = yaml.safe_load(v)
+        except yaml.YAMLError:
+            value = v
+        params[k.strip()] = v if isinstance(value, dict) or value is None else value
+    return params
+
+
+def spec_parameters(spec: RobotSpec) -> dict[str, float]:
+    """robot_node parameters that give it exactly ``spec`` (see nodes/robot_config.py)."""
+    values = spec.numbers()
+    return {param: values[field] for param, field in SPEC_PARAMETERS.items()}
+
+
+@dataclass(frozen=True)
+class RobotProcess:
+    """One process of robots: its name in the launcher (and log file), command and robots."""
+
+    name: str
+    cmd: list[str]
+    ids: tuple[int, ...]
+
+
+def robot_node_command(rid: int, params: dict[str, object]) -> list[str]:
+    """``robot_node`` for robot ``rid`` with ``params`` (as ``ros2 run`` would take it)."""
+    return executable("robot_node") + ros_args(f"/robot_{rid}", **params)
+
+
+def plan_processes(params: dict[int, dict[str, object]], per_process: int,
+                   alone: set[int], params_dir: Path) -> list[RobotProcess]:
+    """The processes for robots ``{id: parameters}``: groups of up to ``per_process``
+    consecutive ids in a ``robot_container`` (parameters written to ``params_dir``), and a
+    ``robot_node`` of its own for each robot in ``alone`` and for a group of one."""
+    out = [RobotProcess(f"robot_{rid}", robot_node_command(rid, params[rid]), (rid,))
+           for rid in sorted(alone)]
+    shared = [rid for rid in sorted(params) if rid not in alone]
+    for k in range(0, len(shared), per_process):
+        ids = shared[k:k + per_process]
+        if len(ids) == 1:
+            out.append(RobotProcess(f"robot_{ids[0]}",
+                                    robot_node_command(ids[0], params[ids[0]]), (ids[0],)))
+            continue
+        name = f"robots_{ids[0]}-{ids[-1]}"
+        params_dir.mkdir(parents=True, exist_ok=True)
+        path = params_dir / f"{name}.yaml"
+        path.write_text(yaml.safe_dump(
+            {f"/robot_{rid}/coverage_robot": {"ros__parameters": params[rid]} for rid in ids},
+            sort_keys=False))
+        cmd = executable("robot_container") + [str(rid) for rid in ids] + \
+            ["--ros-args", "--params-file", str(path.resolve())]
+        out.append(RobotProcess(name, cmd, tuple(ids)))
+    return sorted(out, key=lambda p: p.ids[0])
+

@@ -1,0 +1,129 @@
+"""What the robots of one process share (README "Several robots per process").
+
+``robot_node`` runs one robot per process; ``robot_container`` runs several (the ROS 2
+composition idiom: each still its own node in its own namespace, with the same topics and
+parameters). The robots of one process share:
+
+* :class:`SharedInputs` - world files, read once per path, and coverage domains (the inflated
+  map, its graph and density and every table computed on them), built once per map, robot
+  radius, density, connectivity and metric: a robot's strategy only reads its domain, and the
+  domain's lazily filled tables are the same whoever fills them;
+* :class:`StateHub` (container only) - one subscription per neighbour's ``coverage_state``,
+  parsed once and handed to every local robot but its sender, instead of one per robot and
+  neighbour (with K robots per process, a team of N sends N * N / K messages instead of N * N).
+
+No robot-specific state is shared: each keeps its own controller, strategy, caches and update
+thread.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import re
+import threading
+from collections.abc import Callable, Iterable, Iterator
+from pathlib import Path
+
+from sensor_msgs.msg import JointState
+
+from coverage_ros.core.geodesic.domain import CoverageDomain
+from coverage_ros.core.world import load_planar_world
+from coverage_ros.core.world.grid import GridMap
+from coverage_ros.core.world.metric import zeta_on_grid
+from coverage_ros.core.world.spec import WorldSpec
+from coverage_ros.nodes import conversions as conv
+from coverage_ros.nodes.plumbing import TEAM_QOS, quiet_subscription
+from coverage_ros.worlds import resolve_world_path
+
+STATE_TYPE = "sensor_msgs/msg/JointState"
+
+
+def state_topics(names_and_types: Iterable[tuple[str, list[str]]],
+                 prefix: str) -> Iterator[tuple[int, str]]:
+    """``(robot id, topic)`` of every ``/<prefix><id>/coverage_state`` of the right type."""
+    pattern = re.compile(rf"/{re.escape(prefix)}(\d+)/coverage_state")
+    for name, types in names_and_types:
+        m = pattern.fullmatch(name)
+        if m and STATE_TYPE in types:
+            yield int(m.group(1)), name
+
+
+def grid_digest(grid: GridMap) -> bytes:
+    """A digest of what a domain is built from on ``grid`` (cells, resolution, origin): two
+    copies of one map (e.g. the same ``/map`` message received by two robots) give the same."""
+    h = hashlib.blake2b(digest_size=16)
+    h.update(repr((grid.occupancy.shape, grid.resolution, grid.origin)).encode())
+    h.update(grid.occupancy.tobytes())
+    return h.digest()
+
+
+class SharedInputs:
+    """World files and coverage domains of the robots of one process (see module docstring);
+    safe to call from any thread."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._worlds: dict[str, WorldSpec] = {}
+        # key -> (domain, the objects the key names by id: kept alive so no id is reused)
+        self._domains: dict[tuple, tuple[CoverageDomain, tuple]] = {}
+        self.domains_built = 0
+
+    def world(self, name: str) -> WorldSpec:
+        """The world ``name`` (a path or a shipped world), loaded once per process."""
+        path = str(Path(resolve_world_path(name)).resolve())
+        with self._lock:
+            if path not in self._worlds:
+                self._worlds[path] = load_planar_world(Path(path))
+            return self._worlds[path]
+
+    def domain(self, grid: GridMap, robot_radius: float, density, connectivity: int,
+               unknown_is_free: bool, metric) -> CoverageDomain:
+        """``CoverageDomain.from_grid`` with the world's ``metric`` (None: Euclidean), built
+        once per distinct input. ``density`` and ``metric`` are compared by identity (a
+        world loaded through :meth:`world` gives every robot the same objects)."""
+        key = (grid_digest(grid), float(robot_radius), id(density), int(connectivity),
+               bool(unknown_is_free), id(metric))
+        with self._lock:
+            held = self._domains.get(key)
+            if held is None:
+                domain = CoverageDomain.from_grid(
+                    grid, robot_radius, density, connectivity=connectivity,
+                    unknown_is_free=unknown_is_free, zeta=zeta_on_grid(metric, grid))
+                held = self._domains[key] = (domain, (density, metric))
+                self.domains_built += 1
+            return held[0]
+
+
+class StateHub:
+    """The neighbour states of a process's robots: one subscription per ``coverage_state``
+    topic of the team, each message parsed once and given to every local robot but its
+    sender. ``robots`` have ``robot_id`` and ``take_state(sender, values)``; ``node`` owns the
+    subscriptions; ``warn(key, text)`` reports a dropped message."""
+
+    def __init__(self, node, robots: list, prefix: str,
+                 warn: Callable[[str, str], object]) -> None:
+        self.node, self.robots, self.prefix, self._warn = node, list(robots), prefix, warn
+        self.subscriptions: dict[int, object] = {}
+        self.received = self.delivered = 0
+
+    def discover(self) -> None:
+        """Subscribe to every new neighbour's state topic that has a publisher."""
+        for rid, name in state_topics(self.node.get_topic_names_and_types(), self.prefix):
+            if rid in self.subscriptions or self.node.count_publishers(name) == 0:
+                continue  # only subscribers so far (e.g. a monitor): not a robot yet
+            self.subscriptions[rid] = self.node.create_subscription(
+                JointState, name, lambda msg, rid=rid: self.on_state(rid, msg), TEAM_QOS,
+                event_callbacks=quiet_subscription())
+            self.node.get_logger().info(f"robot {rid} found on {name}")
+
+    def on_state(self, sender: int, msg) -> None:
+        self.received += 1
+        try:
+            values = conv.coverage_state_values(msg)
+        except ValueError as exc:
+            self._warn(f"state{sender}", f"dropped coverage_state of robot {sender}: {exc}")
+            return
+        for robot in self.robots:
+            if robot.robot_id != sender:
+                robot.take_state(sender, values)
+                self.delivered += 1

@@ -1,0 +1,120 @@
+"""Several robots per process: how the launcher groups robots and writes their parameters,
+what the robots of one process share, and robot_container's start-up errors. The live team with
+shared processes runs in test_team_strategies (lloyd: four robots in one process; the mixed
+team: two per process, each with its own body from its section of the parameters file)."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+from conftest import REPO
+from rosutil import domain_id, ros_env
+
+from coverage_ros.cli.team_robots import (
+    default_robots_per_process,
+    plan_processes,
+    robot_params,
+)
+from coverage_ros.core.world.grid import GridMap
+from coverage_ros.nodes.robot_shared import SharedInputs, grid_digest, state_topics
+
+
+def _params(ids, **extra):
+    return {i: {"robot_id": i, "strategy": "lloyd", "robot_radius": 0.1 + 0.01 * i, **extra}
+            for i in ids}
+
+
+def test_robots_are_grouped_and_faulty_or_single_ones_run_alone(tmp_path):
+    procs = plan_processes(_params(range(7)), 3, alone={4}, params_dir=tmp_path)
+    assert [(p.name, p.ids) for p in procs] == [
+        ("robots_0-2", (0, 1, 2)), ("robots_3-6", (3, 5, 6)), ("robot_4", (4,))]
+    by_name = {p.name: p for p in procs}
+    # A robot on its own is the plain robot_node, exactly as ros2 run would start it.
+    cmd = by_name["robot_4"].cmd
+    assert "robot_node" in " ".join(cmd[:cmd.index("--ros-args")])
+    assert cmd[cmd.index("--ros-args"):] == [
+        "--ros-args", "-r", "__ns:=/robot_4", "-p", "robot_id:=4", "-p", "strategy:=lloyd",
+        "-p", "robot_radius:=0.14"]
+    # A group: robot_container with its ids and one parameters file of per-node sections.
+    cmd = by_name["robots_3-6"].cmd
+    k = cmd.index("--ros-args")
+    assert cmd[k - 3:k] == ["3", "5", "6"] and "robot_container" in cmd[k - 4]
+    params_file = cmd[cmd.index("--params-file") + 1]
+    sections = yaml.safe_load(Path(params_file).read_text())
+    assert list(sections) == ["/robot_3/coverage_robot", "/robot_5/coverage_robot",
+                              "/robot_6/coverage_robot"]
+    assert sections["/robot_5/coverage_robot"]["ros__parameters"] == _params([5])[5]
+    # The last group of one robot gets a robot_node, not a container of one.
+    procs = plan_processes(_params(range(3)), 2, alone=set(), params_dir=tmp_path)
+    assert sorted(p.name for p in procs) == ["robot_2", "robots_0-1"]
+
+
+def test_default_robots_per_process_keeps_to_eight_processes_per_core():
+    assert default_robots_per_process(16, cores=2) == 1
+    assert default_robots_per_process(17, cores=2) == 2
+    assert default_robots_per_process(32, cores=2) == 2
+    assert default_robots_per_process(64, cores=2) == 4
+    assert default_robots_per_process(64, cores=8) == 1
+
+
+def test_robot_params_are_read_as_rcl_reads_them():
+    got = robot_params(["drive:=false", "comm_range:=4", "goal_tolerance:=0.25",
+                        "strategy_params:={variant: nearest}", "map_topic:=''",
+                        "bounds:=[0, 0, 5, 5]", "world:=office"])
+    assert got == {"drive": False, "comm_range": 4, "goal_tolerance": 0.25,
+                   "strategy_params": "{variant: nearest}", "map_topic": "",
+                   "bounds": [0, 0, 5, 5], "world": "office"}
+
+
+def test_robots_of_a_process_share_worlds_and_domains_but_only_equal_ones():
+    shared = SharedInputs()
+    world = shared.world("office")
+    assert shared.world("office") is world  # read once
+    occ = world.grid.occupancy
+    copy = GridMap(occ.copy(), world.grid.resolution, world.grid.origin)  # a second /map
+    a = shared.domain(world.grid, 0.105, world.density, 8, False, world.metric)
+    b = shared.domain(copy, 0.105, world.density, 8, False, world.metric)
+    assert a is b and shared.domains_built == 1
+    # Anything that changes the domain gives another one.
+    assert shared.domain(copy, 0.16, world.density, 8, False, world.metric) is not a
+    assert shared.domain(copy, 0.105, world.density, 16, False, world.metric) is not a
+    moved = GridMap(occ.copy(), world.grid.resolution, (0.05, 0.0, 0.0))
+    assert grid_digest(moved) != grid_digest(copy)
+    changed = occ.copy()
+    changed[5, 5] = 100 - changed[5, 5]
+    assert grid_digest(GridMap(changed, world.grid.resolution, world.grid.origin)) != \
+        grid_digest(copy)
+    assert shared.domains_built == 3
+    assert np.array_equal(a.free, b.free)
+
+
+def test_state_topics_are_the_teams_own():
+    names = [("/robot_3/coverage_state", ["sensor_msgs/msg/JointState"]),
+             ("/robot_12/coverage_state", ["sensor_msgs/msg/JointState"]),
+             ("/robot_4/coverage_state", ["std_msgs/msg/String"]),
+             ("/robot_x/coverage_state", ["sensor_msgs/msg/JointState"]),
+             ("/other_5/coverage_state", ["sensor_msgs/msg/JointState"]),
+             ("/robot_6/cell", ["nav_msgs/msg/OccupancyGrid"])]
+    assert list(state_topics(names, "robot_")) == [(3, "/robot_3/coverage_state"),
+                                                   (12, "/robot_12/coverage_state")]
+
+
+@pytest.mark.parametrize("args, message", [
+    (["1", "1"], "ids must be distinct"),
+    (["0", "1", "--ros-args", "-p", "strategy:=magic"], "robot 0: strategy: unknown strategy"),
+    (["0", "1", "--ros-args", "-p", "control_rate:=0.0"],
+     "robot 0: control_rate: must be a number > 0"),
+    (["0", "1", "--ros-args", "-p", "control_rate:=fast"], "robot 0: "),
+])
+def test_container_start_up_errors_name_the_value(args, message):
+    out = subprocess.run([sys.executable, "-m", "coverage_ros.nodes.robot_container", *args],
+                         env=ros_env(domain_id(11)), capture_output=True, text=True, timeout=60,
+                         cwd=REPO)
+    assert out.returncode == 2
+    err = out.stderr.strip().splitlines()  # the last line says it (argparse: after usage)
+    assert err[-1].startswith("robot_container: error: ") and message in err[-1], out.stderr

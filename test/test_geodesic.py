@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from conftest import WORLDS
 
-from coverage_ros.core.geodesic.cell import SearchCache, geodesic_cell
+from coverage_ros.core.geodesic.cell import COLD_STRIDE, SearchCache, cold_radius, geodesic_cell
 from coverage_ros.core.geodesic.domain import CoverageDomain
 from coverage_ros.core.geodesic.graph import octile_bound
 from coverage_ros.core.geodesic.reference import obvious_cell, paper_cell
@@ -201,6 +201,50 @@ def test_cache_and_search_growth_do_not_change_results():
     assert far.passes >= 1
     full = tessellate(domain, [gens[0], Generator(gens[0].position + [0.05, 0.0])])
     assert set(far.nodes.tolist()) == set(np.flatnonzero(full.labels.ravel() == 0))
+
+
+def test_a_cold_update_starts_from_the_extent_of_its_straight_line_cell():
+    """Two robots on an empty 6 m x 4 m map, at (1.5, 2) and (4.5, 2): the first one's cell is
+    the left half, which reaches 2.5 m from it (to (0, 0), (0, 4), (3, 0) and (3, 4)). The cold
+    radius covers that and exceeds it by at most the sampling gap; the update is one pass."""
+    domain = empty_domain(40, 60)
+    gens = [Generator(np.array([1.5, 2.0])), Generator(np.array([4.5, 2.0]))]
+    centers = domain.to_grid(np.array([g.position for g in gens]))
+    L = cold_radius(domain, centers, np.zeros(2))
+    gap = math.sqrt(2.0) * COLD_STRIDE * RES
+    assert 2.5 <= L <= 2.5 + gap, L
+    cell = geodesic_cell(domain, gens[0], gens[1:], cache=SearchCache())
+    assert cell.passes == 1 and cell.cell_radius <= L
+    # A team bunched in a corner of a larger map: the cell of the robot on the outside is
+    # most of the map; it too is found in one pass (a radius from the nearest neighbours took
+    # several), and equals the centralized tessellation's.
+    domain = empty_domain(80, 120)
+    pts = [np.array([0.5 + 0.4 * (k % 3), 0.5 + 0.4 * (k // 3)]) for k in range(6)]
+    gens = [Generator(p) for p in pts]
+    labels = tessellate(domain, gens).labels.ravel()
+    outer = int(np.argmax(np.bincount(labels[labels >= 0])))
+    cell = geodesic_cell(domain, gens[outer], gens[:outer] + gens[outer + 1:],
+                         cache=SearchCache())
+    assert cell.passes == 1
+    assert set(cell.nodes.tolist()) == set(np.flatnonzero(labels == outer))
+
+
+def test_a_cell_reaching_round_a_wall_grows_its_search():
+    """A wall along y = 2 m from x = 0 to 4.5 m, a robot at (1, 1) below it and one at (5.2, 1)
+    right of its end. The region above the wall's left part is the first robot's in straight
+    lines but the second's along paths (through the gap): the second's cell reaches further
+    than its straight-line cell, so its cold search must grow - and still gives the exact
+    cell."""
+    occ = np.zeros((60, 60), np.int8)
+    occ[20:22, :45] = OCCUPIED
+    domain = CoverageDomain.from_grid(GridMap(occ, RES), 0.0)
+    gens = [Generator(np.array([5.2, 1.0])), Generator(np.array([1.0, 1.0]))]
+    cell = geodesic_cell(domain, gens[0], gens[1:], cache=SearchCache())
+    labels = tessellate(domain, gens).labels.ravel()
+    assert cell.passes >= 2
+    assert set(cell.nodes.tolist()) == set(np.flatnonzero(labels == 0))
+    top_left = domain.to_grid(np.array([[0.3, 5.7]]))[0].astype(int)
+    assert labels[top_left[1] * 60 + top_left[0]] == 0
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])

@@ -14,7 +14,8 @@ control periods. Timed, interleaved in one process so machine-speed drift affect
 A second table shows how the update time follows the robot's own cell area: k x k robots on
 n x n grids; equal n/k means equal cell area. First of all, the offline team step
 (:mod:`coverage_ros.bench.team_step`): lloyd and geodesic per step, plain against accelerated
-Lloyd.
+Lloyd; before that, a robot's cold update in the largest cell of 16 robots on depot
+(:mod:`coverage_ros.bench.cold_update`).
 
 Progress goes to stderr; the last stdout line is JSON.
 """
@@ -185,9 +186,17 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-scaling", action="store_true")
     ap.add_argument("--team-step-only", action="store_true",
                     help="only the offline team step on the 'gaussians' world")
+    ap.add_argument("--cold-only", action="store_true",
+                    help="only the cold update of the largest cell (16 robots on depot)")
     args = ap.parse_args(argv)
+    from coverage_ros.bench.cold_update import bench_cold_update
     from coverage_ros.bench.team_step import bench_team_step
 
+    _say("cold update: the largest cell of 16 robots on depot.yaml")
+    cold = bench_cold_update(5, _say)
+    if args.cold_only:
+        print(json.dumps({"cold_update": cold}))
+        return 0
     _say("offline team step: 8 robots on world 'gaussians' (402 x 402 cells)")
     team_step = bench_team_step(7, 7, _say)
     if args.team_step_only:
@@ -201,7 +210,7 @@ def main(argv: list[str] | None = None) -> int:
         _say(f"  fast {row['update_ms']} ms (paper mode), {row['visibility_ms']} ms (visibility),"
              f" reference {row['reference_ms']} ms, speedup {row['speedup']}x")
         grids.append(row)
-    result = {"grids": grids, "team_step": team_step}
+    result = {"grids": grids, "team_step": team_step, "cold_update": cold}
     if not args.no_scaling:
         _say("update time against own cell area (k x k robots on n x n cells)")
         result["scaling"] = bench_scaling([(200, 2), (400, 4), (800, 8), (200, 4), (400, 8)],

@@ -22,6 +22,7 @@ import sys
 
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from rclpy.utilities import remove_ros_args
 
 from coverage_ros.errors import ConfigError
@@ -43,16 +44,32 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
 
 
 class ContainerNode(Node):
-    """The process's own node: finds the neighbours and runs the :class:`StateHub`."""
+    """The process's own node: finds the neighbours and runs the :class:`StateHub`; with sim
+    time, it also carries the one ``/clock`` subscription of the process."""
 
     def __init__(self, robots: list[RobotNode], prefix: str) -> None:
-        super().__init__(f"robot_container_{min(r.robot_id for r in robots)}")
+        sim = [r for r in robots if r.get_parameter("use_sim_time").value]
+        super().__init__(f"robot_container_{min(r.robot_id for r in robots)}",
+                         parameter_overrides=[Parameter("use_sim_time", value=bool(sim))])
         throttle = WarnThrottle(self.get_logger().warning)
         self.hub = StateHub(self, robots, prefix, throttle.warn)
         self.create_timer(DISCOVERY_PERIOD, self.hub.discover,
                           clock=Clock(clock_type=ClockType.STEADY_TIME))
+        shared = sum(self._share_clock(r) for r in sim)
         self.get_logger().info(f"{len(robots)} robots in one process: "
-                               f"{', '.join(r.get_namespace() for r in robots)}")
+                               f"{', '.join(r.get_namespace() for r in robots)}"
+                               + (f"; one /clock subscription for {shared}" if shared else ""))
+
+    def _share_clock(self, robot: RobotNode) -> bool:
+        """Drive ``robot``'s clock from this node's /clock subscription instead of its own:
+        every /clock message would otherwise wake each robot of the process (10 Hz each).
+        rclpy keeps a node's time source private; without it the robot keeps its own."""
+        source = getattr(robot, "_time_source", None)
+        if source is None or not hasattr(source, "detach_node"):
+            return False
+        source.detach_node()  # drops the robot's /clock subscription
+        self._time_source.attach_clock(robot.get_clock())
+        return True
 
 
 def _make_nodes(args: argparse.Namespace) -> list[Node]:

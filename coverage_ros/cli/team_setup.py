@@ -7,14 +7,17 @@ import argparse
 import math
 from dataclasses import replace
 
+from coverage_ros.cli.team_robots import default_robots_per_process
 from coverage_ros.core.world import TeamMember, load_team
 from coverage_ros.core.world.placement import CLUSTER_GAP, team_starts
 from coverage_ros.core.world.spec import WorldSpec
 from coverage_ros.errors import ConfigError
 
-#: [MB] memory of one robot process (measured 230-305 MB with 16 robots, bench_team), the world
+#: [MB] memory of one robot process (measured 230-305 MB with 16 robots, bench_team), of each
+#: further robot sharing a process (8 per process on depot: 364 MB a process), the world
 #: node and the rerun bridge: what a team is estimated to need before it starts.
 ROBOT_MB = 300.0
+SHARED_ROBOT_MB = 40.0
 WORLD_MB = 150.0
 BRIDGE_MB = 300.0
 MARKERS_MB = 100.0  # the RViz marker node
@@ -44,8 +47,11 @@ def build_team(world: WorldSpec, args: argparse.Namespace) -> list[TeamMember]:
     if args.sensor_radius is not None:
         members = [replace(m, spec=m.spec.with_overrides(
             {"sensor_radius": args.sensor_radius}, "--sensor-radius")) for m in members]
+    per_process = getattr(args, "robots_per_process", None) or \
+        default_robots_per_process(len(members))
     check_room(world, len(members), max(m.spec.radius for m in members),
-               bool(args.record or args.viewer or args.serve_web), not args.no_markers)
+               bool(args.record or args.viewer or args.serve_web), not args.no_markers,
+               per_process=per_process)
     if args.starts or any(m.start is None for m in members):
         starts = team_starts(world, [m.spec for m in members], args.starts, args.seed)
         members = [replace(m, start=tuple(float(v) for v in starts[i]))
@@ -57,11 +63,19 @@ def build_team(world: WorldSpec, args: argparse.Namespace) -> list[TeamMember]:
     return members
 
 
+def robots_mb(robots: int, per_process: int = 1) -> float:
+    """[MB] estimated memory of ``robots`` robots, ``per_process`` to a process."""
+    processes = math.ceil(robots / max(per_process, 1))
+    return processes * ROBOT_MB + (robots - processes) * SHARED_ROBOT_MB
+
+
 def check_room(world: WorldSpec, robots: int, radius: float, bridge: bool,
-               markers: bool = True, available_mb: float | None = None) -> None:
+               markers: bool = True, available_mb: float | None = None,
+               per_process: int = 1) -> None:
     """Refuse a team that cannot work: more robots than the free area holds at their radius
     and spacing (hexagonal packing, CLUSTER_GAP apart), or more memory than the machine has
-    available (``available_mb``: default, what psutil says)."""
+    available (``available_mb``: default, what psutil says) for them, ``per_process`` robots
+    to a process."""
     free = world.grid.inflated_free_mask(radius)
     area = float(free.sum()) * world.grid.resolution ** 2
     spacing = 2.0 * radius + CLUSTER_GAP
@@ -71,14 +85,20 @@ def check_room(world: WorldSpec, robots: int, radius: float, bridge: bool,
                              f"{robots * per_robot:.1f} m^2 packed {CLUSTER_GAP:g} m apart; "
                              f"{world.name} has {area:.1f} m^2 of free space for them",
                              expected=f"at most {int(area // per_robot)}")
-    need = robots * ROBOT_MB + WORLD_MB + (BRIDGE_MB if bridge else 0.0) + \
+    need = robots_mb(robots, per_process) + WORLD_MB + (BRIDGE_MB if bridge else 0.0) + \
         (MARKERS_MB if markers else 0.0)
     if available_mb is None:
         import psutil
 
         available_mb = psutil.virtual_memory().available / 2**20
     if need > available_mb:
+        most = robots
+        while most > 0 and robots_mb(most, per_process) + need - robots_mb(robots, per_process) \
+                > available_mb:
+            most -= 1
         raise ConfigError.at("--robots", f"{robots} robots need about {need / 1024:.1f} GB of "
-                             f"memory ({ROBOT_MB:g} MB per robot process); the machine has "
-                             f"{available_mb / 1024:.1f} GB available",
-                             expected=f"at most {int((available_mb - WORLD_MB) // ROBOT_MB)}")
+                             f"memory ({ROBOT_MB:g} MB per robot process, {per_process} "
+                             f"robot(s) per process, {SHARED_ROBOT_MB:g} MB for each further "
+                             f"one); the machine has {available_mb / 1024:.1f} GB available",
+                             expected=f"at most {most}, or more robots per process "
+                             "(--robots-per-process)")

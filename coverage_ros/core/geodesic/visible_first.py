@@ -134,21 +134,26 @@ def _search_hidden(domain: CoverageDomain, local: LocalGraph, hidden: np.ndarray
         rows.append(np.full(len(mine), m + k))
         cols.append(pos[mine])
         vals.append(dist[mine + 1])
+        # Seen and snap seeds of one generator may name the same hidden cell: the cheaper
+        # one is its edge (the only duplicates: every other edge of the sub-graph is unique).
+        cost = np.full(len(hidden), np.inf)
         d2 = ((hc - grids[k]) ** 2).sum(axis=1)
         if len(d2):
             seen = domain.visible_mask(grids[k], hc, math.sqrt(float(d2.max())))
-            rows.append(np.full(int(seen.sum()), m + k))
-            cols.append(pos[hidden[seen]])
-            vals.append(np.sqrt(d2[seen]) * res + biases[k])
+            cost[seen] = np.sqrt(d2[seen]) * res + biases[k]
         snap_nodes, snap_costs = snap_best[k]
         hid = pos[snap_nodes] >= 0
         hid &= ~settled[snap_nodes]
-        rows.append(np.full(int(hid.sum()), m + k))
-        cols.append(pos[snap_nodes[hid]])
-        vals.append(snap_costs[hid])
+        np.minimum.at(cost, pos[snap_nodes[hid]], snap_costs[hid])  # pos < len(hidden) here
+        to = np.flatnonzero(np.isfinite(cost))
+        rows.append(np.full(len(to), m + k))
+        cols.append(to)
+        vals.append(cost[to])
     size = m + k_gens
-    d, p, src = dijkstra(_min_duplicates(rows, cols, vals, size), directed=True,
-                         indices=np.arange(m, size), min_only=True, return_predecessors=True)
+    graph = csr_matrix((np.maximum(np.concatenate(vals), 1e-12),  # 0 would be no edge
+                        (np.concatenate(rows), np.concatenate(cols))), shape=(size, size))
+    d, p, src = dijkstra(graph, directed=True, indices=np.arange(m, size), min_only=True,
+                         return_predecessors=True)
     h = np.arange(len(hidden))
     reached = np.isfinite(d[h])
     lid = hidden[h[reached]] + 1
@@ -159,15 +164,3 @@ def _search_hidden(domain: CoverageDomain, local: LocalGraph, hidden: np.ndarray
     mapped = np.where(from_source, first + (parent - m), sub[np.minimum(parent, m - 1)] + 1)
     pred[lid] = mapped
 
-
-def _min_duplicates(rows: list[np.ndarray], cols: list[np.ndarray], vals: list[np.ndarray],
-                    size: int) -> csr_matrix:
-    """A CSR graph keeping the cheapest of duplicate edges (scipy would add them up)."""
-    r = np.concatenate(rows).astype(np.int64)
-    c = np.concatenate(cols).astype(np.int64)
-    v = np.maximum(np.concatenate(vals), 1e-12)
-    order = np.lexsort((v, c, r))
-    r, c, v = r[order], c[order], v[order]
-    first = np.ones(len(r), dtype=bool)
-    first[1:] = (r[1:] != r[:-1]) | (c[1:] != c[:-1])
-    return csr_matrix((v[first], (r[first], c[first])), shape=(size, size))

@@ -120,7 +120,12 @@ def geodesic_cell(domain: CoverageDomain, own: Generator, others: Sequence[Gener
             relevant = np.arange(1, len(gens))
         idx = np.concatenate([[0], relevant]).astype(np.int64)
         local = local_graph_for(domain, cache, centers[idx], radii[idx], L)
-        if whole and not power:
+        if not power and (whole or (local.covers_all and method == "visibility")):
+            # The search would cover the whole map (a team still bunched up leaves a few
+            # robots most of it): settling what is in line of sight first is cheaper there.
+            if not whole:
+                local = local_graph_for(domain, None, centers[:1], radii[:1], math.inf)
+                idx = np.arange(len(gens))  # every generator takes part (touching: into gens)
             found = _shared_search(domain, local, gens, snaps, method)
             break
         csr = local.with_sources([source_row(domain, local, snaps[k], radii[k], method)

@@ -227,6 +227,18 @@ def build_local_graph(domain: CoverageDomain, blocks: np.ndarray | None) -> Loca
                       region_indptr, indices, data, n, covers_all)
 
 
+def _free_blocks(domain: CoverageDomain) -> np.ndarray:
+    """``(Hb, Wb)`` bool: the blocks of the global block grid that hold a free cell."""
+    key = ("free_blocks", BLOCK)
+    if key not in domain._cache:
+        H, W = domain.shape
+        Hb, Wb = -(-H // BLOCK), -(-W // BLOCK)
+        padded = np.zeros((Hb * BLOCK, Wb * BLOCK), dtype=bool)
+        padded[:H, :W] = domain.graph.free
+        domain._cache[key] = padded.reshape(Hb, BLOCK, Wb, BLOCK).any(axis=(1, 3))
+    return domain._cache[key]
+
+
 def covers(graph: LocalGraph, centers: np.ndarray, radii: np.ndarray, lam_cells: float) -> bool:
     """Whether ``graph``'s region (built with the cache margin) contains the region for these
     generators: each term of the region's inequalities is 1-Lipschitz in the centres and radii,
@@ -260,7 +272,15 @@ def local_graph_for(domain: CoverageDomain, cache: SearchCache | None, centers: 
         cache.hits += 1
         return cache.graph
     margin = CACHE_MARGIN_CELLS if cache is not None else 0.0
-    g = build_local_graph(domain, required_blocks(domain, centers, radii, L, margin))
+    blocks = required_blocks(domain, centers, radii, L, margin)
+    if not (_free_blocks(domain) & ~blocks).any():
+        # Every block with a free cell: the domain's one whole-map graph, shared by every
+        # search on it (a robot whose cell is most of the map keeps no copy of its own).
+        if cache is not None:
+            cache.misses += 1
+            cache.graph = None
+        return local_graph_for(domain, None, centers, radii, math.inf)
+    g = build_local_graph(domain, blocks)
     g.built_for = (centers.copy(), radii.copy())
     if cache is not None:
         cache.misses += 1

@@ -101,59 +101,55 @@ def _search_hidden(domain: CoverageDomain, local: LocalGraph, hidden: np.ndarray
     res = domain.resolution
     k_gens = len(grids)
     nb, edge = local.nb[hidden], local.edge[hidden]  # local ids (1..n; 0 = sink)
-    # Edge costs of the whole-domain graph, row of each hidden node (node id = local id - 1).
-    full = local.with_sources([])
     border = np.unique(nb[edge & settled[np.maximum(nb - 1, 0)] & (nb > 0)]) - 1
     sub = np.concatenate([hidden, border])  # sub index -> node index
-    pos = np.full(n, -1, dtype=np.int64)
+    pos = np.full(n + 1, -1, dtype=np.int64)  # (index n: the tables' "no edge" sentinel)
     pos[sub] = np.arange(len(sub))
     m = len(sub)
-    # Hidden rows: their graph edges within the sub-graph; border rows: edges into hidden cells.
+    # Hidden rows: their graph edges within the sub-graph; border rows: edges into hidden
+    # cells. A visibility domain's graph is the grid's own (no chart edges): its edge table.
+    nb_table, cost_table = domain.graph.edge_table
     rows, cols, vals = [], [], []
     for start in (hidden, border):
-        lo = full.indptr[start + 1]
-        hi = full.indptr[start + 2]
-        counts = (hi - lo).astype(np.int64)
-        r = np.repeat(start, counts)
-        idx = np.repeat(lo.astype(np.int64) - np.cumsum(counts) + counts, counts) \
-            + np.arange(int(counts.sum()))
-        c = full.indices[idx].astype(np.int64) - 1
-        ok = c >= 0
-        r, c, v = r[ok], c[ok], full.data[idx][ok]
-        inside = pos[c] >= 0
+        to = nb_table[start]  # (s, K) node ids, n where there is no edge
+        inside = pos[to] >= 0
         if start is border:
-            inside &= ~settled[c]
-        rows.append(pos[r[inside]])
-        cols.append(pos[c[inside]])
-        vals.append(v[inside])
+            inside &= ~np.append(settled, True)[to]
+        rows.append(np.broadcast_to(pos[start][:, None], to.shape)[inside])
+        cols.append(pos[to[inside]])
+        vals.append(cost_table[start][inside])
     # One virtual source per generator: to its border cells at their settled distance, and to
-    # the hidden cells it sees or snaps to at its straight-line / snap cost.
-    hc = local.centers[hidden]
+    # the hidden cells it snaps to or sees (at its snap / straight-line cost).
+    snap_cost = []
     for k in range(k_gens):
         mine = border[label[border + 1] == k]
         rows.append(np.full(len(mine), m + k))
         cols.append(pos[mine])
         vals.append(dist[mine + 1])
-        # Seen and snap seeds of one generator may name the same hidden cell: the cheaper
-        # one is its edge (the only duplicates: every other edge of the sub-graph is unique).
-        cost = np.full(len(hidden), np.inf)
-        d2 = ((hc - grids[k]) ** 2).sum(axis=1)
-        if len(d2):
-            seen = domain.visible_mask(grids[k], hc, math.sqrt(float(d2.max())))
-            cost[seen] = np.sqrt(d2[seen]) * res + biases[k]
         snap_nodes, snap_costs = snap_best[k]
-        hid = pos[snap_nodes] >= 0
-        hid &= ~settled[snap_nodes]
-        np.minimum.at(cost, pos[snap_nodes[hid]], snap_costs[hid])  # pos < len(hidden) here
-        to = np.flatnonzero(np.isfinite(cost))
-        rows.append(np.full(len(to), m + k))
-        cols.append(to)
-        vals.append(cost[to])
+        hid = (pos[snap_nodes] >= 0) & ~settled[snap_nodes]  # hidden: pos < len(hidden)
+        cost = np.full(len(hidden), np.inf)
+        np.minimum.at(cost, pos[snap_nodes[hid]], snap_costs[hid])
+        snap_cost.append(cost)
     size = m + k_gens
-    graph = csr_matrix((np.maximum(np.concatenate(vals), 1e-12),  # 0 would be no edge
-                        (np.concatenate(rows), np.concatenate(cols))), shape=(size, size))
-    d, p, src = dijkstra(graph, directed=True, indices=np.arange(m, size), min_only=True,
-                         return_predecessors=True)
+    sources = np.arange(m, size)
+    # First without the straight lines into hidden cells: the distances found are lengths of
+    # real paths, so a straight-line seed that is no shorter cannot change any distance (nor,
+    # being strictly longer, any label or parent): only the others need a line-of-sight test,
+    # which is most of this search's cost (a team bunched in a corner of depot leaves half of
+    # the map hidden from its nearest robot; a few hundred cells then get a shorter line).
+    upper = dijkstra(_graph(rows, cols, vals, snap_cost, m, size), directed=True,
+                     indices=sources, min_only=True)[:len(hidden)]
+    hc = local.centers[hidden]
+    for k in range(k_gens):
+        e = np.hypot(hc[:, 0] - grids[k, 0], hc[:, 1] - grids[k, 1]) * res + biases[k]
+        better = np.flatnonzero(e <= upper + 1e-9)
+        if len(better):
+            reach = float(np.max(e[better] - biases[k])) / res
+            seen = better[domain.visible_mask(grids[k], hc[better], reach)]
+            np.minimum.at(snap_cost[k], seen, e[seen])
+    d, p, src = dijkstra(_graph(rows, cols, vals, snap_cost, m, size), directed=True,
+                         indices=sources, min_only=True, return_predecessors=True)
     h = np.arange(len(hidden))
     reached = np.isfinite(d[h])
     lid = hidden[h[reached]] + 1
@@ -164,3 +160,16 @@ def _search_hidden(domain: CoverageDomain, local: LocalGraph, hidden: np.ndarray
     mapped = np.where(from_source, first + (parent - m), sub[np.minimum(parent, m - 1)] + 1)
     pred[lid] = mapped
 
+
+def _graph(rows: list[np.ndarray], cols: list[np.ndarray], vals: list[np.ndarray],
+           seeds: list[np.ndarray], m: int, size: int) -> csr_matrix:
+    """The sub-graph's edges plus, per generator k, a source row m + k to every hidden cell
+    with a finite ``seeds[k]`` cost (no edge appears twice)."""
+    r, c, v = list(rows), list(cols), list(vals)
+    for k, cost in enumerate(seeds):
+        to = np.flatnonzero(np.isfinite(cost))
+        r.append(np.full(len(to), m + k))
+        c.append(to)
+        v.append(cost[to])
+    return csr_matrix((np.maximum(np.concatenate(v), 1e-12),  # 0 would be no edge
+                       (np.concatenate(r), np.concatenate(c))), shape=(size, size))

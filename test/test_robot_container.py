@@ -54,12 +54,13 @@ def test_robots_are_grouped_and_faulty_or_single_ones_run_alone(tmp_path):
     assert sorted(p.name for p in procs) == ["robot_2", "robots_0-1"]
 
 
-def test_default_robots_per_process_keeps_to_eight_processes_per_core():
+def test_default_robots_per_process_shares_processes_beyond_eight_robots_per_core():
     assert default_robots_per_process(16, cores=2) == 1
-    assert default_robots_per_process(17, cores=2) == 2
-    assert default_robots_per_process(32, cores=2) == 2
-    assert default_robots_per_process(64, cores=2) == 4
+    assert default_robots_per_process(17, cores=2) == 5  # four processes
+    assert default_robots_per_process(32, cores=2) == 8
+    assert default_robots_per_process(64, cores=2) == 16
     assert default_robots_per_process(64, cores=8) == 1
+    assert default_robots_per_process(65, cores=8) == 5
 
 
 def test_robot_params_are_read_as_rcl_reads_them():

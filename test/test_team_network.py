@@ -76,5 +76,6 @@ def test_big_teams_with_simple_discovery_are_told_of_the_discovery_server():
     assert discovery_advice(20, server=False) is None
     assert discovery_advice(68, server=True) is None
     text = discovery_advice(68, server=False)
-    assert text.startswith("warning: 68 DDS participants with simple discovery")
+    assert text.startswith("warning: 68 DDS participants (processes) with simple discovery")
+    assert "--robots-per-process" in text
     assert "--discovery-server" in text

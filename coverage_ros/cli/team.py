@@ -117,7 +117,7 @@ def build_parser() -> argparse.ArgumentParser:
                     help="extra robot_node parameter (repeatable), e.g. strategy_params:={...}")
     ap.add_argument("--robots-per-process", type=int, default=None, metavar="K",
                     help="robots sharing one process (robot_container; default: 1 up to "
-                    "8 robots per core, then as many as keep to that many processes)")
+                    "8 robots per core, beyond that as many as make 2 processes per core)")
     ap.add_argument("--kill", action="append", default=[], metavar="ID@SECONDS",
                     help="kill robot ID's process at that sim time (robot loss experiments)")
     ap.add_argument("--region", action="append", default=[], metavar="x,y;x,y;...",
@@ -248,7 +248,19 @@ def run(args: argparse.Namespace) -> int:
              else env["ROS_AUTOMATIC_DISCOVERY_RANGE"])
     say(f"coverage-team: {args.robots} x {args.strategy} on {world_path} for {args.duration:g} "
         f"s sim time (ROS_DOMAIN_ID={domain_id}, discovery {reach}); output in {out}")
-    if (advice := discovery_advice(args.robots + 4, discovery is not None)) is not None:
+    params = {m.id: {"robot_id": m.id, "use_sim_time": True, "strategy": args.strategy,
+                     "world": str(world_path), "control_rate": float(args.control_rate),
+                     "update_load": float(load), "explore": bool(args.explore),
+                     "strategy_params": args.strategy_params,
+                     "manual": m.role == "human", "map_free": bool(args.map_free),
+                     **spec_parameters(m.spec), **extra} for m in team}
+    processes = plan_processes(params, per_process, {rid for _, rid, _ in faults} |
+                               set(remote), out / "params")
+    # Participants: the robot processes (here or on other hosts), the world, the launcher, the
+    # bridge and the markers.
+    participants = len(processes) + 2 + int(bool(
+        args.record or args.viewer or args.serve_web)) + int(not args.no_markers)
+    if (advice := discovery_advice(participants, discovery is not None)) is not None:
         print(f"coverage-team: {advice}", file=sys.stderr, flush=True)
 
     procs = ProcessSet(env, out / "logs")
@@ -263,14 +275,6 @@ def run(args: argparse.Namespace) -> int:
     try:
         if discovery is not None:
             start_discovery_server(procs, discovery)
-        params = {m.id: {"robot_id": m.id, "use_sim_time": True, "strategy": args.strategy,
-                         "world": str(world_path), "control_rate": float(args.control_rate),
-                         "update_load": float(load), "explore": bool(args.explore),
-                         "strategy_params": args.strategy_params,
-                         "manual": m.role == "human", "map_free": bool(args.map_free),
-                         **spec_parameters(m.spec), **extra} for m in team}
-        processes = plan_processes(params, per_process, {rid for _, rid, _ in faults} |
-                                   set(remote), out / "params")
         commands = {p.ids[0]: p.cmd for p in processes if len(p.ids) == 1}
         tracker = TeamTracker(domain, world, team, args, faults, procs, say, region,
                               relaunch=lambda rid: procs.start(f"robot_{rid}", commands[rid],

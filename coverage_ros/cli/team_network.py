@@ -89,9 +89,10 @@ def discovery_advice(participants: int, server: bool) -> str | None:
     find each other with simple discovery; None when all is well."""
     if server or participants <= SIMPLE_DISCOVERY_LIMIT:
         return None
-    return (f"warning: {participants} DDS participants with simple discovery: on one host "
-            f"beyond {SIMPLE_DISCOVERY_LIMIT} some may not find the others for minutes "
-            "(scripts/bench_discovery); --discovery-server makes them")
+    return (f"warning: {participants} DDS participants (processes) with simple discovery: on "
+            f"one host beyond {SIMPLE_DISCOVERY_LIMIT} some may never find the others (36: four "
+            "did not within 90 s, scripts/bench_discovery); --discovery-server or more robots "
+            "per process (--robots-per-process) avoid that")
 
 
 def discovery_server_executable() -> tuple[str, dict[str, str]]:

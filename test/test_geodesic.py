@@ -232,23 +232,28 @@ def test_a_cold_update_starts_from_the_extent_of_its_straight_line_cell():
 
 
 def test_a_cell_reaching_round_a_wall_grows_its_search():
-    """A wall along y = 2 m from x = 0 to 4.5 m on a 20 m x 6 m map, robots at (1, 1) below
+    """A wall along y = 2 m from x = 0 to 4.5 m on a 40 m x 6 m map, robots at (1, 1) below
     it, at (5.2, 1) right of its end and at (12, 3). The region above the wall's left part is
     the first robot's in straight lines but the second's along paths (through the gap): the
-    second's cell reaches further than its straight-line cell, so its cold search must grow -
-    and still gives the exact cell (the map is large enough that the search is not the whole
-    map, which would be settled at once)."""
-    occ = np.zeros((60, 200), np.int8)
+    second's cell reaches further than its straight-line cell, so its cold search is too short
+    at first - the second pass searches the whole map (settling what is in line of sight
+    first) - and the cell is exact."""
+    occ = np.zeros((60, 400), np.int8)
     occ[20:22, :45] = OCCUPIED
     domain = CoverageDomain.from_grid(GridMap(occ, RES), 0.0)
     gens = [Generator(np.array([5.2, 1.0])), Generator(np.array([1.0, 1.0])),
             Generator(np.array([12.0, 3.0]))]
     cell = geodesic_cell(domain, gens[0], gens[1:], cache=SearchCache())
     labels = tessellate(domain, gens).labels.ravel()
-    assert cell.passes >= 2 and cell.searched_nodes < domain.free.sum()
+    assert cell.passes == 2 and cell.searched_nodes == occ.size
     assert set(cell.nodes.tolist()) == set(np.flatnonzero(labels == 0))
     top_left = domain.to_grid(np.array([[0.3, 5.7]]))[0].astype(int)
-    assert labels[top_left[1] * 200 + top_left[0]] == 0
+    assert labels[top_left[1] * 400 + top_left[0]] == 0
+    # The paper's pseudo-code sources (no line of sight) grow the pruned search instead.
+    paper = geodesic_cell(domain, gens[0], gens[1:], cache=SearchCache(), method="paper")
+    assert paper.passes >= 2 and paper.searched_nodes < occ.size
+    assert set(paper.nodes.tolist()) == set(np.flatnonzero(
+        tessellate(domain, gens, "paper").labels.ravel() == 0))
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])

@@ -120,7 +120,11 @@ def geodesic_cell(domain: CoverageDomain, own: Generator, others: Sequence[Gener
             relevant = np.arange(1, len(gens))
         idx = np.concatenate([[0], relevant]).astype(np.int64)
         local = local_graph_for(domain, cache, centers[idx], radii[idx], L)
-        if not power and (whole or (local.covers_all and method == "visibility")):
+        # Whole map when the region is most of it, or when a first pass was too short (a
+        # small cell may border one of a robot far away along paths: certifying its border
+        # takes that robot's distance, several growth passes from a bunched team).
+        if not power and (whole or (method == "visibility"
+                                    and (local.covers_all or passes > 1))):
             # The search would cover the whole map (a team still bunched up leaves a few
             # robots most of it): settling what is in line of sight first is cheaper there.
             if not whole:

@@ -38,6 +38,8 @@ CACHE_MARGIN_CELLS = 3.0
 CACHE_MAX_OVERSIZE = 1.35
 #: Most connections a virtual source has (its cell and three of the 2x2 block around it).
 MAX_CONNECTIONS = 4
+#: A search region holding at least this share of the map's free cells is the whole map.
+WHOLE_SHARE = 0.5
 
 
 @dataclass
@@ -227,15 +229,15 @@ def build_local_graph(domain: CoverageDomain, blocks: np.ndarray | None) -> Loca
                       region_indptr, indices, data, n, covers_all)
 
 
-def _free_blocks(domain: CoverageDomain) -> np.ndarray:
-    """``(Hb, Wb)`` bool: the blocks of the global block grid that hold a free cell."""
-    key = ("free_blocks", BLOCK)
+def _free_counts(domain: CoverageDomain) -> np.ndarray:
+    """``(Hb, Wb)`` int: free cells in each block of the global block grid."""
+    key = ("free_counts", BLOCK)
     if key not in domain._cache:
         H, W = domain.shape
         Hb, Wb = -(-H // BLOCK), -(-W // BLOCK)
-        padded = np.zeros((Hb * BLOCK, Wb * BLOCK), dtype=bool)
+        padded = np.zeros((Hb * BLOCK, Wb * BLOCK), dtype=np.int64)
         padded[:H, :W] = domain.graph.free
-        domain._cache[key] = padded.reshape(Hb, BLOCK, Wb, BLOCK).any(axis=(1, 3))
+        domain._cache[key] = padded.reshape(Hb, BLOCK, Wb, BLOCK).sum(axis=(1, 3))
     return domain._cache[key]
 
 
@@ -273,9 +275,11 @@ def local_graph_for(domain: CoverageDomain, cache: SearchCache | None, centers: 
         return cache.graph
     margin = CACHE_MARGIN_CELLS if cache is not None else 0.0
     blocks = required_blocks(domain, centers, radii, L, margin)
-    if not (_free_blocks(domain) & ~blocks).any():
-        # Every block with a free cell: the domain's one whole-map graph, shared by every
-        # search on it (a robot whose cell is most of the map keeps no copy of its own).
+    counts = _free_counts(domain)
+    if counts[blocks].sum() >= WHOLE_SHARE * counts.sum():
+        # Most of the map: the domain's one whole-map graph, shared by every search on it (a
+        # robot whose cell is most of the map keeps no copy of its own; a whole-map search
+        # settles what is in line of sight first, see cell.py).
         if cache is not None:
             cache.misses += 1
             cache.graph = None

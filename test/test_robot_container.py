@@ -5,8 +5,10 @@ team: two per process, each with its own body from its section of the parameters
 
 from __future__ import annotations
 
+import itertools
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -21,6 +23,7 @@ from coverage_ros.cli.team_robots import (
     robot_params,
 )
 from coverage_ros.core.world.grid import GridMap
+from coverage_ros.nodes.plumbing import UpdateWorker
 from coverage_ros.nodes.robot_shared import SharedInputs, grid_digest, state_topics
 
 
@@ -92,6 +95,32 @@ def test_robots_of_a_process_share_worlds_and_domains_but_only_equal_ones():
         grid_digest(copy)
     assert shared.domains_built == 3
     assert np.array_equal(a.free, b.free)
+
+
+def test_robots_of_a_process_take_turns_with_their_updates():
+    """Workers sharing the process's update slot never run two updates at once (the executor
+    thread competes with at most one busy thread for the GIL), and each still runs its own."""
+    shared = SharedInputs(update_slots=1)
+    spans: list[tuple[int, float, float]] = []
+
+    def work(k):
+        def run(now):
+            t0 = time.monotonic()
+            time.sleep(0.05)
+            spans.append((k, t0, time.monotonic()))
+        return run
+
+    workers = [UpdateWorker(work(k), load=1.0, slots=shared.update_slots) for k in range(3)]
+    for _ in range(3):
+        for w in workers:
+            w.request(0.0)
+        time.sleep(0.2)
+    for w in workers:
+        w.close()
+    assert sorted({k for k, _, _ in spans}) == [0, 1, 2] and len(spans) >= 6
+    spans.sort(key=lambda s: s[1])
+    assert all(a[2] <= b[1] for a, b in itertools.pairwise(spans)), spans
+    assert SharedInputs().update_slots is None  # one robot per process: no turns
 
 
 def test_state_topics_are_the_teams_own():

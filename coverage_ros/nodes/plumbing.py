@@ -134,13 +134,17 @@ class UpdateWorker:
     ``burst + load * (t - created)`` seconds of CPU, and a single costly call (the first,
     cold one, or one in a very large cell) is absorbed by the credit instead of holding back
     the next updates for c / load seconds. An exception raised by a call goes to ``on_error``
-    and the worker carries on."""
+    and the worker carries on. ``slots``: a semaphore the workers of one process share, so that
+    only that many of their calls run at once (robot_container: each runnable update thread
+    takes turns at the GIL with the executor thread, whose tracking must not wait for them)."""
 
     def __init__(self, run: Callable[[float], None], load: float,
                  on_error: Callable[[Exception], None] | None = None,
-                 burst: float = UPDATE_BURST) -> None:
+                 burst: float = UPDATE_BURST,
+                 slots: threading.Semaphore | None = None) -> None:
         self._run = run
         self._on_error = on_error
+        self._slots = slots  # shared by the workers of one process: calls that may run at once
         self._load = load
         self.burst = burst
         self._wake = threading.Event()
@@ -172,6 +176,11 @@ class UpdateWorker:
             self._wake.clear()
             if self._closing:
                 return
+            if self._slots is not None:
+                self._slots.acquire()
+                if self._closing:
+                    self._slots.release()
+                    return
             start, cpu0 = time.monotonic(), time.thread_time()
             try:
                 self._run(self._now)
@@ -179,6 +188,8 @@ class UpdateWorker:
                 if self._on_error is not None:
                     self._on_error(exc)
             finally:
+                if self._slots is not None:
+                    self._slots.release()
                 release_free_memory()
                 cpu = time.thread_time() - cpu0
                 self._refill(start)

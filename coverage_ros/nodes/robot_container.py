@@ -43,6 +43,10 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
     return args
 
 
+#: Coverage updates of the process's robots that run at once (see robot_shared).
+UPDATE_SLOTS = 1
+
+
 class ContainerNode(Node):
     """The process's own node: finds the neighbours and runs the :class:`StateHub`; with sim
     time, it also carries the one ``/clock`` subscription of the process."""
@@ -73,7 +77,7 @@ class ContainerNode(Node):
 
 
 def _make_nodes(args: argparse.Namespace) -> list[Node]:
-    shared = SharedInputs()
+    shared = SharedInputs(update_slots=UPDATE_SLOTS)
     robots = []
     for rid in args.ids:
         try:

@@ -135,7 +135,7 @@ class RobotNode(RobotRequests, Node):
             self._clock_guard = ClockGuard()
             self.create_timer(1.0, self._check_clock, clock=wall)
         self._worker = UpdateWorker(
-            self._update, self.config.update_load,
+            self._update, self.config.update_load, slots=self.shared.update_slots,
             on_error=lambda exc: self._warn("update", f"coverage update failed: {exc!r}"))
         self.create_timer(1.0 / self.config.control_rate, self._on_control)
         self.create_timer(1.0 / self.config.tracking_rate, self._on_tracking)
@@ -258,6 +258,8 @@ class RobotNode(RobotRequests, Node):
     def _discover(self) -> None:
         """Subscribe to every new /<prefix><k>/coverage_state topic (k != own id; unless the
         process's StateHub does), and when exploring to every /<prefix><k>/observations."""
+        if not self._own_states and self.exchange is None:
+            return  # nothing to look for: the hub subscribes (a graph query saved)
         names = self.get_topic_names_and_types()
         if self.exchange is not None:
             evidence = re.compile(rf"/{re.escape(self.config.robot_prefix)}(\d+)/{OBSERVATIONS}")

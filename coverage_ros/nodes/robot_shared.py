@@ -8,6 +8,10 @@ parameters). The robots of one process share:
   map, its graph and density and every table computed on them), built once per map, robot
   radius, density, connectivity and metric: a robot's strategy only reads its domain, and the
   domain's lazily filled tables are the same whoever fills them;
+* update turns (container only): one robot's coverage update runs at a time, the others'
+  wait their turn, so the executor thread (tracking, safety filter, messages) never competes
+  with more than one busy thread for the GIL, and the process holds one update's temporary
+  arrays, not K;
 * :class:`StateHub` (container only) - one subscription per neighbour's ``coverage_state``,
   parsed once and handed to every local robot but its sender, instead of one per robot and
   neighbour (with K robots per process, a team of N sends N * N / K messages instead of N * N).
@@ -61,7 +65,10 @@ class SharedInputs:
     """World files and coverage domains of the robots of one process (see module docstring);
     safe to call from any thread."""
 
-    def __init__(self) -> None:
+    def __init__(self, update_slots: int | None = None) -> None:
+        """``update_slots``: coverage updates of the process's robots that may run at once
+        (None: no limit, one robot per process)."""
+        self.update_slots = None if update_slots is None else threading.Semaphore(update_slots)
         self._lock = threading.Lock()
         self._worlds: dict[str, WorldSpec] = {}
         # key -> (domain, the objects the key names by id: kept alive so no id is reused)

@@ -120,13 +120,12 @@ def geodesic_cell(domain: CoverageDomain, own: Generator, others: Sequence[Gener
             relevant = np.arange(1, len(gens))
         idx = np.concatenate([[0], relevant]).astype(np.int64)
         local = local_graph_for(domain, cache, centers[idx], radii[idx], L)
-        # Whole map when the region is most of it, or when a first pass was too short (a
-        # small cell may border one of a robot far away along paths: certifying its border
-        # takes that robot's distance, several growth passes from a bunched team).
+        # The whole map, settling what is in line of sight first, when the region is most of
+        # it (a team still bunched up leaves a few robots half the map each) or a first pass
+        # was too short (a small cell may border the cell of a robot far away along paths,
+        # whose distance certifies the border: several growth passes in a bunched team).
         if not power and (whole or (method == "visibility"
                                     and (local.covers_all or passes > 1))):
-            # The search would cover the whole map (a team still bunched up leaves a few
-            # robots most of it): settling what is in line of sight first is cheaper there.
             if not whole:
                 local = local_graph_for(domain, None, centers[:1], radii[:1], math.inf)
                 idx = np.arange(len(gens))  # every generator takes part (touching: into gens)
@@ -159,7 +158,7 @@ def cold_radius(domain: CoverageDomain, centers: np.ndarray, weights: np.ndarray
     this is the cell's extent where it lies in plain sight of its robot; a cell that reaches
     further (round an obstacle) makes the search grow. A team still bunched up has a few very
     large cells, which a radius from the nearest neighbours found only after many growth passes
-    (ten on depot with 16 robots, 20x the cost of the final pass)."""
+    (ten on depot with 16 robots: 0.55 s where one pass of the final radius took 0.19 s)."""
     if any(domain.graph.wrap) or len(centers) < 2:
         return math.inf  # no straight lines across a chart's seam; a lone robot: everything
     key = ("cold_samples", COLD_STRIDE)

@@ -66,7 +66,8 @@ def test_a_domain_with_someone_else_on_it_is_not_picked():
 
 
 @pytest.mark.parametrize(("args", "message"), [
-    (["--robots", "500", "--world", "l_shape"], "--robots: 500 robots"),
+    (["--robots", "500", "--robots-per-process", "1", "--world", "l_shape"],
+     "--robots: 500 robots"),
     (["--domain-id", "300"], "--domain-id: must be in 0..232"),
     # Robots on other hosts while discovery stays on this one (LOCALHOST): never found.
     (["--robots", "3", "--remote-robots", "2"], "--remote-robots: robots on other hosts need "

@@ -52,6 +52,8 @@ from coverage_ros.worlds import resolve_world_path
 #: [s] wall time the children get to stop cleanly after an interrupt before SIGTERM, then SIGKILL
 #: (everything is gone within 10 s).
 INTERRUPT_GRACE = 4.0
+#: Robots per core that bench_team ran at real time (64 on 2 cores, robots sharing processes).
+REAL_TIME_ROBOTS_PER_CORE = 32
 STARTUP_TIMEOUT = 90.0  # [s] wall time for the world and robots to come up (16 robots, 2 cores)
 REMOTE_STARTUP_TIMEOUT = 600.0  # [s] ... when robots on other hosts are started by hand
 PROGRESS_PERIOD = 0.5  # [s] wall time between progress refreshes
@@ -262,6 +264,12 @@ def run(args: argparse.Namespace) -> int:
         args.record or args.viewer or args.serve_web)) + int(not args.no_markers)
     if (advice := discovery_advice(participants, discovery is not None)) is not None:
         print(f"coverage-team: {advice}", file=sys.stderr, flush=True)
+    cores = os.cpu_count() or 1
+    if args.robots > REAL_TIME_ROBOTS_PER_CORE * cores and args.rtf >= 1.0:
+        print(f"coverage-team: warning: {args.robots} robots on {cores} cores: beyond the "
+              f"{REAL_TIME_ROBOTS_PER_CORE} per core measured at real time (scripts/bench_team)"
+              "; the run may fall behind and robots lag their commands (--rtf below 1 keeps "
+              "it in step)", file=sys.stderr, flush=True)
 
     procs = ProcessSet(env, out / "logs")
     interrupted = False

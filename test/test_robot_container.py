@@ -1,5 +1,6 @@
 """Several robots per process: how the launcher groups robots and writes their parameters,
-what the robots of one process share, and robot_container's start-up errors. The live team with
+what the robots of one process share, robot_container's start-up errors, and the figures
+bench_team reads back. The live team with
 shared processes runs in test_team_strategies (lloyd: four robots in one process; the mixed
 team: two per process, each with its own body from its section of the parameters file)."""
 
@@ -17,6 +18,8 @@ import yaml
 from conftest import REPO
 from rosutil import domain_id, ros_env
 
+from coverage_ros.bench.team import update_periods
+from coverage_ros.cli.processes import ProcessStats
 from coverage_ros.cli.team_robots import (
     default_robots_per_process,
     plan_processes,
@@ -148,3 +151,33 @@ def test_container_start_up_errors_name_the_value(args, message):
     assert out.returncode == 2
     err = out.stderr.strip().splitlines()  # the last line says it (argparse: after usage)
     assert err[-1].startswith("robot_container: error: ") and message in err[-1], out.stderr
+
+
+def test_bench_team_reads_every_robots_update_periods_from_the_logs(tmp_path):
+    """The benchmark's update periods come from the robots' own summary lines (the worker's
+    format, whatever process the robot ran in)."""
+    worker = UpdateWorker(lambda now: None, load=1.0)
+    for _ in range(4):
+        worker.request(0.0)
+        time.sleep(0.05)
+    worker.close()
+    line = worker.summary()
+    (tmp_path / "robots_2-3.log").write_text(
+        f"[INFO] [1.0] [robot_2.coverage_robot]: {line}\n"
+        f"[INFO] [1.0] [robot_container_2]: 8 states received\n"
+        f"[INFO] [1.1] [robot_3.coverage_robot]: {line}\n")
+    (tmp_path / "robot_0.log").write_text(f"[INFO] [1.0] [robot_0.coverage_robot]: {line}\n")
+    periods = update_periods(tmp_path)
+    assert sorted(periods) == [0, 2, 3]
+    assert periods[2]["updates"] == 4
+    assert 0.04 <= periods[3]["median_s"] <= periods[3]["longest_s"] < 1.0
+
+
+def test_process_figures_per_robot_count_shared_processes_once():
+    stats = ProcessStats.__new__(ProcessStats)  # no processes to sample: figures given
+    stats.cpu = {"robots_0-7": [40.0, 60.0], "robot_8": [10.0], "world": [20.0]}
+    stats.rss = {"robots_0-7": 360.0, "robot_8": 240.0, "world": 150.0}
+    report = stats.report(robots=9)
+    assert report["robot_processes"] == 2
+    assert report["per_robot"] == {"cpu_percent": round(60.0 / 9, 2), "rss_mb": 66.7}
+    assert report["robot_mean"] == {"cpu_percent": 30.0, "rss_mb_peak": 300.0}

@@ -1,8 +1,8 @@
 """Several robots per process: how the launcher groups robots and writes their parameters,
 what the robots of one process share, robot_container's start-up errors, and the figures
-bench_team reads back. The live team with
-shared processes runs in test_team_strategies (lloyd: four robots in one process; the mixed
-team: two per process, each with its own body from its section of the parameters file)."""
+bench_team reads back. The live team with shared processes runs in test_team_strategies
+(lloyd: four robots in one process; the mixed team: two per process, each with its own body
+from its section of the parameters file)."""
 
 from __future__ import annotations
 

@@ -68,6 +68,12 @@ MAX_VIRTUAL_DT = 1.0
 NEIGHBOUR_MASK_MARGIN = 0.1
 #: [m] two completed loops whose first points are this close (and of equal side) are one.
 SAME_LOOP = 0.3
+#: A robot that drove toward its target for STUCK_TIME [s] without moving STUCK_DISTANCE [m]
+#: is stuck (see TangentBugStrategy._stuck).
+STUCK_TIME = 5.0
+STUCK_DISTANCE = 0.1
+#: [m] two virtual generators closer than this are on one point.
+COINCIDENT = 1e-3
 
 
 @dataclass(frozen=True)
@@ -146,6 +152,9 @@ class TangentBugStrategy(Strategy):
         self.converged = False
         self._last_time: float | None = None
         self._cells: dict[str, tuple[tuple, EuclideanCell]] = {}
+        self._heard: set[int] = set()  # neighbours known when the targets were taken
+        self._anchor: tuple[np.ndarray, float] | None = None  # (position, time) of progress
+        self._unmasked = False  # stuck: the bug sees the neighbours (see _stuck)
 
     def shared_state(self, obs: Observation) -> SharedState:
         g = obs.position.copy() if self.virtual is None else self.virtual.copy()
@@ -165,12 +174,28 @@ class TangentBugStrategy(Strategy):
                       n.state.weight) for n in neighbours])
         rcell = self._cell("real", x, [Generator(n.position, n.state.weight)
                                        for n in neighbours])
-        if self.bug.done and self._virtual_arrived():
+        heard = {n.robot_id for n in neighbours}
+        retarget = not heard <= self._heard
+        if self._coincident(neighbours):
+            # Two virtual generators on one point share one cell and one centroid for ever
+            # (Lloyd cannot part them): start this one again from the robot (Alg. 1 line 1).
+            self.virtual = x.copy()
+            vcell = self._cell("virtual", self.virtual, [
+                Generator(n.state.virtual if n.state.virtual is not None else n.position,
+                          n.state.weight) for n in neighbours])
+            self.virtual_target, retarget = None, True
+        if (self.bug.done and self._virtual_arrived()) or retarget:
+            # A target taken before some neighbours were heard (a robot's first update may
+            # come before their states do: its cell was then the whole map) is taken again.
             self._remember_loop()
+            self._heard = heard
             self._next_targets(x, vcell.centroid)
         velocity, heading = (0.0, 0.0), None
+        stuck = self._stuck(x, obs.time)
         if obs.scan is not None and not self.bug.done:
-            pts = _without_neighbours(obs.scan.points(obs.pose), neighbours, ctx.robot.radius)
+            pts = obs.scan.points(obs.pose)
+            if not stuck:
+                pts = _without_neighbours(pts, neighbours, ctx.robot.radius)
             cmd = self.bug.step(obs.pose, pts, obs.scan.range_max)
             velocity = (cmd.v, cmd.w)
             if cmd.v > 0.0 or cmd.w != 0.0:
@@ -188,6 +213,26 @@ class TangentBugStrategy(Strategy):
             target=None if self.real_target is None else self.real_target.copy(),
             mode=self.bug.mode.value, cell_polygon=part.polygon,
             details=self._details(vcell.cost, rcell.cost), heading=heading)
+
+    def _coincident(self, neighbours: Sequence[Neighbour]) -> bool:
+        """Whether a neighbour's virtual generator is on this one's (within COINCIDENT)."""
+        return any(n.state.virtual is not None and
+                   float(np.hypot(*(n.state.virtual - self.virtual))) < COINCIDENT
+                   for n in neighbours)
+
+    def _stuck(self, x: np.ndarray, now: float) -> bool:
+        """Whether the robot has been driving toward its target without getting anywhere for
+        STUCK_TIME: TangentBug plans through the neighbours (their returns are masked), so
+        two robots that meet head-on round an obstacle - each stopped by the other in the
+        robot node's safety filter - would wait for each other for ever. A stuck robot's bug
+        sees its neighbours as the obstacles they are until it has moved on."""
+        if self.bug.done or self._anchor is None or \
+                float(np.hypot(*(x - self._anchor[0]))) > STUCK_DISTANCE:
+            self._anchor = (x.copy(), now)
+            self._unmasked = False
+        elif now - self._anchor[1] > STUCK_TIME:
+            self._unmasked = True
+        return self._unmasked
 
     def _cell(self, kind: str, position: np.ndarray, others: list[Generator]) -> EuclideanCell:
         """The own power cell of ``position`` among ``others``; reused while neither moved

@@ -274,6 +274,30 @@ def test_tangentbug_projects_an_unreachable_goal_after_one_loop():
 
 
 # ---------------------------------------------------------------------------- strategy
+def test_targets_are_taken_again_for_a_new_neighbour_and_coincident_generators_part():
+    """A robot whose first update came before its neighbours' states has the whole map as
+    its cell and the map's centroid as its target: hearing a neighbour makes it take its
+    targets again. A virtual generator found on a neighbour's (they would share one cell and
+    one centroid for ever) starts again from the robot's own position."""
+    spec, domain = _world([0, 0, 6, 4], [])
+    s = make_strategy("tangentbug", StrategyContext(domain=domain, robot=ROBOT))
+    pose = np.array([1.0, 2.0, 0.0])
+    scan = simulate_scan(spec.grid, pose, ROBOT.lidar)
+    alone = s.update(Observation(0, pose, 10.0, scan), [])
+    np.testing.assert_allclose(alone.details.virtual_target, [3.0, 2.0], atol=0.05)
+    other = Neighbour(1, SharedState(position=np.array([5.0, 2.0]),
+                                     virtual=np.array([5.0, 2.0])))
+    heard = s.update(Observation(0, pose, 10.5, scan), [other])
+    half = euclidean_cell(domain, Generator(heard.shared.virtual), [Generator(other.position)])
+    np.testing.assert_allclose(heard.details.virtual_target, half.centroid)
+    assert heard.details.virtual_target[0] < 2.0  # the left half's centroid, not the map's
+    # The neighbour's virtual generator on this one's: this one starts again from the robot.
+    on_top = Neighbour(1, SharedState(position=np.array([5.0, 2.0]),
+                                      virtual=heard.shared.virtual.copy()))
+    parted = s.update(Observation(0, pose, 10.5, scan), [on_top])  # (no time to move)
+    np.testing.assert_allclose(parted.shared.virtual, pose[:2])
+
+
 def test_virtual_generator_moves_straight_through_obstacles_and_is_published():
     spec, domain = _world([0, 0, 6, 4], [{"type": "box", "center": [3.0, 2.0],
                                            "size": [0.4, 3.0]}])

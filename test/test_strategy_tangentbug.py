@@ -298,6 +298,31 @@ def test_targets_are_taken_again_for_a_new_neighbour_and_coincident_generators_p
     np.testing.assert_allclose(parted.shared.virtual, pose[:2])
 
 
+def test_a_robot_stuck_behind_a_neighbour_lets_tangentbug_see_it():
+    """A neighbour stands in the way to the target: its scan returns are masked, so TangentBug
+    drives straight at it (the node's safety filter would stop the robot). After 5 s without
+    getting 0.1 m further the robot's bug sees the neighbour as an obstacle and turns off the
+    straight line; once it moves on, the neighbour is masked again."""
+    spec, domain = _world([0, 0, 6, 4], [])
+    s = make_strategy("tangentbug", StrategyContext(domain=domain, robot=ROBOT))
+    pose = np.array([1.0, 2.0, 0.0])
+    other = Neighbour(1, SharedState(position=np.array([1.45, 2.0]),
+                                     virtual=np.array([0.2, 2.0]), extra={"radius": 0.105}))
+    scan = simulate_scan(spec.grid, pose, ROBOT.lidar, others=np.array([[1.45, 2.0]]),
+                         other_radii=np.array([0.105]))
+    s.update(Observation(0, pose, 10.0, scan), [other])  # targets: the cell right of x = 0.6
+    s.real_target = s.virtual_target = np.array([4.0, 2.0])
+    s.bug.reset(s.real_target)
+    first = s.update(Observation(0, pose, 10.5, scan), [other])
+    assert first.velocity[0] > 0 and abs(first.heading) < 1e-6  # straight at the neighbour
+    for t in (12.0, 14.0, 16.0):
+        later = s.update(Observation(0, pose, t, scan), [other])
+    assert s._unmasked and abs(later.heading) > 0.1  # round it, not through it
+    moved = pose + np.array([0.0, 0.3, 0.0])
+    s.update(Observation(0, moved, 16.5, scan), [other])
+    assert not s._unmasked
+
+
 def test_virtual_generator_moves_straight_through_obstacles_and_is_published():
     spec, domain = _world([0, 0, 6, 4], [{"type": "box", "center": [3.0, 2.0],
                                            "size": [0.4, 3.0]}])

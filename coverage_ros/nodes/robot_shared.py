@@ -14,7 +14,9 @@ parameters). The robots of one process share:
   arrays, not K;
 * :class:`StateHub` (container only) - one subscription per neighbour's ``coverage_state``,
   parsed once and handed to every local robot but its sender, instead of one per robot and
-  neighbour (with K robots per process, a team of N sends N * N / K messages instead of N * N).
+  neighbour (with K robots per process, a team of N sends N * N / K messages instead of N * N);
+* the ``/clock`` subscription (container only, ``robot_container.ContainerNode``): the robots'
+  clocks follow the container node's time source instead of waking each robot at 10 Hz.
 
 No robot-specific state is shared: each keeps its own controller, strategy, caches and update
 thread.

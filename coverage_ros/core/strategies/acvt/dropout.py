@@ -124,6 +124,9 @@ class AcvtConfig:
     cells: CellSpec = field(default_factory=CellSpec)
     max_iterations: int = 300
     tolerance: float = 0.01  # [m] done when, with the dropout off, no agent moves farther
+    #: Eq. 8 after every CVT step; False is plain iCVT (the paper's Fig. 3b), where a centroid
+    #: may lie where rho = 0 and an agent with an empty cell stays where it is.
+    projection: bool = True
 
     def __post_init__(self) -> None:
         if not (isinstance(self.max_iterations, int) and self.max_iterations >= 1):
@@ -168,7 +171,7 @@ class AlphaCvt:
         _, centroids = self.cells.stats(labels, len(idx))
         virt = np.where(np.isnan(centroids), P[idx], centroids)
         out = P.copy()
-        out[idx] = self.cells.project(virt)
+        out[idx] = self.cells.project(virt) if self.config.projection else virt
         return out
 
     def evaluate(self, positions: np.ndarray,

@@ -273,6 +273,30 @@ def test_tangentbug_projects_an_unreachable_goal_after_one_loop():
     assert np.hypot(*(path[-1] - bug.best)) <= TOL
 
 
+def test_a_goal_ray_free_only_up_to_the_horizon_does_not_end_boundary_following():
+    """Found by the Breitenmoser benchmark (U world, five robots): a goal inside the block of
+    the U world, which stands in from the top wall. Following the block's face up leads along
+    the top wall into the far corner, from where the goal ray is free up to the lidar's horizon
+    (3.5 m) but meets the block beyond it. Leaving the boundary there (the goal looked
+    "visible") brought the robot back to the same face, where following started afresh - for
+    ever. TangentBug leaves only for a point closer than any it followed (d_reach <
+    d_followed) or a goal really in sight; then the loop round the whole boundary completes
+    and the goal is projected onto the block's nearest face."""
+    spec = load_world(WORLDS / "u_shape.yaml")
+    domain = CoverageDomain.from_grid(spec.grid, ROBOT.radius, spec.density)
+    goal = np.array([5.2, 3.95])  # block: x 3.5-6.5, y 2.5-8; nearest face x = 6.5
+    path, modes, rejected = _drive(spec, domain, _bug(), [3.0, 3.1, 0.0], goal, steps=900)
+    assert modes[-1] is BugMode.PROJECTED and rejected == 0
+    # Each boundary-following episode begins closer to the goal than the one before.
+    starts = [k for k in range(1, len(modes)) if modes[k] is BugMode.BOUNDARY_FOLLOWING
+              and modes[k - 1] is not BugMode.BOUNDARY_FOLLOWING]
+    d = np.hypot(*(path[starts] - goal).T)
+    assert len(starts) >= 2 and np.all(np.diff(d) < 0)
+    ref = _projection_reference(spec.grid, goal, CLEARANCE)
+    np.testing.assert_allclose(ref, [6.5 + CLEARANCE, goal[1]], atol=REF_RES)
+    assert np.hypot(*(path[-1] - ref)) <= SCAN_BIAS + REF_RES + TRACKING + TOL
+
+
 # ---------------------------------------------------------------------------- strategy
 def test_targets_are_taken_again_for_a_new_neighbour_and_coincident_generators_part():
     """A robot whose first update came before its neighbours' states has the whole map as

@@ -25,7 +25,8 @@ Behaviours (:class:`BugMode`):
 * boundary-following - keep the obstacle on one side at ``clearance`` (sweep from the nearest
   return away from it to the first direction free for ``lookahead`` metres). ``d_followed`` is the
   smallest distance to the goal seen while following; ``d_reach`` the smallest distance to the
-  goal of the visible free space. The robot leaves the boundary when the goal is visible or
+  goal of the visible free space. The robot leaves the boundary when the line to the goal is
+  free (all of it: a ray free only up to the horizon does not count) or
   ``d_reach < d_followed - min(leave_margin, d_followed / 2)`` and heads for that point. Back
   within ``loop_tolerance`` of where it first touched the boundary, having enclosed an area,
   the goal is unreachable: it turns to
@@ -205,14 +206,16 @@ class TangentBug:
             return BugCommand(0.0, 0.0, self.mode, yaw)
         return self._drive(yaw, heading, rel, reach, approach)
 
-    def _goal_visible(self, x: np.ndarray, rel: np.ndarray, reach: float) -> bool:
-        """Whether the straight line to the goal is free up to the sensing horizon, or up to
-        within ``goal_tolerance`` of the goal."""
+    def _goal_visible(self, x: np.ndarray, rel: np.ndarray, reach: float,
+                      horizon_counts: bool = True) -> bool:
+        """Whether the straight line to the goal is free up to within ``goal_tolerance`` of
+        the goal, or (``horizon_counts``) up to the sensing horizon."""
         c = self.config
         to_goal = self.target - x
         d = float(np.hypot(*to_goal))
         free = float(free_lengths(rel, (to_goal / d)[None], c.clearance, reach)[0])
-        return free >= min(d - c.goal_tolerance, reach) - 1e-9
+        return free >= (min(d - c.goal_tolerance, reach) if horizon_counts
+                        else d - c.goal_tolerance) - 1e-9
 
     def _in_reach_of_band(self, x: np.ndarray, rel: np.ndarray, L: np.ndarray,
                           reach: float) -> bool:
@@ -305,9 +308,13 @@ class TangentBug:
                 self._record(x)
                 if self.mode is not BugMode.BOUNDARY_FOLLOWING:
                     return None  # loop closed
+            # Leave for a goal in sight, or for a visible point closer than any followed. A
+            # goal ray free only up to the horizon is neither: its end may be farther than
+            # the followed boundary, and leaving for it brings the robot back to the same
+            # boundary to start following afresh, for ever (TangentBug's d_followed argument).
             d_reach, point = closest_on_rays(x, self._dirs, L, self.target)
             d_followed = min(self._best_d, float(np.hypot(*(self.target - x))))
-            if self._goal_visible(x, rel, reach) or (
+            if self._goal_visible(x, rel, reach, horizon_counts=False) or (
                     d_reach < d_followed - min(c.leave_margin, 0.5 * d_followed)):
                 self.mode = BugMode.MOTION_TO_GOAL
                 self._leave_point = point

@@ -16,15 +16,19 @@ strategy from a simulated lidar scan and its neighbours' positions each ``dt``, 
 at once as single integrators towards their decision's goal, at no more than the strategy's
 speed cap ``u_max`` (else the robot's ``v_max``) - Eq. 3 integrated over ``dt``. Collisions are
 judged against the *exact* obstacle geometry of the world (:func:`world_clearance`), not the
-grid the lidar is simulated on. :func:`cluttered_trial` draws the paper's random scenario: a
-cluttered arena, a three-peak Gaussian importance density and random collision-free starts.
+grid the lidar is simulated on. It runs registered strategies and, through a
+:data:`StrategyFactory`, methods outside the registry (the baselines of
+:mod:`coverage_ros.core.baselines`), and records the wall time of every strategy update.
+:func:`cluttered_trial` draws the paper's random scenario: a cluttered arena (boxes and discs,
+or discs only), a three-peak Gaussian importance density and random collision-free starts.
 """
 
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -35,6 +39,7 @@ from coverage_ros.core.strategies import (
     Neighbour,
     Observation,
     SharedState,
+    Strategy,
     StrategyChoice,
     StrategyContext,
     make_strategy,
@@ -52,6 +57,11 @@ COLLISION_TOLERANCE = 1e-6
 #: [m] peaks keep this distance from obstacles, so a robot can get near them.
 PEAK_CLEARANCE = 0.5
 
+#: Builds one robot's strategy from its context: for methods outside the strategy registry
+#: (the baselines of :mod:`coverage_ros.core.baselines`), e.g.
+#: ``lambda ctx: OavcStrategy(ctx, obstacles=circles)``.
+StrategyFactory = Callable[[StrategyContext], Strategy]
+
 
 @dataclass(frozen=True)
 class TrialOutcome:
@@ -65,6 +75,9 @@ class TrialOutcome:
     min_clearance: float  # [m] smallest robot-obstacle gap minus the robot radius
     min_separation: float  # [m] smallest robot-robot gap minus the two radii
     positions: np.ndarray  # (T + 1, n, 2) [m] trajectories
+    #: [s] wall time of each strategy update (every robot, every step; the simulated scan
+    #: excluded): what one robot computes per control period.
+    update_times: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     @property
     def detected(self) -> np.ndarray:
@@ -185,11 +198,14 @@ def world_clearance(spec: WorldSpec) -> Callable[[np.ndarray], np.ndarray]:
 
 def run_trial(domain: CoverageDomain, clearance: Callable[[np.ndarray], np.ndarray],
               starts: np.ndarray, peaks: np.ndarray, contexts: list[StrategyContext],
-              strategy: StrategyChoice | str = "bvc", dt: float = 0.2,
+              strategy: StrategyChoice | str | StrategyFactory = "bvc", dt: float = 0.2,
               time_limit: float = 30.0, detect_radius: float = 3.5,
-              arrive_radius: float = 1.0) -> TrialOutcome:
-    """Run a team from ``starts (n, 2 or 3)`` until every peak of ``peaks (K, 2)`` is detected,
-    every robot reports convergence, or ``time_limit`` [s] passes."""
+              arrive_radius: float = 1.0, stop_when_detected: bool = True) -> TrialOutcome:
+    """Run a team from ``starts (n, 2 or 3)`` until every peak of ``peaks (K, 2)`` is detected
+    (unless ``stop_when_detected`` is False: a coverage run to convergence), every robot
+    reports convergence, or ``time_limit`` [s] passes. ``strategy`` is a registered strategy
+    (a name or a :class:`StrategyChoice`) or a :data:`StrategyFactory`, for methods outside
+    the registry."""
     if not (dt > 0 and time_limit > 0 and detect_radius > 0 and arrive_radius > 0):
         raise ConfigError.at("trial", "dt, time_limit, detect_radius and arrive_radius must "
                              "be > 0", (dt, time_limit, detect_radius, arrive_radius))
@@ -197,7 +213,8 @@ def run_trial(domain: CoverageDomain, clearance: Callable[[np.ndarray], np.ndarr
     n = len(starts)
     grid = domain.geometry
     blocked = grid.occupied_mask()
-    robots = [make_strategy(strategy, c) for c in contexts]
+    robots = [strategy(c) if callable(strategy) else make_strategy(strategy, c)
+              for c in contexts]
     radii = np.array([c.robot.radius for c in contexts])
     speed = np.array([float(getattr(r, "u_max", c.robot.v_max))
                       for r, c in zip(robots, contexts, strict=True)])
@@ -209,6 +226,7 @@ def run_trial(domain: CoverageDomain, clearance: Callable[[np.ndarray], np.ndarr
     min_clear = float((clearance(pos) - radii).min())
     min_sep = _min_separation(pos, radii)
     converged = False
+    spent: list[float] = []
     t = 0.0
     for it in range(int(math.ceil(time_limit / dt)) + 1):
         t = it * dt
@@ -216,7 +234,7 @@ def run_trial(domain: CoverageDomain, clearance: Callable[[np.ndarray], np.ndarr
         if fresh.any():
             hit = peaks_detected(grid, peaks[fresh], pos, detect_radius)
             detected_at[np.flatnonzero(fresh)[hit]] = t
-        if np.isfinite(detected_at).all() or t >= time_limit:
+        if (stop_when_detected and np.isfinite(detected_at).all()) or t >= time_limit:
             break
         shared = [SharedState(position=pos[i].copy(), weight=contexts[i].weight,
                               extra={"radius": float(radii[i])}) for i in range(n)]
@@ -227,8 +245,10 @@ def run_trial(domain: CoverageDomain, clearance: Callable[[np.ndarray], np.ndarr
             rest = np.delete(np.arange(n), i)
             scan = simulate_scan(grid, pose, contexts[i].robot.lidar, pos[rest], radii[rest],
                                  blocked) if robot.needs_scan else None
-            d = robot.update(Observation(i, pose, t, scan),
-                             [Neighbour(j, shared[j]) for j in rest])
+            nbrs = [Neighbour(j, shared[j]) for j in rest]
+            t0 = time.perf_counter()
+            d = robot.update(Observation(i, pose, t, scan), nbrs)
+            spent.append(time.perf_counter() - t0)
             done.append(d.converged)
             # The point the method heads for (bvc: the centroid of Eq. 3; its navigation goal
             # may lie a little beyond it, for a robot's tracker that parks short of goals).
@@ -252,7 +272,7 @@ def run_trial(domain: CoverageDomain, clearance: Callable[[np.ndarray], np.ndarr
     collided = min_clear < -COLLISION_TOLERANCE or min_sep < -COLLISION_TOLERANCE
     at_targets = all(peaks_detected(grid, peaks, p, arrive_radius).any() for p in pos)
     return TrialOutcome(detected_at, collided, converged, at_targets, t, min_clear, min_sep,
-                        np.array(trajectory))
+                        np.array(trajectory), np.array(spent))
 
 
 def _min_separation(pos: np.ndarray, radii: np.ndarray) -> float:
@@ -276,20 +296,27 @@ class TrialSetup:
 def cluttered_trial(rng: np.random.Generator, size: float = 10.0, obstacles: int = 12,
                     robots: int = 3, peaks: int = 3, sigma: float = 1.0,
                     peak_spacing: float = 3.0, resolution: float = 0.1,
-                    robot_radius: float = 0.105, start_clearance: float = 0.3) -> TrialSetup:
-    """A ``size x size`` [m] arena with ``obstacles`` random boxes and discs, a Gaussian
+                    robot_radius: float = 0.105, start_clearance: float = 0.3,
+                    circle_share: float = 0.5,
+                    circle_radius: tuple[float, float] = (0.2, 0.6)) -> TrialSetup:
+    """A ``size x size`` [m] arena with ``obstacles`` random boxes and discs (a disc with
+    probability ``circle_share``, of a radius drawn from ``circle_radius`` [m]), a Gaussian
     mixture of ``peaks`` peaks (spread ``sigma`` [m], ``peak_spacing`` [m] apart) in free
     space, and ``robots`` random starts at least ``start_clearance`` [m] from every obstacle and
     ``4 r`` apart."""
     if size <= 4 * start_clearance or obstacles < 0 or robots < 1 or peaks < 1:
         raise ConfigError.at("cluttered_trial", "need size > 4 start_clearance, obstacles >= 0,"
                              " robots >= 1, peaks >= 1", (size, obstacles, robots, peaks))
+    if not (0.0 <= circle_share <= 1.0 and 0.0 < circle_radius[0] <= circle_radius[1]):
+        raise ConfigError.at("cluttered_trial", "need 0 <= circle_share <= 1 and "
+                             "0 < circle_radius[0] <= circle_radius[1]",
+                             (circle_share, circle_radius))
     items = []
     for _ in range(obstacles):
         c = rng.uniform(1.0, size - 1.0, 2).round(3).tolist()
-        if rng.random() < 0.5:
+        if rng.random() < circle_share:
             items.append({"type": "circle", "center": c,
-                          "radius": round(float(rng.uniform(0.2, 0.6)), 3)})
+                          "radius": round(float(rng.uniform(*circle_radius)), 3)})
         else:
             items.append({"type": "box", "center": c,
                           "size": rng.uniform(0.3, 1.8, 2).round(3).tolist(),

@@ -132,7 +132,7 @@ class StrategyDetails:
 #: index here (``mode``; -1 for one not listed), since a JointState holds numbers only.
 MODES = ("lloyd", "greedy", "frontier", "done", "stay", "cvt", "dropout", "plain", "guided",
          "escape", "motion_to_goal", "boundary_following", "projecting", "reached",
-         "projected", "blocked", "seek")
+         "projected", "blocked", "seek", "relocate")
 
 
 def mode_code(mode: str) -> int:

@@ -30,11 +30,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from coverage_ros.core.geodesic.domain import CoverageDomain
-from coverage_ros.core.strategies.acvt.cells import (
-    CellSpec,
-    MassCells,
-    deviation_metric,
-    normalized_masses,
+from coverage_ros.core.strategies.acvt.cells import CellSpec, MassCells, normalized_masses
+from coverage_ros.core.strategies.acvt.relocation import (
+    RelocationConfig,
+    best_relocation,
+    cvt_step,
+    team_metric,
 )
 from coverage_ros.errors import ConfigError
 
@@ -122,6 +123,10 @@ class DropoutSwitch:
 class AcvtConfig:
     dropout: DropoutConfig = field(default_factory=DropoutConfig)
     cells: CellSpec = field(default_factory=CellSpec)
+    #: This project's relocation once the team has settled (:mod:`.relocation`); disabled,
+    #: the run is the paper's Alg. 2 as published. Only with the dropout and the projection
+    #: on (iCVT and iCVT + projection, the paper's baselines, never relocate).
+    relocation: RelocationConfig = field(default_factory=RelocationConfig)
     max_iterations: int = 300
     tolerance: float = 0.01  # [m] done when, with the dropout off, no agent moves farther
     #: Eq. 8 after every CVT step; False is plain iCVT (the paper's Fig. 3b), where a centroid
@@ -146,6 +151,7 @@ class AcvtResult:
     converged: bool
     labels: np.ndarray  # (N,) final owner of every mass cell (MassCells order), -1 uncovered
     masses: np.ndarray  # (k,) final cell masses (visible ones with visibility)
+    relocations: int = 0  # agents relocated once settled (:mod:`.relocation`)
 
     @property
     def final(self) -> np.ndarray:
@@ -164,23 +170,13 @@ class AlphaCvt:
         """One iCVT + projection step (Eq. 1/12/15/17, 7, 8) of the agents ``movers`` (bool
         mask; all by default) on the partition among themselves; others keep their place.
         An agent with an empty cell keeps its position as virtual target (then projected)."""
-        P = np.asarray(positions, dtype=np.float64)
-        idx = np.arange(len(P)) if movers is None else np.flatnonzero(movers)
-        sub_reach = None if reach is None else reach[idx]
-        labels = self.cells.labels(P[idx], sub_reach, self.config.cells)
-        _, centroids = self.cells.stats(labels, len(idx))
-        virt = np.where(np.isnan(centroids), P[idx], centroids)
-        out = P.copy()
-        out[idx] = self.cells.project(virt) if self.config.projection else virt
-        return out
+        return cvt_step(self.cells, self.config.cells, positions, reach, movers,
+                        self.config.projection)
 
     def evaluate(self, positions: np.ndarray,
                  reach: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, float]:
         """``(labels (N,), masses (k,), metric)`` of the partition at ``positions``."""
-        labels = self.cells.labels(positions, reach, self.config.cells)
-        masses, _ = self.cells.stats(labels, len(positions))
-        metric = deviation_metric(masses, self.cells.total, reach, self.config.cells.visibility)
-        return labels, masses, metric
+        return team_metric(self.cells, self.config.cells, positions, reach)
 
     def run(self, starts: np.ndarray, speeds: np.ndarray | None = None) -> AcvtResult:
         """Alg. 2 from ``starts (k, 2)`` [m]. ``speeds (k,)`` [m/s] make the agents
@@ -197,14 +193,35 @@ class AlphaCvt:
                 raise ConfigError.at("speeds", f"must be {k} finite numbers > 0 [m/s]",
                                      reach.tolist())
         switch = DropoutSwitch(cfg.dropout)
+        # Relocation belongs to alpha-CVT: the baselines (dropout off) run without it.
+        relocate = cfg.relocation.enabled and cfg.dropout.enabled and cfg.projection
         P = self.cvt_step(P, reach)  # lines 2-3
         labels, masses, metric = self.evaluate(P, reach)
         switch.update(metric)
         history, metrics, greedy_counts = [P.copy()], [metric], []
-        dropout_iterations = 0
+        dropout_iterations = relocations = 0
         converged = False
+        settled = False  # the last iteration ended settled, with the dropout off
         for _ in range(cfg.max_iterations):
             greedy = np.zeros(k, dtype=bool)
+            if settled:
+                # Settled without the dropout: relocate the lightest agent if that is predicted
+                # to lower the metric (this iteration moves only it), else the run is done.
+                move = None
+                if relocate and relocations < cfg.relocation.max_moves:
+                    move = best_relocation(self.cells, cfg.cells, P, reach, cfg.relocation)
+                if move is None:
+                    converged = True
+                    break
+                relocations += 1
+                P = P.copy()
+                P[move.agent] = move.point
+                labels, masses, metric = self.evaluate(P, reach)
+                history.append(P.copy())
+                metrics.append(metric)
+                greedy_counts.append(0)
+                settled = False
+                continue
             if switch.active:
                 weighed = masses if reach is None else normalized_masses(masses, reach)
                 greedy = greedy_mask(weighed, cfg.dropout.drop_factor)
@@ -221,8 +238,9 @@ class AlphaCvt:
             history.append(P.copy())
             metrics.append(metric)
             greedy_counts.append(int(greedy.sum()))
-            if not switch.active and not greedy.any() and step < cfg.tolerance:
-                converged = True
-                break
+            settled = not switch.active and not greedy.any() and step < cfg.tolerance
+        else:
+            converged = settled
         return AcvtResult(np.array(history), np.array(metrics), np.array(greedy_counts),
-                          dropout_iterations, len(greedy_counts), converged, labels, masses)
+                          dropout_iterations, len(greedy_counts), converged, labels, masses,
+                          relocations)

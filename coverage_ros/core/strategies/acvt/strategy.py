@@ -55,6 +55,12 @@ from coverage_ros.core.strategies.acvt.dropout import (
     DropoutSwitch,
     greedy_mask,
 )
+from coverage_ros.core.strategies.acvt.relocation import (
+    RelocationConfig,
+    best_relocation,
+    lightest,
+    team_metric,
+)
 from coverage_ros.core.strategies.base import (
     Decision,
     Neighbour,
@@ -84,9 +90,10 @@ class AcvtParams:
     scale_y: float = 1.0  # b of T_c in Eq. 15, on map y
     gap_penalty: float = 0.0  # lambda of Eq. 15 [m per m of rho = 0 crossed]
     speed_weighted: bool = True  # Eq. 16-18 when the robots' speeds differ
+    relocate: bool = True  # the lightest robot of a settled team relocates (.relocation)
 
     def __post_init__(self) -> None:
-        for name in ("dropout", "visibility", "speed_weighted"):
+        for name in ("dropout", "visibility", "speed_weighted", "relocate"):
             if not isinstance(getattr(self, name), bool | np.bool_):
                 raise ConfigError.at(name, "must be true or false", getattr(self, name))
         for name in ("epsilon", "filter_gain", "drop_factor", "scale_x", "scale_y",
@@ -104,6 +111,12 @@ class AcvtParams:
         return DropoutConfig(bool(self.dropout), float(self.epsilon), float(self.filter_gain),
                              None if self.drop_factor is None else float(self.drop_factor))
 
+    def relocation_config(self) -> RelocationConfig:
+        # Part of alpha-CVT: iCVT + projection (dropout off, the paper's baseline) never
+        # relocates. A robot relocates at most twice: its prediction is from a settled team,
+        # and a live team may settle elsewhere than predicted.
+        return RelocationConfig(enabled=bool(self.relocate and self.dropout), max_moves=2)
+
     def cell_spec(self) -> CellSpec:
         return CellSpec(bool(self.visibility), (float(self.scale_x), float(self.scale_y)),
                         float(self.gap_penalty))
@@ -117,6 +130,8 @@ class AcvtDetails(StrategyDetails):
     local_deviation: float  # mass deviation I over the masses heard (NaN outside dropout)
     tau_drop: float  # the dropout threshold (NaN outside dropout)
     centroid: np.ndarray | None  # (2,) [m] own cell's centroid (None: empty cell)
+    relocation: np.ndarray | None = None  # (2,) [m] where the robot relocates to, if it does
+    predicted: float = math.nan  # the team metric predicted after that relocation
 
 
 class AcvtStrategy(Strategy):
@@ -134,14 +149,19 @@ class AcvtStrategy(Strategy):
         self.reach = context.robot.v_max * REACH_TIME
         self.cells = MassCells(context.domain)
         self.switch = DropoutSwitch(self.dropout)
+        self.relocation = self.params.relocation_config()
+        self._relocating: np.ndarray | None = None  # (2,) [m] target of a relocation under way
+        self._relocations = 0
+        self._checked: np.ndarray | None = None  # team positions of the last prediction
 
     def shared_state(self, obs: Observation) -> SharedState:
         return SharedState(position=obs.position.copy(), weight=self.context.weight,
                            extra=self._extra(False))
 
-    def _extra(self, greedy: bool) -> dict[str, float]:
+    def _extra(self, greedy: bool, settled: bool = False) -> dict[str, float]:
         return {"reach": self.reach, "dropout": float(self.switch.active),
-                "greedy": float(greedy)}
+                "greedy": float(greedy), "settled": float(settled),
+                "relocating": float(self._relocating is not None)}
 
     # ------------------------------------------------------------------ cells
     def _own_cell(self, P: np.ndarray, reach: np.ndarray | None,
@@ -216,19 +236,56 @@ class AcvtStrategy(Strategy):
         else:
             goal = self.cells.project(p if centroid is None else centroid)[0]
 
-        step = float(np.hypot(*(goal - p)))
+        tol = self.context.convergence_tolerance
+        # Converged once the goal is reached with no dropout under way (a robot that hears
+        # no neighbour's mass cannot drop out and converges like iCVT + projection).
+        converged = (not (self.switch.active and len(idx) > 1)
+                     and float(np.hypot(*(goal - p))) < tol)
+        mode = "greedy" if greedy else ("dropout" if self.switch.active else "cvt")
+        if self._relocating is not None and float(np.hypot(*(self._relocating - p))) < tol:
+            self._relocating = None  # arrived: back to iCVT + projection
+        predicted = math.nan
+        if self._relocating is None and converged:
+            settled = [states[src] for src in order if states[src] is not None]
+            move = self._relocation_move(P, reach_arg, own, settled)
+            if move is not None:
+                self._relocating, predicted = move.point.copy(), move.metric_after
+                self._relocations += 1
+        if self._relocating is not None:
+            goal, converged, mode = self._relocating.copy(), False, "relocate"
         mine = labels == own
         return Decision(
             goal=goal, velocity=None, cell=self.cells.nodes[mine],
             shared=SharedState(position=p.copy(), weight=self.context.weight, mass=mass,
-                               extra=self._extra(greedy)),
-            # Converged once the goal is reached with no dropout under way (a robot that hears
-            # no neighbour's mass cannot drop out and converges like iCVT + projection).
-            converged=(not (self.switch.active and len(idx) > 1)
-                       and step < self.context.convergence_tolerance),
-            cost=self.cells.cost(labels, P, own), mass=mass,
-            mode="greedy" if greedy else ("dropout" if self.switch.active else "cvt"),
+                               extra=self._extra(greedy, converged)),
+            converged=converged, cost=self.cells.cost(labels, P, own), mass=mass, mode=mode,
             details=AcvtDetails(greedy=greedy, dropout=self.switch.active,
                                 dropped=tuple(int(ids[order[j]]) for j in dropped),
                                 local_deviation=local_i, tau_drop=tau,
-                                centroid=None if centroid is None else centroid.copy()))
+                                centroid=None if centroid is None else centroid.copy(),
+                                relocation=None if self._relocating is None
+                                else self._relocating.copy(), predicted=predicted))
+
+    def _relocation_move(self, P: np.ndarray, reach: np.ndarray | None, own: int,
+                         neighbours: list[SharedState]):
+        """The relocation this robot makes now, if any (:mod:`.relocation`): only with its
+        dropout over, every neighbour settled, out of the dropout and not relocating, and its
+        own (normalised) mass the least of the team at ``P (k, 2)`` (row ``own``; ties: the
+        lowest id) - so that in a team that hears everyone one robot at a time relocates. A
+        team configuration that was predicted already is not predicted again."""
+        cfg = self.relocation
+        if not cfg.enabled or self.switch.active or self._relocations >= cfg.max_moves \
+                or len(P) < 2:
+            return None
+        if not all(st.extra.get("settled", 0.0) == 1.0 and st.extra.get("dropout", 1.0) == 0.0
+                   and st.extra.get("relocating", 0.0) == 0.0 for st in neighbours):
+            return None
+        still = 2.0 * self.context.convergence_tolerance  # [m] live positions jitter this much
+        if (self._checked is not None and self._checked.shape == P.shape
+                and float(np.hypot(*(self._checked - P).T).max()) < still):
+            return None
+        _, masses, _ = team_metric(self.cells, self.spec, P, reach)
+        if lightest(masses, reach) != own:
+            return None
+        self._checked = P.copy()
+        return best_relocation(self.cells, self.spec, P, reach, cfg, agent=own)

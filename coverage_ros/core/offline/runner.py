@@ -111,22 +111,21 @@ def run_offline(domain: CoverageDomain, strategy: StrategyChoice | str, starts: 
         costs.append(sum(d.cost for d in decisions))
         published = [d.shared for d in decisions]
         new = pos.copy()
-        ruled = np.zeros(n, dtype=bool)  # the monotone rule judged the robot's step
         for i, d in enumerate(decisions):
-            new[i], yaw[i], ruled[i] = _move(domain, robots[i], pos[i], yaw[i], d, config)
+            new[i], yaw[i] = _move(domain, robots[i], pos[i], yaw[i], d, config)
         pos = new
         positions.append(pos.copy())
         yaws.append(yaw.copy())
         moved = float(np.hypot(*(pos - positions[-2]).T).max())
         # Self-steering robots move less than the tolerance per step while under way: only
         # their own convergence counts.
-        # A robot whose steps the monotone rule judges may stand still short of its goal for
-        # good; any other robot still short of convergence (e.g. an alpha-CVT dropout phase
-        # that has yet to end) keeps the run going.
+        # Nobody moving counts as settled too (steps the monotone rule rejects for good),
+        # unless a strategy has a phase under way that may move a robot later (``settling``:
+        # e.g. an alpha-CVT dropout yet to end).
         steering = any(d.velocity is not None for d in decisions)
         still = all(d.converged for d in decisions) or (
             not steering and moved < contexts[0].convergence_tolerance
-            and all(d.converged or ruled[i] for i, d in enumerate(decisions)))
+            and not any(d.settling for d in decisions))
         settled = settled + 1 if still else 0
         if progress is not None:
             progress(it, costs[-1])
@@ -137,9 +136,7 @@ def run_offline(domain: CoverageDomain, strategy: StrategyChoice | str, starts: 
 
 
 def _move(domain: CoverageDomain, robot: Strategy, p: np.ndarray, yaw: float, d: Decision,
-          config: OfflineConfig) -> tuple[np.ndarray, float, bool]:
-    """The robot's next pose ``(position (2,), yaw)`` and whether the monotone rule judged its
-    step."""
+          config: OfflineConfig) -> tuple[np.ndarray, float]:
     robot_spec = robot.context.robot
     if d.velocity is not None:
         v, w = d.velocity
@@ -148,25 +145,25 @@ def _move(domain: CoverageDomain, robot: Strategy, p: np.ndarray, yaw: float, d:
         yaw_new = yaw + w * config.dt
         q = p + v * config.dt * np.array([math.cos(yaw + 0.5 * w * config.dt),
                                           math.sin(yaw + 0.5 * w * config.dt)])
-        return (q if domain.is_free_point(q) else p), float(yaw_new), False
+        return (q if domain.is_free_point(q) else p), float(yaw_new)
     if d.goal is None:
-        return p, yaw, False
+        return p, yaw
     goal = np.asarray(d.goal, dtype=np.float64)
     step = goal - p
     if float(np.hypot(*step)) < 1e-12:
-        return p, yaw, False
+        return p, yaw
     heading = float(math.atan2(step[1], step[0]))
     current = robot.cost_about(d, p) if config.monotone else None
     if current is None:
-        return _wrapped(domain, goal), heading, False
+        return _wrapped(domain, goal), heading
     for _ in range(MAX_HALVINGS):
         q = _wrapped(domain, p + step)
         if domain.is_free_point(q):
             cost = robot.cost_about(d, q)
             if cost is not None and cost <= current * (1 + 1e-12) + 1e-12:
-                return q, heading, True
+                return q, heading
         step = 0.5 * step
-    return p, yaw, True
+    return p, yaw
 
 
 def _wrapped(domain: CoverageDomain, q: np.ndarray) -> np.ndarray:

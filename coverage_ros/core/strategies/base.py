@@ -162,6 +162,9 @@ class Decision:
     mode: str = ""  # what the strategy is doing, in a word (e.g. "lloyd", "guided", "greedy")
     cell_polygon: np.ndarray | None = None  # (M, 2) [m] for polygonal cells (BVC)
     details: StrategyDetails = field(default_factory=StrategyDetails)
+    #: A phase of the strategy is under way that may move the robot later although it stands
+    #: at its goal now (alpha-CVT's dropout): a runner does not take "nobody moves" for done.
+    settling: bool = False
     #: [rad] map frame: the heading a self-steering strategy's ``velocity`` steers for, so that
     #: a robot's tracking loop (faster than the strategy's updates) turns towards it between
     #: updates instead of holding a turn rate (None: hold ``velocity`` as it is).

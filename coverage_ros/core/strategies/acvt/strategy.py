@@ -259,6 +259,7 @@ class AcvtStrategy(Strategy):
             shared=SharedState(position=p.copy(), weight=self.context.weight, mass=mass,
                                extra=self._extra(greedy, converged)),
             converged=converged, cost=self.cells.cost(labels, P, own), mass=mass, mode=mode,
+            settling=(self.switch.active and len(idx) > 1) or self._relocating is not None,
             details=AcvtDetails(greedy=greedy, dropout=self.switch.active,
                                 dropped=tuple(int(ids[order[j]]) for j in dropped),
                                 local_deviation=local_i, tau_drop=tau,

@@ -41,7 +41,11 @@ from coverage_ros.core.strategies.tangentbug.scan_geometry import (
     on_obstacle_side,
     scan_nodes,
 )
-from coverage_ros.core.strategies.tangentbug.strategy import decision_costs, team_costs
+from coverage_ros.core.strategies.tangentbug.strategy import (
+    NEIGHBOUR_MASK_MARGIN,
+    decision_costs,
+    team_costs,
+)
 from coverage_ros.core.world import LidarSpec, RobotSpec, load_world, parse_world
 from coverage_ros.errors import ConfigError
 
@@ -74,14 +78,21 @@ def _bug() -> TangentBug:
                                 v_max=ROBOT.v_max, w_max=ROBOT.w_max, goal_tolerance=TOL))
 
 
-def _drive(spec, domain, bug, start, goal, steps=600, dt=DT):
-    """Run ``bug`` from ``start (x, y, yaw)``; returns (path (T, 2), modes, rejected moves)."""
+def _drive(spec, domain, bug, start, goal, steps=600, dt=DT, neighbour=None):
+    """Run ``bug`` from ``start (x, y, yaw)``; returns (path (T, 2), modes, rejected moves).
+    A ``neighbour (2,)`` [m] robot stands still there: its scan returns are masked as the
+    strategy masks them (given to the bug as ``hidden``)."""
     bug.reset(np.asarray(goal, dtype=np.float64))
     pose = np.asarray(start, dtype=np.float64).copy()
     path, modes, rejected = [pose[:2].copy()], [], 0
+    others = None if neighbour is None else np.asarray(neighbour, dtype=np.float64)[None]
     for _ in range(steps):
-        scan = simulate_scan(spec.grid, pose, ROBOT.lidar)
-        cmd = bug.step(pose, scan.points(pose), scan.range_max)
+        scan = simulate_scan(spec.grid, pose, ROBOT.lidar, others, np.array([ROBOT.radius]))
+        pts, hidden = scan.points(pose), None
+        if others is not None:
+            off = np.hypot(*(pts - others[0]).T) > ROBOT.radius + NEIGHBOUR_MASK_MARGIN
+            pts, hidden = pts[off], pts[~off]
+        cmd = bug.step(pose, pts, scan.range_max, hidden)
         modes.append(cmd.mode)
         if bug.done:
             break
@@ -294,6 +305,29 @@ def test_a_goal_ray_free_only_up_to_the_horizon_does_not_end_boundary_following(
     assert len(starts) >= 2 and np.all(np.diff(d) < 0)
     ref = _projection_reference(spec.grid, goal, CLEARANCE)
     np.testing.assert_allclose(ref, [6.5 + CLEARANCE, goal[1]], atol=REF_RES)
+    assert np.hypot(*(path[-1] - ref)) <= SCAN_BIAS + REF_RES + TRACKING + TOL
+
+
+def test_space_a_neighbour_shadows_does_not_count_for_leaving_a_boundary():
+    """Found by the Breitenmoser benchmark (U world, seed 1): a goal 0.21 m inside the face of
+    the U world's block; a converged neighbour stands still in the left arm. Its returns are
+    masked (the robot may drive through it), which left no returns in its shadow: from the
+    left wall the shadowed strip along the face looked free, closer to the goal than the
+    followed face, so the robot left the wall for it, found the face again and started
+    following afresh - for ever. The masked returns still bound what the robot sees: it
+    follows the whole boundary once and projects the goal onto the face."""
+    spec = load_world(WORLDS / "u_shape.yaml")
+    domain = CoverageDomain.from_grid(spec.grid, ROBOT.radius, spec.density)
+    goal = np.array([3.709, 5.295])  # block: x 3.5-6.5, y 2.5-8
+    path, modes, rejected = _drive(spec, domain, _bug(), [2.16, 3.21, 1.3], goal, steps=600,
+                                   neighbour=[1.36, 5.98])
+    assert modes[-1] is BugMode.PROJECTED and rejected == 0
+    starts = [k for k in range(1, len(modes)) if modes[k] is BugMode.BOUNDARY_FOLLOWING
+              and modes[k - 1] is not BugMode.BOUNDARY_FOLLOWING]
+    assert len(starts) == 1  # one boundary-following episode: the loop
+    ref = _projection_reference(spec.grid, goal, CLEARANCE)
+    # (the face at x = 3.5 lies on a cell border: the grid rasterizes it one cell out)
+    np.testing.assert_allclose(ref, [3.5 - CLEARANCE, goal[1]], atol=RES + REF_RES)
     assert np.hypot(*(path[-1] - ref)) <= SCAN_BIAS + REF_RES + TRACKING + TOL
 
 

@@ -139,6 +139,7 @@ class TangentBug:
     def __init__(self, config: BugConfig) -> None:
         self.config = config
         self._dirs = unit_directions(DIRECTIONS)
+        self._seen = np.zeros(DIRECTIONS)  # free lengths of the space seen (hidden returns in)
         self.goal = np.zeros(2)
         self.reset(None)
 
@@ -173,9 +174,12 @@ class TangentBug:
         self._last: np.ndarray | None = None
 
     # ------------------------------------------------------------------ one control period
-    def step(self, pose: np.ndarray, points: np.ndarray, horizon: float) -> BugCommand:
+    def step(self, pose: np.ndarray, points: np.ndarray, horizon: float,
+             hidden: np.ndarray | None = None) -> BugCommand:
         """``pose (x, y, yaw)``; ``points (M, 2)`` scan returns (map frame); ``horizon`` [m]:
-        the sensing range (space beyond it counts as free)."""
+        the sensing range (space beyond it counts as free); ``hidden (K, 2)``: returns left
+        out of ``points`` (on neighbour robots: driven through, but not seen past - the space
+        they shadow is not known to be free, so it never counts for leaving a boundary)."""
         c = self.config
         x = np.asarray(pose[:2], dtype=np.float64)
         yaw = float(pose[2])
@@ -189,6 +193,9 @@ class TangentBug:
         rel = np.asarray(points, dtype=np.float64).reshape(-1, 2) - x
         reach = max(float(horizon) - c.clearance, 0.0)
         L = free_lengths(rel, self._dirs, c.clearance, reach)
+        self._seen = L if hidden is None or len(hidden) == 0 else free_lengths(
+            np.vstack([rel, np.asarray(hidden, dtype=np.float64).reshape(-1, 2) - x]),
+            self._dirs, c.clearance, reach)
         if not self.unreachable and self._in_reach_of_band(x, rel, L, reach):
             return BugCommand(0.0, 0.0, self.mode, yaw)
         heading: float | None = None
@@ -312,7 +319,7 @@ class TangentBug:
             # goal ray free only up to the horizon is neither: its end may be farther than
             # the followed boundary, and leaving for it brings the robot back to the same
             # boundary to start following afresh, for ever (TangentBug's d_followed argument).
-            d_reach, point = closest_on_rays(x, self._dirs, L, self.target)
+            d_reach, point = closest_on_rays(x, self._dirs, self._seen, self.target)
             d_followed = min(self._best_d, float(np.hypot(*(self.target - x))))
             if self._goal_visible(x, rel, reach, horizon_counts=False) or (
                     d_reach < d_followed - min(c.leave_margin, 0.5 * d_followed)):

@@ -26,9 +26,10 @@ sums over the team are H of the real and of the virtual generators (Fig. 3); :fu
 computes both centrally.
 
 Scan returns on neighbours (within their published ``extra["radius"]``, else the own radius,
-plus ``NEIGHBOUR_MASK_MARGIN`` of their published position) are ignored: TangentBug's
+plus ``NEIGHBOUR_MASK_MARGIN`` of their published position) are driven through: TangentBug's
 reachability test assumes static obstacles, and collisions between robots are the robot node's
-safety filter's job.
+safety filter's job. They still bound what the robot sees: the space a neighbour shadows never
+counts for leaving a boundary.
 """
 
 from __future__ import annotations
@@ -193,10 +194,11 @@ class TangentBugStrategy(Strategy):
         velocity, heading = (0.0, 0.0), None
         stuck = self._stuck(x, obs.time)
         if obs.scan is not None and not self.bug.done:
-            pts = obs.scan.points(obs.pose)
+            pts, hidden = obs.scan.points(obs.pose), None
             if not stuck:
-                pts = _without_neighbours(pts, neighbours, ctx.robot.radius)
-            cmd = self.bug.step(obs.pose, pts, obs.scan.range_max)
+                keep = _off_neighbours(pts, neighbours, ctx.robot.radius)
+                pts, hidden = pts[keep], pts[~keep]
+            cmd = self.bug.step(obs.pose, pts, obs.scan.range_max, hidden)
             velocity = (cmd.v, cmd.w)
             if cmd.v > 0.0 or cmd.w != 0.0:
                 heading = cmd.heading
@@ -308,13 +310,13 @@ class TangentBugStrategy(Strategy):
             known_loops=len(self.loops))
 
 
-def _without_neighbours(points: np.ndarray, neighbours: Sequence[Neighbour],
-                        radius: float) -> np.ndarray:
-    """Scan returns ``(M, 2)`` minus those on the neighbours' bodies (their published
-    ``extra["radius"]``, else ``radius``)."""
+def _off_neighbours(points: np.ndarray, neighbours: Sequence[Neighbour],
+                    radius: float) -> np.ndarray:
+    """``(M,) bool``: which scan returns ``(M, 2)`` are off the neighbours' bodies (their
+    published ``extra["radius"]``, else ``radius``)."""
     if len(neighbours) == 0 or len(points) == 0:
-        return points
+        return np.ones(len(points), dtype=bool)
     P = np.array([n.position for n in neighbours], dtype=np.float64)
     r = np.array([float(n.state.extra.get("radius", radius)) for n in neighbours])
     d2 = ((points[:, None, :] - P[None, :, :]) ** 2).sum(axis=-1)
-    return points[(d2 > (r + NEIGHBOUR_MASK_MARGIN) ** 2).all(axis=1)]
+    return (d2 > (r + NEIGHBOUR_MASK_MARGIN) ** 2).all(axis=1)

@@ -18,7 +18,7 @@ speed cap ``u_max`` (else the robot's ``v_max``) - Eq. 3 integrated over ``dt``.
 judged against the *exact* obstacle geometry of the world (:func:`world_clearance`), not the
 grid the lidar is simulated on. It runs registered strategies and, through a
 :data:`StrategyFactory`, methods outside the registry (the baselines of
-:mod:`coverage_ros.core.baselines`), and records the wall time of every strategy update.
+:mod:`coverage_ros.core.baselines`), and records the CPU time of every strategy update.
 :func:`cluttered_trial` draws the paper's random scenario: a cluttered arena (boxes and discs,
 or discs only), a three-peak Gaussian importance density and random collision-free starts.
 """
@@ -75,8 +75,9 @@ class TrialOutcome:
     min_clearance: float  # [m] smallest robot-obstacle gap minus the robot radius
     min_separation: float  # [m] smallest robot-robot gap minus the two radii
     positions: np.ndarray  # (T + 1, n, 2) [m] trajectories
-    #: [s] wall time of each strategy update (every robot, every step; the simulated scan
-    #: excluded): what one robot computes per control period.
+    #: [s] CPU time of each strategy update (every robot, every step; the simulated scan
+    #: excluded): what one robot computes per control period. Process time, not wall time, so
+    #: that other load on a shared machine does not count.
     update_times: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     @property
@@ -246,9 +247,9 @@ def run_trial(domain: CoverageDomain, clearance: Callable[[np.ndarray], np.ndarr
             scan = simulate_scan(grid, pose, contexts[i].robot.lidar, pos[rest], radii[rest],
                                  blocked) if robot.needs_scan else None
             nbrs = [Neighbour(j, shared[j]) for j in rest]
-            t0 = time.perf_counter()
+            t0 = time.process_time()
             d = robot.update(Observation(i, pose, t, scan), nbrs)
-            spent.append(time.perf_counter() - t0)
+            spent.append(time.process_time() - t0)
             done.append(d.converged)
             # The point the method heads for (bvc: the centroid of Eq. 3; its navigation goal
             # may lie a little beyond it, for a robot's tracker that parks short of goals).

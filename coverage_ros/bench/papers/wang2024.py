@@ -205,12 +205,12 @@ SCALING_NOTE = (
     "bvc, 10 s coverage runs (two thirds of a Table I trial), 2 per team size and world per "
     "seed (5 seeds = the paper's 10), in Table I's re-drawn 16 m arena (32 circles) and in a "
     "28 m one with 184 circles (the paper's 140 m forest, 'nearly double in obstacle "
-    "density'); update time = median wall time of one robot's update (cell + guided map; the "
-    "simulated scan excluded) on a shared machine; min distance = from a robot's centre to "
-    "the nearest obstacle or robot body, the mean over a seed's trials of each trial's "
-    "minimum. The paper's 1.95 m margin (7.8 radii) is one 3-D trial in its forest; in 2-D "
-    "clutter a robot whose centroid lies on its cell's buffered face comes within one radius "
-    "of the obstacle: Lemma 1 guarantees no more")
+    "density'); update time = median CPU time of one robot's update (cell + guided map; the "
+    "simulated scan excluded; process time, as the machine is shared); min distance = from a "
+    "robot's centre to the nearest obstacle or robot body, the mean over a seed's trials of "
+    "each trial's minimum. The paper's 1.95 m margin (7.8 radii) is one 3-D trial in its "
+    "forest; in 2-D clutter a robot whose centroid lies on its cell's buffered face comes "
+    "within one radius of the obstacle: Lemma 1 guarantees no more")
 
 
 def _table_metrics() -> tuple[Metric, ...]:

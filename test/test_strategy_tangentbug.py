@@ -428,6 +428,36 @@ def test_remembered_loop_projects_later_targets_without_circling():
     np.testing.assert_allclose(real, centre + radius * u, atol=radius * a[1])  # polygon sides
 
 
+def test_a_found_projection_is_kept_at_convergence():
+    """Found by the Breitenmoser benchmark (Fig. 2b, one robot): after its loop the robot
+    stopped at a projection it found, a few centimetres (> the tolerance) from the closest
+    point of the remembered loop's polyline to the target - a point in the band its
+    clearance keeps it out of. Taking that point as the real target at every Lloyd update
+    re-projected the robot on the spot each time and it never converged. At Lloyd
+    convergence (the virtual target moved less than the tolerance) a found projection is
+    kept, and the robot standing at it has converged."""
+    _, domain = _world([0, 0, 6, 4], [{"type": "circle", "center": [3.3, 2.0],
+                                           "radius": 0.6}])
+    s = make_strategy("tangentbug", StrategyContext(domain=domain, robot=ROBOT))
+    centre, radius = np.array([3.3, 2.0]), 0.6 + CLEARANCE
+    a = np.linspace(0.0, 2.0 * math.pi, 200, endpoint=False)
+    s.loops.append((centre + radius * np.stack([np.cos(a), np.sin(a)], axis=-1), 1))
+    target = np.array([3.0, 2.0])  # the room's centroid, inside the circle
+    q = closest_on_polyline(s.loops[0][0], target)  # (3.3 - radius, 2.0)
+    turn = 0.08 / radius  # [rad] 8 cm along the contour from q: farther than TOL
+    x = centre + radius * np.array([-math.cos(turn), math.sin(turn)])
+    s.virtual = s.virtual_target = target.copy()
+    s.real_target, s.projected = x.copy(), True
+    s.bug.reset(x)
+    s.bug.mode = BugMode.PROJECTED
+    s._next_targets(x, target + np.array([0.01, 0.0]))  # a Lloyd step under the tolerance
+    assert np.hypot(*(q - x)) > TOL
+    np.testing.assert_allclose(s.real_target, x)
+    assert s.converged and s.projected and s.bug.done
+    s._next_targets(x, target + np.array([0.2, 0.0]))  # a real Lloyd step: targets anew
+    assert not s.converged and not s.bug.done
+
+
 def test_target_inside_a_free_standing_obstacle_is_projected_to_its_boundary():
     """Fig. 4 with one robot: the centroid of the room lies inside the obstacle; the robot
     circles it once and settles at the closest boundary point. With a single cell the real and

@@ -270,8 +270,11 @@ class TangentBugStrategy(Strategy):
         lloyd_step = float(np.hypot(*(centroid - self.virtual)))
         self.virtual_target = centroid.copy()
         real, projected = self._project_known(centroid)
-        if lloyd_step < tol and self.real_target is not None and self.projected and not projected:
-            real, projected = self.real_target, True  # keep a found projection at convergence
+        if lloyd_step < tol and self.real_target is not None and self.projected:
+            # Keep a found projection at convergence: the remembered loop's closest point may
+            # lie in the band the clearance keeps the robot out of (re-projected on the spot
+            # at every update, the robot would never converge).
+            real, projected = self.real_target, True
         self.real_target, self.projected = real, projected
         if float(np.hypot(*(real - x))) > tol:
             self.bug.reset(real)

@@ -22,7 +22,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from coverage_ros.bench.papers import Experiment, Metric
+from coverage_ros.bench.papers import Experiment, Metric, lee2024_live
 from coverage_ros.bench.papers import lee2024_scenes as scenes
 from coverage_ros.core.geodesic.domain import CoverageDomain
 from coverage_ros.core.offline.runner import OfflineConfig, run_offline
@@ -38,8 +38,7 @@ PUBLISHED, RELOCATED, STRATEGY = ("I, alpha-CVT as published", "I, alpha-CVT wit
                                   "I, acvt strategy (decentralized)")
 #: Iterations the decentralized runs may take (the arena scenarios settle in 20-90).
 DECENTRALIZED_ITERATIONS = 300
-#: [m/s] the paper's two top speeds (Sec. IV-C; R_i = v_max * t, Eq. 16).
-SLOW, FAST = 0.4, 0.8
+SLOW, FAST = scenes.SLOW, scenes.FAST
 
 
 PLAIN = CellSpec()  # Eq. 1
@@ -260,6 +259,25 @@ def experiments() -> list[Experiment]:
         e("Fig. 15", "two walls, 4 + 6 agents at 0.4 / 0.8 m/s, visible cells",
           (Metric("I^H, iCVT+Projection", 0.402),) + _alpha(0.318, "I^H", False), fig15,
           key="lee2024/fig15"),
+    ]
+    live = functools.partial(Experiment, PAPER, redrawn=True, slow=True, live=True)
+    collisions = Metric("collisions (both runs)", 0.0)
+    rows += [
+        live("Fig. 17a-c", "live team: two targets, 10 robots at 0.4 m/s from a corner",
+             (Metric("I, iCVT+Projection (live)", 0.444), Metric("I, alpha-CVT (live)", 0.051),
+              collisions), lee2024_live.fig17_targets, key="lee2024/fig17-targets"),
+        live("Fig. 17d-f", "live team: two walls, 10 robots at 0.8 m/s, visible cells",
+             (Metric("I^L, iCVT+Projection (live)", 0.387),
+              Metric("I^L, alpha-CVT (live)", 0.187), collisions), lee2024_live.fig17_room,
+             key="lee2024/fig17-room"),
+        live("Fig. 18a-c", "live team: two targets, 5 + 5 robots at 0.4 / 0.8 m/s",
+             (Metric("I^H, iCVT+Projection (live)", 0.0701),
+              Metric("I^H, alpha-CVT (live)", 0.0375), collisions), lee2024_live.fig18_targets,
+             key="lee2024/fig18-targets"),
+        live("Fig. 18d-f", "live team: two walls, 4 + 6 robots at 0.4 / 0.8 m/s",
+             (Metric("I^H, iCVT+Projection (live)", 0.4003),
+              Metric("I^H, alpha-CVT (live)", 0.3305), collisions), lee2024_live.fig18_room,
+             key="lee2024/fig18-room"),
     ]
     for name in scenes.OWN_SHAPES:
         rows.append(e("beyond", f"{name}, 10 agents from the upper-left corner "

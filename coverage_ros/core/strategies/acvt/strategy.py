@@ -75,6 +75,9 @@ from coverage_ros.errors import ConfigError
 #: [s] travel time t of Eq. 16 that turns v_max into the reach R_i; any value gives the same
 #: cells and metric (it cancels), 1 s makes R_i read as metres per second.
 REACH_TIME = 1.0
+#: A robot within this many convergence tolerances of its goal counts as settled for the
+#: relocation (live robots hover 5-9 cm from goals that move with their neighbours' jitter).
+SETTLED_FACTOR = 3.0
 
 
 @dataclass(frozen=True)
@@ -238,26 +241,30 @@ class AcvtStrategy(Strategy):
 
         tol = self.context.convergence_tolerance
         # Converged once the goal is reached with no dropout under way (a robot that hears
-        # no neighbour's mass cannot drop out and converges like iCVT + projection).
-        converged = (not (self.switch.active and len(idx) > 1)
-                     and float(np.hypot(*(goal - p))) < tol)
+        # no neighbour's mass cannot drop out and converges like iCVT + projection). Settled -
+        # what a relocation waits for - is looser: a live robot hovers a few centimetres from
+        # a goal that shifts with every neighbour's jitter.
+        off = float(np.hypot(*(goal - p)))
+        phase = self.switch.active and len(idx) > 1
+        converged = not phase and off < tol
+        settled = not phase and off < SETTLED_FACTOR * tol
         mode = "greedy" if greedy else ("dropout" if self.switch.active else "cvt")
         if self._relocating is not None and float(np.hypot(*(self._relocating - p))) < tol:
             self._relocating = None  # arrived: back to iCVT + projection
         predicted = math.nan
-        if self._relocating is None and converged:
-            settled = [states[src] for src in order if states[src] is not None]
-            move = self._relocation_move(P, reach_arg, own, settled)
+        if self._relocating is None and settled:
+            heard = [states[src] for src in order if states[src] is not None]
+            move = self._relocation_move(P, reach_arg, own, heard)
             if move is not None:
                 self._relocating, predicted = move.point.copy(), move.metric_after
                 self._relocations += 1
         if self._relocating is not None:
-            goal, converged, mode = self._relocating.copy(), False, "relocate"
+            goal, converged, settled, mode = self._relocating.copy(), False, False, "relocate"
         mine = labels == own
         return Decision(
             goal=goal, velocity=None, cell=self.cells.nodes[mine],
             shared=SharedState(position=p.copy(), weight=self.context.weight, mass=mass,
-                               extra=self._extra(greedy, converged)),
+                               extra=self._extra(greedy, settled)),
             converged=converged, cost=self.cells.cost(labels, P, own), mass=mass, mode=mode,
             settling=(self.switch.active and len(idx) > 1) or self._relocating is not None,
             details=AcvtDetails(greedy=greedy, dropout=self.switch.active,

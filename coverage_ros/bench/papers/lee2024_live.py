@@ -1,0 +1,130 @@
+"""Lee & Lee (2024) Sec. IV on the live team: Figs. 17-18, real-time coverage with mobile robots.
+
+The paper runs Alg. 3 (its goals every second, A* + RVO on TurtleBot3 models in Unity/ROS); here
+the live ``coverage-team``: the world node simulates the robots, each ``robot_node`` runs the
+decentralized ``acvt`` strategy (its own planner and safety filter), iCVT + projection being the
+same strategy with ``dropout: false``. The robots are TurtleBot3-like bodies with the paper's top
+speeds (0.4 m/s, or 0.4 / 0.8 m/s for the heterogeneous Fig. 18), starting in a corner cluster
+(:func:`~.lee2024_scenes.corner_cluster`); the metric is computed from the final positions on
+the same grid as offline: I (Eq. 9) on the two targets, I^L (Eq. 13) in the walled room, I^H
+(Eq. 18) for mixed speeds.
+"""
+
+from __future__ import annotations
+
+import json
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from coverage_ros.bench.papers import lee2024_scenes as scenes
+from coverage_ros.core.geodesic.domain import CoverageDomain
+from coverage_ros.core.strategies.acvt.cells import CellSpec, MassCells, deviation_metric
+from coverage_ros.core.world import WorldSpec, load_world
+
+#: [s] simulated time of a run: long enough for the relocations a corner start needs (each waits
+#: for the team to settle, then crosses the arena at 0.4 m/s).
+DURATION = 240.0
+#: Robots per robot process (the launcher's composition): ten robots in two processes.
+ROBOTS_PER_PROCESS = 5
+WORLD_RESOLUTION = 0.1  # [m] as the offline domains
+#: The walled room of Figs. 7 / 17d (10 m, two walls of 20 cm) as world obstacles.
+ROOM_SIDE = 10.0  # [m]
+ROOM_WALLS = ({"type": "box", "center": [3.25, 3.5], "size": [6.5, 0.2]},
+              {"type": "box", "center": [6.75, 6.5], "size": [6.5, 0.2]})
+
+
+def _targets_world() -> dict:
+    polys = [scenes.BIG.round(3).tolist(), scenes.SMALL.round(3).tolist()]
+    return {"name": "lee_two_targets", "resolution": WORLD_RESOLUTION,
+            "bounds": [0.0, 0.0, scenes.ARENA, scenes.ARENA],
+            "density": {"type": "targets", "polygons": polys}}
+
+
+def _room_world() -> dict:
+    return {"name": "lee_two_walls", "resolution": WORLD_RESOLUTION,
+            "bounds": [0.0, 0.0, ROOM_SIDE, ROOM_SIDE], "obstacles": list(ROOM_WALLS)}
+
+
+def _team(starts: np.ndarray, speeds: np.ndarray) -> dict:
+    return {"robots": [{"id": i, "start": [round(float(x), 3), round(float(y), 3), 0.0],
+                        "v_max": float(v)} for i, ((x, y), v) in enumerate(zip(starts, speeds,
+                                                                                 strict=True))]}
+
+
+def run_live(world: dict, starts: np.ndarray, speeds: np.ndarray, params: dict,
+             duration: float = DURATION, seed: int = 0) -> tuple[np.ndarray, WorldSpec, int]:
+    """Run ``coverage-team`` with the ``acvt`` strategy (``params``) on ``world`` (a world
+    mapping) from ``starts (k, 2)`` at ``speeds (k,)`` [m/s]: the final positions ``(k, 2)``,
+    the world and the number of collisions."""
+    from coverage_ros.cli.team import main as team_main
+
+    with tempfile.TemporaryDirectory(prefix="lee-live-") as tmp:
+        folder = Path(tmp)
+        (folder / "world.yaml").write_text(yaml.safe_dump(world))
+        (folder / "team.yaml").write_text(yaml.safe_dump(_team(starts, speeds)))
+        out = folder / "run"
+        code = team_main(["--world", str(folder / "world.yaml"), "--team",
+                          str(folder / "team.yaml"), "--strategy", "acvt",
+                          "--strategy-params", json.dumps(params), "--duration", str(duration),
+                          "--seed", str(seed), "--rtf", "1", "--robots-per-process",
+                          str(ROBOTS_PER_PROCESS), "--no-markers", "--quiet", "--out", str(out)])
+        if code != 0:
+            raise RuntimeError(f"coverage-team ended with exit code {code}")
+        summary = json.loads((out / "summary.json").read_text())
+        world_spec = load_world(folder / "world.yaml")
+    final = {r["id"]: r["final"][:2] for r in summary["robots"]}
+    collisions = sum(int(r["collisions"]) for r in summary["robots"])
+    return np.array([final[i] for i in range(len(starts))], np.float64), world_spec, collisions
+
+
+def live_metric(world: dict, starts: np.ndarray, speeds: np.ndarray, params: dict,
+                spec: CellSpec, heterogeneous: bool, seed: int) -> tuple[float, int]:
+    """The paper's metric (I, I^L or I^H) at the end of a live run, and its collisions."""
+    final, world_spec, collisions = run_live(world, starts, speeds, params, seed=seed)
+    domain = CoverageDomain.from_world(world_spec, scenes.TB3_RADIUS)
+    cells = MassCells(domain)
+    reach = speeds if heterogeneous else None
+    masses, _ = cells.stats(cells.labels(final, reach, spec), len(final))
+    return float(deviation_metric(masses, cells.total, reach, spec.visibility)), collisions
+
+
+SLOW, FAST = scenes.SLOW, scenes.FAST
+
+
+def _fig(world: dict, starts: np.ndarray, speeds: np.ndarray, visible: bool, metric: str,
+         seed: int) -> dict[str, float]:
+    spec = CellSpec(visibility=visible)
+    hetero = bool(np.ptp(speeds) > 0)
+    out: dict[str, float] = {}
+    collisions = 0
+    for name, params in (("iCVT+Projection", {"dropout": False}), ("alpha-CVT", {})):
+        value, hits = live_metric(world, starts, speeds, {**params, "visibility": visible},
+                                  spec, hetero, seed)
+        out[f"{metric}, {name} (live)"] = value
+        collisions += hits
+    out["collisions (both runs)"] = float(collisions)
+    return out
+
+
+def fig17_targets(seed: int) -> dict[str, float]:
+    return _fig(_targets_world(), scenes.corner_cluster(seed, 10), np.full(10, SLOW), False,
+                "I", seed)
+
+
+def fig17_room(seed: int) -> dict[str, float]:
+    starts = scenes.corner_cluster(seed, 10, scenes.LOWER_LEFT, arena=ROOM_SIDE)
+    return _fig(_room_world(), starts, np.full(10, FAST), True, "I^L", seed)
+
+
+def fig18_targets(seed: int) -> dict[str, float]:
+    speeds = np.r_[np.full(5, SLOW), np.full(5, FAST)]
+    return _fig(_targets_world(), scenes.corner_cluster(seed, 10), speeds, False, "I^H", seed)
+
+
+def fig18_room(seed: int) -> dict[str, float]:
+    speeds = np.r_[np.full(4, SLOW), np.full(6, FAST)]
+    starts = scenes.corner_cluster(seed, 10, scenes.LOWER_LEFT, arena=ROOM_SIDE)
+    return _fig(_room_world(), starts, speeds, True, "I^H", seed)

@@ -17,6 +17,7 @@ the lowest y, cell ``(r, c)`` covering ``origin + res * ([c, c + 1] x [r, r + 1]
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -40,11 +41,13 @@ FIRST_LIMIT_FACTOR = 2.5
 
 @dataclass
 class ObstacleMemory:
-    """Cells in which the robot's sensor has returned a hit (mutable, one per robot)."""
+    """Cells in which the robot's sensor has returned a hit, and cells it has seen free (mutable,
+    one per robot)."""
 
     origin: np.ndarray  # (2,) [m] lower-left corner of cell (0, 0), map frame
     resolution: float  # [m] cell side
     hits: np.ndarray  # (H, W) bool
+    seen: np.ndarray | None = None  # (H, W) bool: centre seen free by some scan (None: none)
 
     @classmethod
     def covering(cls, extent: tuple[float, float, float, float],
@@ -79,6 +82,37 @@ class ObstacleMemory:
         H, W = self.shape
         ok = (rc[:, 0] >= 0) & (rc[:, 0] < H) & (rc[:, 1] >= 0) & (rc[:, 1] < W)
         self.hits[rc[ok, 0], rc[ok, 1]] = True
+
+    def add_view(self, position: np.ndarray, reach: float,
+                 sees: Callable[[np.ndarray], np.ndarray]) -> None:
+        """Mark the cells within ``reach`` [m] of ``position`` whose centres ``sees`` (a
+        scan's :meth:`~coverage_ros.core.strategies.base.Scan.sees` at its pose: ``(N, 2)``
+        points -> ``(N,) bool``) reports free."""
+        if self.seen is None:
+            self.seen = np.zeros_like(self.hits)
+        H, W = self.shape
+        rc = self.cells(np.asarray(position, np.float64))[0]
+        n = int(math.ceil(reach / self.resolution)) + 1
+        r0, r1 = max(int(rc[0]) - n, 0), min(int(rc[0]) + n + 1, H)
+        c0, c1 = max(int(rc[1]) - n, 0), min(int(rc[1]) + n + 1, W)
+        if r0 >= r1 or c0 >= c1:
+            return
+        rows, cols = np.mgrid[r0:r1, c0:c1]
+        xy = self.centers(rows.ravel(), cols.ravel())
+        near = np.hypot(*(xy - position).T) <= reach
+        free = np.zeros(len(xy), dtype=bool)
+        free[near] = sees(xy[near])
+        self.seen[r0:r1, c0:c1] |= free.reshape(rows.shape)
+
+    def was_seen(self, points: np.ndarray) -> np.ndarray:
+        """``(N,) bool``: whether the cells of ``points (N, 2)`` were ever seen free."""
+        rc = self.cells(points)
+        H, W = self.shape
+        ok = (rc[:, 0] >= 0) & (rc[:, 0] < H) & (rc[:, 1] >= 0) & (rc[:, 1] < W)
+        out = np.zeros(len(rc), dtype=bool)
+        if self.seen is not None:
+            out[ok] = self.seen[rc[ok, 0], rc[ok, 1]]
+        return out
 
 
 @dataclass(frozen=True)

@@ -288,9 +288,13 @@ class BvcStrategy(Strategy):
             # No peak to be guided to (a uniform density): every candidate ties, and the
             # nearest - the robot's own spot - would hold the robot in place. Be guided to the
             # middle of what is its own instead: the candidate nearest to the centroid of the
-            # part of its Voronoi region that it sees free within sensing range (without a
-            # map, unseen space behind a wall would pull it otherwise).
-            seen = obs.scan.sees(cand, np.asarray(obs.pose, dtype=np.float64))
+            # part of its Voronoi region within sensing range that its scans have seen free -
+            # not only the current scan: a pillar would hide the space behind it and the robot
+            # would settle off-centre, leaving that side thin (without a map, space never seen
+            # behind a wall must not pull it).
+            self.memory.add_view(p, self.sensor_radius,
+                                 lambda q: obs.scan.sees(q, np.asarray(obs.pose, np.float64)))
+            seen = self.memory.was_seen(cand)
             if seen.any():
                 cand = cand[seen]
             k = int(np.argmin(np.hypot(*(cand - cand.mean(axis=0)).T)))

@@ -212,6 +212,12 @@ def test_parameters_are_validated():
         make_strategy(strategy_choice("tangentbug", {"lookahead": -0.2}), ctx)
     with pytest.raises(ConfigError, match="clearance"):
         BugConfig(clearance=0.1, robot_radius=0.105, v_max=0.22, w_max=2.84)
+    # Following a wall at the brake's own radius (robot radius + SAFETY_MARGIN), the robot
+    # has no room ahead and stalls for ever (an e-puck with follow_margin 0.02 m did).
+    with pytest.raises(ConfigError, match="clearance"):
+        BugConfig(clearance=0.055, robot_radius=0.035, v_max=0.13, w_max=4.8)
+    with pytest.raises(ConfigError, match="clearance"):
+        make_strategy(strategy_choice("tangentbug", {"follow_margin": 0.02}), ctx)
     with pytest.raises(ConfigError, match="loop_tolerance"):
         BugConfig(clearance=0.2, robot_radius=0.1, v_max=0.2, w_max=2.0, goal_tolerance=0.2,
                   loop_tolerance=0.1)
@@ -328,6 +334,26 @@ def test_space_a_neighbour_shadows_does_not_count_for_leaving_a_boundary():
     ref = _projection_reference(spec.grid, goal, CLEARANCE)
     # (the face at x = 3.5 lies on a cell border: the grid rasterizes it one cell out)
     np.testing.assert_allclose(ref, [3.5 - CLEARANCE, goal[1]], atol=RES + REF_RES)
+    assert np.hypot(*(path[-1] - ref)) <= SCAN_BIAS + REF_RES + TRACKING + TOL
+
+
+def test_a_goal_seen_only_through_a_neighbours_shadow_is_not_in_sight():
+    """Found by the Breitenmoser benchmark (Fig. 5, e-puck scale): the robot follows the
+    boundary round a goal 0.1 m inside a block; from the wall opposite the block the goal ray
+    runs through a neighbour, whose masked returns left the block's face behind it unseen, so
+    the goal looked in sight and the robot left the wall for it, met the face and followed it
+    afresh, for ever. Seen past the neighbour's returns, the goal is not in sight: one loop,
+    then the projection onto the face."""
+    spec, domain = _world([0, 0, 3, 3], [{"type": "box", "center": [1.5, 1.95],
+                                           "size": [1.0, 2.1]}])  # x 1-2, from the top wall
+    goal = np.array([1.1, 1.8])
+    path, modes, rejected = _drive(spec, domain, _bug(), [0.4, 1.0, 1.5], goal, steps=300,
+                                   neighbour=[0.5, 1.8])
+    assert modes[-1] is BugMode.PROJECTED and rejected == 0
+    starts = [k for k in range(1, len(modes)) if modes[k] is BugMode.BOUNDARY_FOLLOWING
+              and modes[k - 1] is not BugMode.BOUNDARY_FOLLOWING]
+    assert len(starts) == 1
+    ref = _projection_reference(spec.grid, goal, CLEARANCE)
     assert np.hypot(*(path[-1] - ref)) <= SCAN_BIAS + REF_RES + TRACKING + TOL
 
 

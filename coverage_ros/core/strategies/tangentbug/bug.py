@@ -111,9 +111,9 @@ class BugConfig:
             if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v) \
                     or v <= 0:
                 raise ConfigError.at(name, "must be a finite number > 0", v)
-        if self.clearance <= self.robot_radius:
-            raise ConfigError.at("clearance", "must exceed the robot radius", self.clearance,
-                                 f"> {self.robot_radius}")
+        if self.clearance <= self.robot_radius + SAFETY_MARGIN:  # else the brake stalls it
+            raise ConfigError.at("clearance", "must exceed the robot radius + SAFETY_MARGIN",
+                                 self.clearance, f"> {self.robot_radius + SAFETY_MARGIN}")
         if self.loop_tolerance < self.goal_tolerance:
             raise ConfigError.at("loop_tolerance", "must be >= goal_tolerance",
                                  self.loop_tolerance, f">= {self.goal_tolerance}")
@@ -139,7 +139,8 @@ class TangentBug:
     def __init__(self, config: BugConfig) -> None:
         self.config = config
         self._dirs = unit_directions(DIRECTIONS)
-        self._seen = np.zeros(DIRECTIONS)  # free lengths of the space seen (hidden returns in)
+        # Returns bounding the leave test's view (hidden ones too: see step), free lengths.
+        self._seen_rel, self._seen = np.zeros((0, 2)), np.zeros(DIRECTIONS)
         self.goal = np.zeros(2)
         self.reset(None)
 
@@ -180,9 +181,7 @@ class TangentBug:
         the sensing range (space beyond it counts as free); ``hidden (K, 2)``: returns left
         out of ``points`` (on neighbour robots: driven through, but not seen past - the space
         they shadow is not known to be free, so it never counts for leaving a boundary)."""
-        c = self.config
-        x = np.asarray(pose[:2], dtype=np.float64)
-        yaw = float(pose[2])
+        c, x, yaw = self.config, np.asarray(pose[:2], dtype=np.float64), float(pose[2])
         if self.done:
             return BugCommand(0.0, 0.0, self.mode, yaw)
         if self.mode is BugMode.BLOCKED:
@@ -193,9 +192,10 @@ class TangentBug:
         rel = np.asarray(points, dtype=np.float64).reshape(-1, 2) - x
         reach = max(float(horizon) - c.clearance, 0.0)
         L = free_lengths(rel, self._dirs, c.clearance, reach)
-        self._seen = L if hidden is None or len(hidden) == 0 else free_lengths(
-            np.vstack([rel, np.asarray(hidden, dtype=np.float64).reshape(-1, 2) - x]),
-            self._dirs, c.clearance, reach)
+        self._seen_rel, self._seen = rel, L
+        if hidden is not None and len(hidden):
+            self._seen_rel = np.vstack([rel, np.asarray(hidden, dtype=np.float64) - x])
+            self._seen = free_lengths(self._seen_rel, self._dirs, c.clearance, reach)
         if not self.unreachable and self._in_reach_of_band(x, rel, L, reach):
             return BugCommand(0.0, 0.0, self.mode, yaw)
         heading: float | None = None
@@ -315,13 +315,12 @@ class TangentBug:
                 self._record(x)
                 if self.mode is not BugMode.BOUNDARY_FOLLOWING:
                     return None  # loop closed
-            # Leave for a goal in sight, or for a visible point closer than any followed. A
-            # goal ray free only up to the horizon is neither: its end may be farther than
-            # the followed boundary, and leaving for it brings the robot back to the same
-            # boundary to start following afresh, for ever (TangentBug's d_followed argument).
+            # Leave for a goal really in sight or a seen point closer than any followed (a ray
+            # free only to the horizon, or through a neighbour's shadow, would bring the robot
+            # back to the same boundary to follow it afresh, for ever).
             d_reach, point = closest_on_rays(x, self._dirs, self._seen, self.target)
             d_followed = min(self._best_d, float(np.hypot(*(self.target - x))))
-            if self._goal_visible(x, rel, reach, horizon_counts=False) or (
+            if self._goal_visible(x, self._seen_rel, reach, horizon_counts=False) or (
                     d_reach < d_followed - min(c.leave_margin, 0.5 * d_followed)):
                 self.mode = BugMode.MOTION_TO_GOAL
                 self._leave_point = point

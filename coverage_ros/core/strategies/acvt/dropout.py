@@ -205,7 +205,7 @@ class AlphaCvt:
         for _ in range(cfg.max_iterations):
             greedy = np.zeros(k, dtype=bool)
             if settled:
-                # Settled without the dropout: relocate the lightest agent if that is predicted
+                # Settled without the dropout: relocate a light agent if that is predicted
                 # to lower the metric (this iteration moves only it), else the run is done.
                 move = None
                 if relocate and relocations < cfg.relocation.max_moves:

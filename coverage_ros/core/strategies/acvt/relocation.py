@@ -9,19 +9,19 @@ so nobody moves - or with a CVT inside one target whose cells are unequal; then 
 projection keeps that local minimum for good. Over six seeded corner clusters on two target
 shapes of our own, the published rule ended at I = 0.03-0.40 (the paper's Fig. 3: 0.046).
 
-What: once the dropout is off and the team has settled (every agent at its goal), the agent of
-least (normalised) mass j tries moving to the point of each of the heaviest cells h farthest
-from that cell's agent (the part of the cell its owner covers worst), and the team's iCVT +
-projection is run forward to convergence from there (:func:`settle`). The best of these
+What: once the dropout is off and the team has settled (every agent at its goal), each of the
+few agents of least (normalised) mass j tries moving to the point of each of the heaviest cells
+h farthest from that cell's agent (the part of the cell its owner covers worst), and the team's
+iCVT + projection is run forward to convergence from there (:func:`settle`). The best of these
 predictions is taken if it lowers the scenario's metric (I, I^L or I^H) by at least ``margin``;
 otherwise nothing moves. Each relocation lowers the predicted metric by ``margin`` or more, so
 there are finitely many. It is the dropout idea one step further: instead of the greedy agents
 stepping aside, an idle one is reinserted where it is missing.
 
 Both forms use it: the centralized :class:`~coverage_ros.core.strategies.acvt.dropout.AlphaCvt`
-relocates between its iterations; in the decentralized strategy the lightest robot of a settled
-neighbourhood predicts with its neighbours' published positions (and reaches) and drives to the
-point it chose.
+relocates between its iterations; in the decentralized strategy the few lightest robots of a
+settled neighbourhood predict with their neighbours' published positions (and reaches) - all
+finding the same relocation - and the one it names drives to its point.
 """
 
 from __future__ import annotations
@@ -42,8 +42,11 @@ from coverage_ros.errors import ConfigError
 #: Fewest the predicted metric must fall by for a relocation to be made (absolute; I is a
 #: share of the mean mass, so this is half a percent of it).
 DEFAULT_MARGIN = 0.005
-#: Heaviest cells tried for the lightest agent.
+#: Heaviest cells tried for each agent that may move.
 DEFAULT_CANDIDATES = 3
+#: Lightest agents that may move (with mixed speeds the best agent to move is not always the
+#: lightest: a slow one may be missing where a fast one is lightest).
+DEFAULT_MOVERS = 3
 #: iCVT + projection steps of a prediction (the arena scenarios converge in 15-40).
 DEFAULT_HORIZON = 60
 
@@ -51,7 +54,8 @@ DEFAULT_HORIZON = 60
 @dataclass(frozen=True)
 class RelocationConfig:
     enabled: bool = True
-    candidates: int = DEFAULT_CANDIDATES  # heaviest cells tried for the lightest agent
+    candidates: int = DEFAULT_CANDIDATES  # heaviest cells tried for each agent that may move
+    movers: int = DEFAULT_MOVERS  # lightest agents that may move
     margin: float = DEFAULT_MARGIN  # the predicted metric must fall by at least this
     horizon: int = DEFAULT_HORIZON  # iCVT + projection steps of a prediction
     tolerance: float = 0.01  # [m] a prediction has converged when no agent moves farther
@@ -60,7 +64,7 @@ class RelocationConfig:
     def __post_init__(self) -> None:
         if not isinstance(self.enabled, bool | np.bool_):
             raise ConfigError.at("relocate", "must be true or false", self.enabled)
-        for name in ("candidates", "horizon", "max_moves"):
+        for name in ("candidates", "movers", "horizon", "max_moves"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
                 raise ConfigError.at(f"relocation.{name}", "must be an integer >= 1", value)
@@ -74,7 +78,7 @@ class RelocationConfig:
 class Relocation:
     """A relocation worth making: agent ``agent`` goes to ``point``."""
 
-    agent: int  # index of the relocated agent (the lightest)
+    agent: int  # index of the relocated agent (one of the lightest)
     into: int  # index of the agent whose cell it enters (a heaviest one)
     point: np.ndarray  # (2,) [m] where it goes
     metric_before: float
@@ -133,34 +137,36 @@ def insertion_point(cells: MassCells, labels: np.ndarray, positions: np.ndarray,
     return cells.xy[own[int(np.argmax(d2))]].copy()
 
 
-def lightest(masses: np.ndarray, reach: np.ndarray | None) -> int:
-    """Index of the agent of least (reach-normalised, Eq. 18) mass; ties: the lowest index."""
+def movers(masses: np.ndarray, reach: np.ndarray | None, count: int) -> list[int]:
+    """The ``count`` agents of least (reach-normalised) mass, lightest first (ties: the lowest
+    index) - the agents :func:`best_relocation` may move."""
     weighed = masses if reach is None else normalized_masses(masses, reach)
-    return int(np.argmin(weighed))
+    return [int(j) for j in np.argsort(weighed, kind="stable")[:count]]
 
 
 def best_relocation(cells: MassCells, spec: CellSpec, positions: np.ndarray,
-                    reach: np.ndarray | None, config: RelocationConfig,
-                    agent: int | None = None) -> Relocation | None:
-    """The relocation of ``agent`` (default: the lightest) into one of the ``candidates``
-    heaviest cells that lowers the predicted metric most, if by at least ``margin``; else
-    None. ``positions (k, 2)`` [m] should be a settled configuration."""
+                    reach: np.ndarray | None, config: RelocationConfig) -> Relocation | None:
+    """Of the relocations of each of the ``movers`` lightest agents into each of the
+    ``candidates`` heaviest cells, the one that lowers the predicted metric most, if by at
+    least ``margin``; else None. ``positions (k, 2)`` [m] should be a settled configuration.
+    Deterministic: robots that know the same positions find the same relocation."""
     P = np.asarray(positions, dtype=np.float64)
     if len(P) < 2:
         return None
     labels, masses, before = team_metric(cells, spec, P, reach)
-    j = lightest(masses, reach) if agent is None else int(agent)
     weighed = masses if reach is None else normalized_masses(masses, reach)
-    order = [int(h) for h in np.argsort(-weighed, kind="stable") if int(h) != j]
+    heavy = [int(h) for h in np.argsort(-weighed, kind="stable")]
     best: Relocation | None = None
-    for h in order[:config.candidates]:
-        point = insertion_point(cells, labels, P, h)
-        if point is None:
-            continue
-        Q = P.copy()
-        Q[j] = point
-        Q = settle(cells, spec, Q, reach, config.horizon, config.tolerance)
-        after = team_metric(cells, spec, Q, reach)[2]
-        if after <= before - config.margin and (best is None or after < best.metric_after):
-            best = Relocation(j, h, point, before, after)
+    for j in movers(masses, reach, config.movers):
+        for h in [h for h in heavy if h != j][:config.candidates]:
+            point = insertion_point(cells, labels, P, h)
+            if point is None:
+                continue
+            Q = P.copy()
+            Q[j] = point
+            Q = settle(cells, spec, Q, reach, config.horizon, config.tolerance)
+            after = team_metric(cells, spec, Q, reach)[2]
+            if after <= before - config.margin and (best is None
+                                                     or after < best.metric_after):
+                best = Relocation(j, h, point, before, after)
     return best

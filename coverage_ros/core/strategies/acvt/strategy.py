@@ -58,7 +58,7 @@ from coverage_ros.core.strategies.acvt.dropout import (
 from coverage_ros.core.strategies.acvt.relocation import (
     RelocationConfig,
     best_relocation,
-    lightest,
+    movers,
     team_metric,
 )
 from coverage_ros.core.strategies.base import (
@@ -93,7 +93,7 @@ class AcvtParams:
     scale_y: float = 1.0  # b of T_c in Eq. 15, on map y
     gap_penalty: float = 0.0  # lambda of Eq. 15 [m per m of rho = 0 crossed]
     speed_weighted: bool = True  # Eq. 16-18 when the robots' speeds differ
-    relocate: bool = True  # the lightest robot of a settled team relocates (.relocation)
+    relocate: bool = True  # a light robot of a settled team relocates (.relocation)
 
     def __post_init__(self) -> None:
         for name in ("dropout", "visibility", "speed_weighted", "relocate"):
@@ -278,9 +278,10 @@ class AcvtStrategy(Strategy):
                          neighbours: list[SharedState]):
         """The relocation this robot makes now, if any (:mod:`.relocation`): only with its
         dropout over, every neighbour settled, out of the dropout and not relocating, and its
-        own (normalised) mass the least of the team at ``P (k, 2)`` (row ``own``; ties: the
-        lowest id) - so that in a team that hears everyone one robot at a time relocates. A
-        team configuration that was predicted already is not predicted again."""
+        own (normalised) mass among the ``movers`` least of the team at ``P (k, 2)`` (row
+        ``own``); those robots all predict the same relocation, and only the robot it names
+        moves - so that in a team that hears everyone one robot at a time relocates. A team
+        configuration that was predicted already is not predicted again."""
         cfg = self.relocation
         if not cfg.enabled or self.switch.active or self._relocations >= cfg.max_moves \
                 or len(P) < 2:
@@ -293,7 +294,8 @@ class AcvtStrategy(Strategy):
                 and float(np.hypot(*(self._checked - P).T).max()) < still):
             return None
         _, masses, _ = team_metric(self.cells, self.spec, P, reach)
-        if lightest(masses, reach) != own:
+        if own not in movers(masses, reach, cfg.movers):
             return None
         self._checked = P.copy()
-        return best_relocation(self.cells, self.spec, P, reach, cfg, agent=own)
+        move = best_relocation(self.cells, self.spec, P, reach, cfg)
+        return move if move is not None and move.agent == own else None

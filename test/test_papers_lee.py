@@ -1,0 +1,95 @@
+"""Lee & Lee (2024) settings of scripts/bench_papers asserted against the paper's numbers (the
+fast ones; the whole table, the slow settings and the live Figs. 17-18 are the benchmark's)."""
+
+from __future__ import annotations
+
+import statistics
+
+import numpy as np
+import pytest
+
+from coverage_ros.bench.papers import lee2024
+from coverage_ros.bench.papers import lee2024_scenes as scenes
+from coverage_ros.core.geometry import points_in_polygon
+from coverage_ros.core.strategies.acvt.cells import MassCells
+from coverage_ros.core.strategies.acvt.dropout import AcvtConfig, AlphaCvt, DropoutConfig
+
+SEEDS = range(5)
+
+
+def test_fig3_targets_carry_the_mass_ratio_the_papers_numbers_fix():
+    """With the masses 68 : 32, the paper's iCVT + projection split (9 + 1) has its I = 0.44 and
+    the best split (7 + 3) I = 0.04, under its alpha-CVT's 0.046."""
+    cells = MassCells(scenes.two_targets())
+    big = cells.wdA[points_in_polygon(cells.xy, scenes.BIG)].sum()
+    assert big / cells.total == pytest.approx(0.68, abs=0.005)
+    k, m = 10, cells.total / 10
+
+    def split_I(n_big: int) -> float:
+        masses = [big / n_big] * n_big + [(cells.total - big) / (k - n_big)] * (k - n_big)
+        return float(np.mean(np.abs(np.array(masses) / m - 1.0)))
+
+    assert split_I(9) == pytest.approx(0.44, abs=0.01)
+    assert split_I(7) == pytest.approx(0.04, abs=0.01)
+
+
+def test_fig3_alpha_cvt_meets_the_paper_from_every_corner_start():
+    """Paper: I = 1.2 (iCVT), 0.44 (iCVT + projection), 0.046 (alpha-CVT)."""
+    domain = scenes.two_targets()
+    starts = [scenes.corner_cluster(s, 10) for s in SEEDS]
+    runs = [lee2024._centralized(domain, p, ("iCVT", "iCVT+Projection", "relocation"))
+            for p in starts]
+    ours = [r[lee2024.RELOCATED] for r in runs]
+    decentralized = [lee2024.decentralized(domain, p) for p in starts[:3]]
+    print(f"\nFig. 3 over {len(runs)} starts: alpha-CVT {np.round(ours, 3).tolist()}, "
+          f"decentralized {np.round(decentralized, 3).tolist()}, iCVT+P "
+          f"{np.round([r[lee2024.ICVT_P] for r in runs], 3).tolist()}")
+    for values in (ours, decentralized):
+        assert statistics.median(values) <= 0.046 and max(values) <= 2 * 0.046
+    # The baselines end with the wrong split from these starts, as in the paper.
+    assert min(r[lee2024.ICVT_P] for r in runs) >= 0.2
+    assert min(r[lee2024.ICVT] for r in runs) >= 1.0
+
+
+def test_fig14_heterogeneous_agents_by_speed():
+    """Paper: I^H = 0.0437 (iCVT + projection) and 0.0367 (alpha-CVT), 5 + 5 agents at 0.4 and
+    0.8 m/s on the two targets. Our spread starts (re-drawn) leave iCVT + projection far worse
+    (0.09-0.46), and the relocation of a light agent one at a time reaches the paper's value from
+    two starts of five but stops at the next best split (I^H 0.05-0.06, 4 fast + 1 slow in the
+    larger target; the best, 3 fast + 5 slow, is 0.021) from the others: the median is held to
+    1.5 x the paper's, the best to the paper's."""
+    solver = AlphaCvt(scenes.two_targets())
+    baseline = AlphaCvt(scenes.two_targets(), AcvtConfig(dropout=DropoutConfig(enabled=False)))
+    speeds = np.r_[np.full(5, scenes.SLOW), np.full(5, scenes.FAST)]
+    starts = [np.random.default_rng(s).uniform(1.0, scenes.ARENA - 1.0, (10, 2)) for s in SEEDS]
+    ours = [solver.run(p, speeds).metric[-1] for p in starts]
+    icvt = [baseline.run(p, speeds).metric[-1] for p in starts]
+    print(f"\nFig. 14 I^H: alpha-CVT {np.round(ours, 3).tolist()}, iCVT+P "
+          f"{np.round(icvt, 3).tolist()}")
+    assert statistics.median(ours) <= 1.5 * 0.0367 and min(ours) <= 0.0367
+    assert statistics.median(ours) < statistics.median(icvt)
+    fast = solver.run(starts[0], speeds)
+    assert fast.masses[5:].mean() > 2.0 * fast.masses[:5].mean()  # fast agents: larger cells
+
+
+def test_fig5_bullseye_and_fig4d_twin_targets():
+    """Paper: I = 0.083 on the bullseye (iCVT + projection 0.367) and 0.039 on two identical
+    targets."""
+    bull = lee2024._centralized(scenes.bullseye(), scenes.corner_cluster(0, 20),
+                                ("iCVT+Projection", "relocation"))
+    assert bull[lee2024.RELOCATED] <= 0.083 < bull[lee2024.ICVT_P]
+    twin = scenes.twin_targets()
+    starts = scenes.corner_cluster(0, 10)
+    assert lee2024._centralized(twin, starts, ("relocation",))[lee2024.RELOCATED] <= 0.039
+    assert lee2024.decentralized(twin, starts) <= 0.039
+
+
+@pytest.mark.parametrize("shape", ["disc and rectangle", "strip and block"])
+def test_own_two_target_shapes_end_balanced_from_every_start(shape):
+    """Issue 13's target beyond the paper's shapes: median I at or below the paper's Fig. 3
+    value, worst within twice it (the published rule ends at I = 0.2 from every start on the
+    strip and block: 1 + 9 instead of 2 + 8)."""
+    solver = AlphaCvt(scenes.own_shape(shape))
+    values = [solver.run(scenes.corner_cluster(s, 10)).metric[-1] for s in SEEDS]
+    print(f"\n{shape}: I {np.round(values, 3).tolist()}")
+    assert statistics.median(values) <= 0.046 and max(values) <= 2 * 0.046

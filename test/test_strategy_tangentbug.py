@@ -43,6 +43,8 @@ from coverage_ros.core.strategies.tangentbug.scan_geometry import (
 )
 from coverage_ros.core.strategies.tangentbug.strategy import (
     NEIGHBOUR_MASK_MARGIN,
+    STUCK_DISTANCE,
+    STUCK_TIME,
     decision_costs,
     team_costs,
 )
@@ -405,6 +407,38 @@ def test_a_robot_stuck_behind_a_neighbour_lets_tangentbug_see_it():
     moved = pose + np.array([0.0, 0.3, 0.0])
     s.update(Observation(0, moved, 16.5, scan), [other])
     assert not s._unmasked
+
+
+def test_a_robot_arriving_at_creeping_targets_is_not_stuck():
+    """Found by the Breitenmoser benchmark (Fig. 5, e-puck scale): early on, Lloyd steps are
+    small while the neighbours spread, and a robot that arrived at each of its targets had
+    moved less than STUCK_DISTANCE in STUCK_TIME - it counted as stuck, its bug saw the
+    neighbours, and a target near one was "projected" on the spot and kept for good.
+    Arriving is progress: taking new targets starts the stuck clock again."""
+    spec = parse_world({"name": "t", "resolution": 0.01, "bounds": [0, 0, 3, 2],
+                        "obstacles": []})  # fine cells: the centroid creeps, not jumps
+    domain = CoverageDomain.from_grid(spec.grid, ROBOT.radius, spec.density)
+    tol = 0.005  # [m] below the centroid's creep per Lloyd update
+    s = make_strategy("tangentbug", StrategyContext(domain=domain, robot=ROBOT,
+                                                    convergence_tolerance=tol))
+    pose, path, steps = np.array([0.75, 1.0, 0.0]), [], []
+    for k in range(30):  # 15 s; the neighbour's virtual generator creeps toward the robot
+        v = np.array([2.5 - 0.02 * k, 1.0])
+        d = s.update(Observation(0, pose, 10.0 + 0.5 * k, simulate_scan(spec.grid, pose,
+                                                                         ROBOT.lidar)),
+                     [Neighbour(1, SharedState(position=v, virtual=v))])
+        assert not s._unmasked, f"stuck at {0.5 * k} s"
+        target = np.array([*d.details.real_target, 0.0])
+        steps.append(float(np.hypot(*(target - pose)[:2])))
+        pose = target  # the robot arrives at each target
+        path.append(pose[:2])
+    # After the first spread, the robot gets less than STUCK_DISTANCE further in any
+    # STUCK_TIME (the old rule's stuck) while it keeps taking new targets.
+    window = int(STUCK_TIME / 0.5) + 1
+    P = np.array(path[4:])
+    assert max(np.hypot(*(P[k + window] - P[k])) for k in range(len(P) - window)) \
+        < STUCK_DISTANCE
+    assert (np.array(steps[4:]) > tol).sum() >= 10
 
 
 def test_virtual_generator_moves_straight_through_obstacles_and_is_published():

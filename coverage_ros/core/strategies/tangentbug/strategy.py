@@ -191,6 +191,7 @@ class TangentBugStrategy(Strategy):
             self._remember_loop()
             self._heard = heard
             self._next_targets(x, vcell.centroid)
+            self._anchor = None  # arriving is progress: the stuck clock starts again
         velocity, heading = (0.0, 0.0), None
         stuck = self._stuck(x, obs.time)
         if obs.scan is not None and not self.bug.done:

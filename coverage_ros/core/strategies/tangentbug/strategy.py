@@ -149,6 +149,7 @@ class TangentBugStrategy(Strategy):
         self.virtual_target: np.ndarray | None = None  # t_virt (2,) [m]
         self.real_target: np.ndarray | None = None  # t_real (2,) [m]
         self.projected = False  # whether t_real is a projection of t_virt
+        self._projection_of: np.ndarray | None = None  # the t_virt t_real was projected from
         self.loops: list[tuple[np.ndarray, int]] = []  # completed loops (positions, side)
         self.converged = False
         self._last_time: float | None = None
@@ -205,6 +206,7 @@ class TangentBugStrategy(Strategy):
                 heading = cmd.heading
             if self.bug.mode is BugMode.PROJECTED:
                 self.real_target, self.projected = self.bug.target.copy(), True
+                self._projection_of = self.virtual_target
         part = rcell if self.converged else vcell
         shared = SharedState(position=x.copy(), weight=ctx.weight, mass=part.mass,
                              virtual=self.virtual.copy(),
@@ -271,11 +273,15 @@ class TangentBugStrategy(Strategy):
         lloyd_step = float(np.hypot(*(centroid - self.virtual)))
         self.virtual_target = centroid.copy()
         real, projected = self._project_known(centroid)
-        if lloyd_step < tol and self.real_target is not None and self.projected:
-            # Keep a found projection at convergence: the remembered loop's closest point may
-            # lie in the band the clearance keeps the robot out of (re-projected on the spot
-            # at every update, the robot would never converge).
+        if self.projected and self._projection_of is not None and \
+                float(np.hypot(*(centroid - self._projection_of))) < tol:
+            # Keep the projection found for (nearly) this target: the remembered loop's
+            # closest point may lie in the band the clearance keeps the robot out of, and
+            # re-projected on the spot at every update the robot would never converge. Kept
+            # against the target it was found for, so that creeping targets are followed.
             real, projected = self.real_target, True
+        else:
+            self._projection_of = centroid.copy() if projected else None
         self.real_target, self.projected = real, projected
         if float(np.hypot(*(real - x))) > tol:
             self.bug.reset(real)

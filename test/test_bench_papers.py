@@ -68,6 +68,17 @@ def test_rows_median_worst_and_failed_runs():
     assert "30.0 s" in text or "30 s" in text
 
 
+def test_undefined_values_and_baselines():
+    exp = _experiment(metrics=(Metric("a", 0.05), Metric("t", 15.0, unit="s", baseline=True)))
+    a, t = rows_of(exp, [{"a": 0.01, "t": math.nan}, {"a": 0.02, "t": 14.0},
+                         {"a": 0.03, "t": 16.0}])
+    assert t.ours_median == 15.0 and t.seeds == 3 and "undefined in 1 of 3 runs" in t.note
+    assert t.verdict == "baseline: as good or better" and t.as_json()["baseline"] is True
+    assert a.verdict == "as good or better" and a.note == ""
+    nothing = rows_of(exp, [{"a": 0.01, "t": math.nan}])[1]
+    assert nothing.verdict == "baseline: worse"  # no value at all: no verdict to give
+
+
 def test_experiments_are_checked():
     with pytest.raises(ConfigError, match="metric names must be unique"):
         _experiment(metrics=(Metric("a", 1.0), Metric("a", 2.0)))

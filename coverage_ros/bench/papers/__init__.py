@@ -39,6 +39,9 @@ class Metric:
     paper_value: float
     better: Better = "lower"
     unit: str = ""  # e.g. "s", "%", "" for a pure number
+    #: A method the paper compares against, not the paper's own: its verdict says how our
+    #: implementation of it compares with the paper's figure for it, not how good it is.
+    baseline: bool = False
 
     def __post_init__(self) -> None:
         if not math.isfinite(self.paper_value):
@@ -49,7 +52,8 @@ class Metric:
                                  "must be 'lower', 'higher' or 'close'", self.better)
 
 
-#: One run of a setting: seed -> our value of every metric, by metric name.
+#: One run of a setting: seed -> our value of every metric, by metric name (NaN where a value
+#: is undefined for that run, e.g. an average time over no successful trial).
 RunFn = Callable[[int], Mapping[str, float]]
 
 
@@ -101,6 +105,7 @@ class Row:
     redrawn: bool = False
     note: str = ""
     values: tuple[float, ...] = ()  # our value for each seed, in seed order
+    baseline: bool = False  # a method the paper compares against (Metric.baseline)
 
     def as_json(self) -> dict:
         return {"paper": self.paper, "figure": self.figure, "setting": self.setting,
@@ -108,7 +113,7 @@ class Row:
                 "ours_median": _finite_or_none(self.ours_median),
                 "ours_worst": _finite_or_none(self.ours_worst), "seeds": self.seeds,
                 "verdict": self.verdict, "better": self.better, "unit": self.unit,
-                "redrawn": self.redrawn, "note": self.note,
+                "redrawn": self.redrawn, "note": self.note, "baseline": self.baseline,
                 "values": [_finite_or_none(v) for v in self.values]}
 
 

@@ -10,6 +10,11 @@ paper's value:
 * ``within 20 %`` - no more than 20 % of the paper's value away from it on the wrong side;
 * ``worse`` - farther, or a seed failed (a failed run counts as a missing value, shown as
   ``-`` and reported in the row's note).
+
+A value a run reports as NaN is undefined for that run (an average time over no successful
+trial): it is left out of the median and the worst and counted in the note, without making the
+row worse. A baseline's verdict (a method the paper compares against) is marked "baseline:": it
+tells how our implementation compares with the paper's figure for that method.
 """
 
 from __future__ import annotations
@@ -60,16 +65,25 @@ def rows_of(experiment: Experiment, runs: Sequence[Mapping[str, float] | None]) 
     """One row per metric of ``experiment`` from its ``runs`` (one mapping per seed, in seed
     order; None for a seed whose run failed)."""
     rows = []
+    failed = sum(r is None for r in runs)
     for metric in experiment.metrics:
         values = tuple(float(r[metric.name]) if r is not None and metric.name in r
                        else math.nan for r in runs)
         ok = [v for v in values if math.isfinite(v)]
         median = statistics.median(ok) if ok else math.nan
-        missing = len(values) - len(ok)
-        note = experiment.note
-        if missing:
-            note = (note + "; " if note else "") + f"{missing} of {len(values)} runs failed"
-        verdict_ = "worse" if missing else verdict(metric, median)
+        missing = sum(r is None or metric.name not in r for r in runs)
+        undefined = len(values) - len(ok) - missing
+        notes = [experiment.note] if experiment.note else []
+        if failed:
+            notes.append(f"{failed} of {len(values)} runs failed")
+        elif missing:
+            notes.append(f"no value from {missing} of {len(values)} runs")
+        if undefined:
+            notes.append(f"undefined in {undefined} of {len(values)} runs")
+        note = "; ".join(notes)
+        verdict_ = "worse" if missing or not ok else verdict(metric, median)
+        if metric.baseline:
+            verdict_ = f"baseline: {verdict_}"
         rows.append(Row(paper=experiment.paper, figure=experiment.figure,
                         setting=experiment.setting + (" (re-drawn)" if experiment.redrawn
                                                       else ""),
@@ -77,7 +91,7 @@ def rows_of(experiment: Experiment, runs: Sequence[Mapping[str, float] | None]) 
                         ours_median=median, ours_worst=worst_of(metric, values),
                         seeds=len(values), verdict=verdict_, better=metric.better,
                         unit=metric.unit, redrawn=experiment.redrawn, note=note,
-                        values=values))
+                        values=values, baseline=metric.baseline))
     return rows
 
 

@@ -329,6 +329,8 @@ def experiments() -> list[Experiment]:
              Metric("robots at their virtual generators at the end", 1.0, "higher"),
              Metric("updates in which H_virt rises", 0.0, "lower"),
              Metric("runs converged", 1.0, "higher")),
+            # slow: a target in the block sends its robot round the whole U (215 s of robot
+            # time, minutes of wall time); 15-40 s per seed otherwise
             fig3, redrawn=True, slow=True, key="breitenmoser2010/fig3",
             note="the shipped U world (10 x 8 m, a 3 x 5.5 m block from the top wall); "
                  "TurtleBot3 discs with a simulated 120-beam lidar, not point robots with "
@@ -353,7 +355,7 @@ def experiments() -> list[Experiment]:
                     "cm"),
              Metric("runs converged", 6.0 / 7.0, "higher"),
              Metric("duration of a run", 4.56, "lower", "min")),
-            fig5, seeds=EPUCK_TRIALS, redrawn=True, slow=True, key="breitenmoser2010/fig5",
+            fig5, seeds=EPUCK_TRIALS, redrawn=True, key="breitenmoser2010/fig5",
             note="simulated e-pucks (0.128 m/s) instead of real ones tracked by a camera: the "
                  "error is the safety margin's (3.5 cm radius + 3.5 cm margin against a "
                  "0.5 cm robot) and the asynchronous updates', not tracking noise; the paper's "

@@ -113,7 +113,12 @@ def geodesic_cell(domain: CoverageDomain, own: Generator, others: Sequence[Gener
         radii = np.sqrt(np.maximum(L * L - weights[0] ** 2 + weights ** 2, 0.0))
         radii[0] = L
         if math.isfinite(L):
-            dist_c = lam * res * np.hypot(*(centers - centers[0]).T)
+            # Chart distance to the shortest image: on a chart that wraps (torus, sphere) a
+            # neighbour near across the seam is far in the unwrapped chart, and leaving it out
+            # handed part of its cell to this robot (Fig. 16's torus: H rose).
+            d = domain.chart_displacement(np.repeat(centers[:1], len(centers), axis=0),
+                                          centers)
+            dist_c = lam * np.hypot(d[:, 0], d[:, 1])
             relevant = np.flatnonzero(dist_c <= L + radii)
             relevant = relevant[relevant > 0]
         else:

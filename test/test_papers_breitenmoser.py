@@ -20,6 +20,8 @@ def test_the_papers_values_are_registered():
     exps = {e.key: e for e in experiments(["breitenmoser"])}
     assert set(exps) == {f"breitenmoser2010/{f}" for f in ("fig2b", "fig3", "fig4", "fig5")}
     assert all(e.redrawn and e.note and e.seeds >= 5 for e in exps.values())
+    # A "|" in a name or setting would split the Markdown table's cells.
+    assert not any("|" in m.name or "|" in e.setting for e in exps.values() for m in e.metrics)
     fig5 = {m.name: m for m in exps["breitenmoser2010/fig5"].metrics}
     assert fig5["mean final position error against the ideal simulation"].paper_value == 5.42
     assert fig5["runs converged"].paper_value == pytest.approx(6 / 7)  # one of 7 trials lost

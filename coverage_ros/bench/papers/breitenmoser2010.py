@@ -285,7 +285,7 @@ def fig4(seed: int) -> dict[str, float]:
         for k in inside:
             star = clearance_projection(spec, T[k], ROBOT.radius + FOLLOW_MARGIN)
             ratio.append(math.hypot(*(P[k] - T[k])) / math.hypot(*(star - T[k])))
-        out["|p - t_virt| / |p* - t_virt| of a projected robot"] = max(
+        out["projected robot: dist(p, t_virt) / dist(p*, t_virt)"] = max(
             ratio, key=lambda r: abs(r - 1.0))
         out["loops round the obstacle before projecting"] = float(max(
             getattr(trace.decisions[k].details, "known_loops", 0) for k in inside))
@@ -313,7 +313,7 @@ def fig5(seed: int) -> dict[str, float]:
 
 
 def experiments() -> list[Experiment]:
-    at_p = "ends at p* = within 5 % of the optimal distance |p* - t| to the centroid t"
+    at_p = "ends at p* = within 5 % of the optimal distance dist(p*, t) to the centroid t"
     return [
         Experiment(
             PAPER, "Fig. 2b", "U-shaped region, 1 robot: geodesic Lloyd vs tangentbug",
@@ -339,7 +339,7 @@ def experiments() -> list[Experiment]:
         Experiment(
             PAPER, "Fig. 4", "room with two free-standing obstacles, 5 robots, tangentbug",
             (Metric("robots whose virtual target lies in an obstacle", 1.0, "close"),
-             Metric("|p - t_virt| / |p* - t_virt| of a projected robot", 1.0, "close"),
+             Metric("projected robot: dist(p, t_virt) / dist(p*, t_virt)", 1.0, "close"),
              Metric("loops round the obstacle before projecting", 1.0, "close"),
              Metric("Remark 1 holds: H(t_virt, V) <= H(p*, V_end) <= H(p*, V)", 1.0,
                     "higher"),

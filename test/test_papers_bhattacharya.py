@@ -119,14 +119,10 @@ def test_fig16_the_torus_team_converges_with_h_never_rising(coarse_surfaces, see
     assert out["iterations to converge"] < bh.FIG16_ITERATIONS
 
 
-@pytest.mark.xfail(strict=True, reason="cell.py leaves out of a warm update the neighbours "
-                   "that are near only across a wrapping chart's seam (it measures their "
-                   "distance in the unwrapped chart), so the own cell takes part of theirs: "
-                   "H rose in Fig. 16 runs. Drop this mark with the fix.")
 def test_a_warm_update_on_the_torus_keeps_a_neighbour_that_is_near_across_the_seam():
-    """Robot 4 of a Fig. 16 run, whose neighbour 0 is 1.7 rad away across both seams but 6.9
-    rad away in the chart: with the search radius its last cell suggests, its cell must still
-    be the centralized tessellation's."""
+    """Robot 4 of a Fig. 16 run, whose neighbour 0 is 2 rad away across both seams but 6.9 rad
+    away in the unwrapped chart: with the search radius its last cell suggests, its cell is
+    still the centralized tessellation's (it was not, and H rose, before af2762f)."""
     from coverage_ros.core.geodesic.cell import SearchCache
     from coverage_ros.core.geodesic.charts import torus_domain
 

@@ -66,6 +66,9 @@ def test_rows_median_worst_and_failed_runs():
     text = markdown([a, b])
     assert text.count("\n") == 3 and "| P | Fig. 1 | s (re-drawn) | a (lower is better) |" in text
     assert "30.0 s" in text or "30 s" in text
+    piped = rows_of(_experiment(metrics=(Metric("|x| / |y|", 1.0, "close"),), run=None),
+                    [{"|x| / |y|": 1.0}])
+    assert "| \\|x\\| / \\|y\\| (to match) |" in markdown(piped)
 
 
 def test_undefined_values_and_baselines():

@@ -110,8 +110,12 @@ def _fmt(value: float) -> str:
     return f"{value:.3g}"
 
 
+def _cell(text: str) -> str:
+    return text.replace("|", "\\|")
+
+
 def markdown(rows: Sequence[Row]) -> str:
-    """The table as Markdown (one line per row)."""
+    """The table as Markdown (one line per row; a ``|`` in a text is escaped)."""
     head = ("| paper | figure | setting | metric | paper's value | ours: median | ours: worst "
             "| seeds | verdict |\n|---|---|---|---|---|---|---|---|---|")
     lines = [head]
@@ -119,7 +123,8 @@ def markdown(rows: Sequence[Row]) -> str:
         unit = f" {r.unit}" if r.unit else ""
         metric = r.metric + {"lower": " (lower is better)", "higher": " (higher is better)",
                              "close": " (to match)"}[r.better]
-        lines.append(f"| {r.paper} | {r.figure} | {r.setting} | {metric} | "
+        lines.append(f"| {_cell(r.paper)} | {_cell(r.figure)} | {_cell(r.setting)} | "
+                     f"{_cell(metric)} | "
                      f"{_fmt(r.paper_value)}{unit} | {_fmt(r.ours_median)}{unit} | "
                      f"{_fmt(r.ours_worst)}{unit} | {r.seeds} | {r.verdict} |")
     return "\n".join(lines)

@@ -185,8 +185,14 @@ class RobotController:
             # An exploring robot's map grows: a path planned on an older map may cross a wall
             # found since.
             stale = snapshot is not None and snapshot.version != self._planned_version
+            # A robot at its goal follows a new goal beyond the arrival tolerance even when it
+            # moved less than REPLAN_DISTANCE: else a goal that creeps a few cm per update (a
+            # bvc centroid near equilibrium) never moved the robot again.
+            tol = self.tracker.config.goal_tolerance
+            arrived = goal is not None and float(np.hypot(*(goal - pose[:2]))) < tol
             if goal is None or path is None or stale or \
-                    float(np.hypot(*(new_goal - goal))) > REPLAN_DISTANCE:
+                    float(np.hypot(*(new_goal - goal))) > REPLAN_DISTANCE or \
+                    (arrived and float(np.hypot(*(new_goal - pose[:2]))) >= tol):
                 goal, path = new_goal, plan_path(nav, pose[:2], new_goal)
                 if snapshot is not None:
                     self._planned_version = snapshot.version

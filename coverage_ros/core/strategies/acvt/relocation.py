@@ -59,6 +59,7 @@ class RelocationConfig:
     margin: float = DEFAULT_MARGIN  # the predicted metric must fall by at least this
     horizon: int = DEFAULT_HORIZON  # iCVT + projection steps of a prediction
     tolerance: float = 0.01  # [m] a prediction has converged when no agent moves farther
+    energy_slack: float = 0.0  # share by which Eq. 2's H may rise with a relocation
     max_moves: int = 20  # relocations of one run (centralized) or one robot (decentralized)
 
     def __post_init__(self) -> None:
@@ -72,6 +73,10 @@ class RelocationConfig:
             value = getattr(self, name)
             if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
                 raise ConfigError.at(f"relocation.{name}", "must be a finite number > 0", value)
+        slack = self.energy_slack
+        if not (isinstance(slack, int | float) and math.isfinite(slack) and slack >= 0):
+            raise ConfigError.at("relocation.energy_slack", "must be a finite number >= 0",
+                                 slack)
 
 
 @dataclass(frozen=True)
@@ -110,6 +115,14 @@ def team_metric(cells: MassCells, spec: CellSpec, positions: np.ndarray,
     labels = cells.labels(positions, reach, spec)
     masses, _ = cells.stats(labels, len(positions))
     return labels, masses, deviation_metric(masses, cells.total, reach, spec.visibility)
+
+
+def coverage_energy(cells: MassCells, labels: np.ndarray, positions: np.ndarray) -> float:
+    """Eq. 2: H = sum of |s - p_i|^2 rho(s) ds over each agent's labelled cells (uncovered
+    cells count nothing)."""
+    ok = labels >= 0
+    d = cells.xy[ok] - np.asarray(positions, dtype=np.float64)[labels[ok]]
+    return float(((d * d).sum(axis=1) * cells.wdA[ok]).sum())
 
 
 def settle(cells: MassCells, spec: CellSpec, positions: np.ndarray, reach: np.ndarray | None,
@@ -154,6 +167,7 @@ def best_relocation(cells: MassCells, spec: CellSpec, positions: np.ndarray,
     if len(P) < 2:
         return None
     labels, masses, before = team_metric(cells, spec, P, reach)
+    energy = coverage_energy(cells, labels, P)
     weighed = masses if reach is None else normalized_masses(masses, reach)
     heavy = [int(h) for h in np.argsort(-weighed, kind="stable")]
     best: Relocation | None = None
@@ -165,8 +179,14 @@ def best_relocation(cells: MassCells, spec: CellSpec, positions: np.ndarray,
             Q = P.copy()
             Q[j] = point
             Q = settle(cells, spec, Q, reach, config.horizon, config.tolerance)
-            after = team_metric(cells, spec, Q, reach)[2]
-            if after <= before - config.margin and (best is None
-                                                     or after < best.metric_after):
-                best = Relocation(j, h, point, before, after)
+            labels_q, _, after = team_metric(cells, spec, Q, reach)
+            if after > before - config.margin or (best is not None
+                                                  and after >= best.metric_after):
+                continue
+            # Never at the cost of coverage: a move that only trades the masses' balance for
+            # a worse covered area (Eq. 2) is not made (on one connected area with a uniform
+            # density a lower I can mean a higher H).
+            if coverage_energy(cells, labels_q, Q) > energy * (1.0 + config.energy_slack):
+                continue
+            best = Relocation(j, h, point, before, after)
     return best

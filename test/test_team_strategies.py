@@ -64,12 +64,12 @@ def test_every_strategy_spreads_a_cluster_on_the_live_team(tmp_path, sandbox, be
     m = summary["metrics"]
     print(f"{strategy}: H {m['H']:.2f} (start {m['H_start']:.2f}, best plan {best_plan:.2f})")
     assert m["H"] <= 0.6 * m["H_start"], m
-    # bvc is local (its lidar's view, pillars hide parts of it): where the team settles varies
-    # from run to run - 1.03x to 1.42x the best plan over six runs - so it gets 1.5x; lloyd,
-    # acvt and tangentbug are held to the 1.3x (tangentbug ended at 1.36x-2.29x in seven
-    # of eight runs until its virtual generators stopped collapsing onto one point, see
-    # README: 1.01x in the runs since).
-    assert m["H"] <= (1.5 if strategy == "bvc" else 1.3) * best_plan, (m["H"], best_plan)
+    # Every strategy is held to the 1.3x (tangentbug ended at 1.36x-2.29x in seven of
+    # eight runs until its virtual generators stopped collapsing onto one point; bvc at
+    # 1.26-1.42x in half its runs until its guide counted what its scans had seen, not only the
+    # current scan, and a robot at its goal followed goals that creep a few cm per update -
+    # README "Every strategy on the live team").
+    assert m["H"] <= 1.3 * best_plan, (m["H"], best_plan)
     assert all(r["collisions"] == 0 for r in summary["robots"]), summary["robots"]
     logs = tmp_path / "team" / "logs"
     if "--map-free" in extra:

@@ -156,3 +156,20 @@ def test_the_decentralized_strategy_ends_balanced_from_several_starts():
     print(f"\ndecentralized I: {np.round(ours, 3).tolist()}, published rule {published:.3f}")
     assert max(ours) <= 2 * PAPER_FIG3_I
     assert published > 0.15
+
+
+def test_relocate_auto_is_on_for_separate_targets_only(domain):
+    """The default ``relocate: auto`` relocates where the density's support has separate
+    parts (Lee & Lee's targets) and not on one connected area (a room, a building map: there a
+    relocation only trades the coverage cost H for mass balance)."""
+    room = scenes.two_walls()
+    assert MassCells(domain).regions == 2 and MassCells(room).regions == 1
+    assert MassCells(scenes.crop_field()).regions > 2
+    for dom, on in ((domain, True), (room, False)):
+        robot = make_strategy("acvt", StrategyContext(domain=dom, robot_id=0))
+        assert robot.relocation.enabled is on
+    forced = make_strategy(strategy_choice("acvt", {"relocate": True}),
+                           StrategyContext(domain=room, robot_id=0))
+    assert forced.relocation.enabled
+    with pytest.raises(ConfigError, match="relocate"):
+        strategy_choice("acvt", {"relocate": "sometimes"})

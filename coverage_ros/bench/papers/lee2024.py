@@ -65,9 +65,10 @@ def _centralized(domain: CoverageDomain, starts: np.ndarray, methods: tuple[str,
 
 def decentralized(domain: CoverageDomain, starts: np.ndarray,
                   speeds: np.ndarray | None = None, spec: CellSpec = PLAIN,
-                  relocate: bool = True) -> float:
+                  relocate: bool | str = "auto") -> float:
     """The metric at the end of a ``coverage-plan``-style run of the ``acvt`` strategy
-    (``relocate=False``: its dropout as published, without the relocation)."""
+    (``relocate=False``: its dropout as published, without the relocation; the default
+    ``auto`` relocates on separate targets, as the strategy does)."""
     k = len(starts)
     robots = [RobotSpec() for _ in range(k)] if speeds is None else \
         [RobotSpec(v_max=float(v)) for v in speeds]

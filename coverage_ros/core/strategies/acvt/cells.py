@@ -37,6 +37,9 @@ from coverage_ros.core.geodesic.tangents import polar_depth, visible_from
 from coverage_ros.core.metrics import mass_deviation
 from coverage_ros.errors import ConfigError
 
+#: A part of the density's support counts as a separate target from this share of the mass.
+REGION_SHARE = 0.01
+
 #: [cells] radial step of the rays along which the rho = 0 length l_i(s) of Eq. 15 is summed
 #: (half a cell, so no cell is stepped over).
 RAY_STEP_CELLS = 0.5
@@ -95,6 +98,16 @@ class MassCells:
         _, self._nearest = ndimage.distance_transform_edt(~feasible, return_indices=True)
         self._zero = domain.density <= 0.0  # rho = 0: outside the targets and on obstacles
         self._occluders: np.ndarray | None = None  # (M, 2) grid centres, built on first use
+
+    @functools.cached_property
+    def regions(self) -> int:
+        """Disjoint parts of the support of rho (rho > 0 on free space, 8-connected) that hold
+        at least :data:`REGION_SHARE` of the total mass: Lee & Lee's separate targets."""
+        parts, count = ndimage.label(self.feasible, structure=np.ones((3, 3), dtype=bool))
+        if count < 2:
+            return count
+        mass = np.bincount(parts.ravel()[self.nodes], weights=self.wdA, minlength=count + 1)
+        return int((mass[1:] >= REGION_SHARE * self.total).sum())
 
     # ------------------------------------------------------------------ Eq. 8
     def project(self, points: np.ndarray) -> np.ndarray:

@@ -93,10 +93,15 @@ class AcvtParams:
     scale_y: float = 1.0  # b of T_c in Eq. 15, on map y
     gap_penalty: float = 0.0  # lambda of Eq. 15 [m per m of rho = 0 crossed]
     speed_weighted: bool = True  # Eq. 16-18 when the robots' speeds differ
-    relocate: bool = True  # a light robot of a settled team relocates (.relocation)
+    #: a light robot of a settled team relocates (.relocation); "auto": when the density's
+    #: support is split into separate targets (on one connected area a CVT's split has no
+    #: wrong target to mend, and a relocation trades the coverage cost H for mass balance)
+    relocate: bool | str = "auto"
 
     def __post_init__(self) -> None:
-        for name in ("dropout", "visibility", "speed_weighted", "relocate"):
+        if not (self.relocate == "auto" or isinstance(self.relocate, bool | np.bool_)):
+            raise ConfigError.at("relocate", "must be true, false or auto", self.relocate)
+        for name in ("dropout", "visibility", "speed_weighted"):
             if not isinstance(getattr(self, name), bool | np.bool_):
                 raise ConfigError.at(name, "must be true or false", getattr(self, name))
         for name in ("epsilon", "filter_gain", "drop_factor", "scale_x", "scale_y",
@@ -114,11 +119,13 @@ class AcvtParams:
         return DropoutConfig(bool(self.dropout), float(self.epsilon), float(self.filter_gain),
                              None if self.drop_factor is None else float(self.drop_factor))
 
-    def relocation_config(self) -> RelocationConfig:
-        # Part of alpha-CVT: iCVT + projection (dropout off, the paper's baseline) never
-        # relocates. A robot relocates at most twice: its prediction is from a settled team,
-        # and a live team may settle elsewhere than predicted.
-        return RelocationConfig(enabled=bool(self.relocate and self.dropout), max_moves=2)
+    def relocation_config(self, targets: int = 1) -> RelocationConfig:
+        """The relocation on a domain whose density has ``targets`` separate parts (for
+        ``relocate: auto``). Part of alpha-CVT: iCVT + projection (dropout off, the paper's
+        baseline) never relocates. A robot relocates at most twice: its prediction is from a
+        settled team, and a live team may settle elsewhere than predicted."""
+        wanted = targets > 1 if self.relocate == "auto" else bool(self.relocate)
+        return RelocationConfig(enabled=bool(wanted and self.dropout), max_moves=2)
 
     def cell_spec(self) -> CellSpec:
         return CellSpec(bool(self.visibility), (float(self.scale_x), float(self.scale_y)),
@@ -152,7 +159,7 @@ class AcvtStrategy(Strategy):
         self.reach = context.robot.v_max * REACH_TIME
         self.cells = MassCells(context.domain)
         self.switch = DropoutSwitch(self.dropout)
-        self.relocation = self.params.relocation_config()
+        self.relocation = self.params.relocation_config(self.cells.regions)
         self._relocating: np.ndarray | None = None  # (2,) [m] target of a relocation under way
         self._relocations = 0
         self._checked: np.ndarray | None = None  # team positions of the last prediction

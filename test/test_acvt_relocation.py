@@ -171,5 +171,9 @@ def test_relocate_auto_is_on_for_separate_targets_only(domain):
     forced = make_strategy(strategy_choice("acvt", {"relocate": True}),
                            StrategyContext(domain=room, robot_id=0))
     assert forced.relocation.enabled
-    with pytest.raises(ConfigError, match="relocate"):
-        strategy_choice("acvt", {"relocate": "sometimes"})
+    auto = make_strategy(strategy_choice("acvt", {"relocate": "auto"}),
+                         StrategyContext(domain=domain, robot_id=0))
+    assert auto.relocation.enabled
+    for wrong in ("sometimes", 1):
+        with pytest.raises(ConfigError, match="relocate"):
+            strategy_choice("acvt", {"relocate": wrong})

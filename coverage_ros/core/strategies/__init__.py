@@ -126,8 +126,8 @@ def strategy_choice(name: str, values: Mapping[str, Any] | None = None,
 
 def _check_type(where: str, value: Any, annotation: Any) -> None:
     """Refuse a value of the wrong YAML type for a ``Params`` field annotated (as a string,
-    the modules use postponed annotations) ``bool``, ``int``, ``float``, ``str`` or
-    ``... | None``."""
+    the modules use postponed annotations) ``bool``, ``int``, ``float``, ``str``, ``bool | str``
+    (true, false or a word the dataclass checks, e.g. ``auto``) or ``... | None``."""
     text = str(annotation).replace(" ", "")
     options = set(text.split("|"))
     if value is None:
@@ -135,7 +135,7 @@ def _check_type(where: str, value: Any, annotation: Any) -> None:
             raise ConfigError.at(where, "must not be empty", value)
         return
     if "bool" in options:
-        if not isinstance(value, bool):
+        if not isinstance(value, bool) and not ("str" in options and isinstance(value, str)):
             raise ConfigError.at(where, "must be true or false", value)
         return
     if options & {"float", "int"}:

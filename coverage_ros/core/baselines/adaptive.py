@@ -98,7 +98,7 @@ class AdaptiveStrategy(MoveToCentroid):
 
     def update(self, obs: Observation, neighbours: Sequence[Neighbour]) -> Decision:
         p = obs.position
-        dt = self.period(obs.time)
+        dt = self.clock.elapsed(obs.time)
         sensor = float(self.context.robot.sensor_radius)
         near = [n.position for n in neighbours if np.hypot(*(n.position - p)) <= 2.0 * sensor]
         seen = self.detected(p)

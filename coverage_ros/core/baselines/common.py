@@ -23,6 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from coverage_ros.core.control.period import ControlPeriod
 from coverage_ros.core.strategies.base import (
     Decision,
     Observation,
@@ -35,9 +36,6 @@ from coverage_ros.core.strategies.bvc.cells import convex_polygon_cells, robot_h
 from coverage_ros.core.world.spec import WorldSpec
 from coverage_ros.errors import ConfigError
 
-#: An observed control period longer than this many nominal periods (a pause) is not used to
-#: scale the speed; the nominal period is (as in the ``bvc`` strategy).
-MAX_PERIOD_FACTOR = 5.0
 #: Fraction of the clearance kept as buffer when the full robot radius would leave the robot
 #: outside its own cell (a robot already closer than its radius to an obstacle, a wall or
 #: half-way to a neighbour; as in the ``bvc`` cells).
@@ -172,21 +170,12 @@ class MoveToCentroid(Strategy):
             raise ConfigError.at(f"{self.name}: bounds", "must be (xmin, ymin, xmax, ymax) "
                                  "wider than the robot", box)
         self.bounds = tuple(float(v) for v in box)
-        self._last_time: float | None = None
+        self.clock = ControlPeriod(self.params.period)
         self._last: tuple[np.ndarray, float] | None = None  # position and period, last update
 
     def shared_state(self, obs: Observation) -> SharedState:
         return SharedState(position=obs.position.copy(), weight=self.context.weight,
                            extra={"radius": self.radius})
-
-    def period(self, now: float) -> float:
-        """[s] the control period just elapsed (the nominal one first and after a pause)."""
-        last, self._last_time = self._last_time, float(now)
-        nominal = self.params.period
-        if last is None:
-            return nominal
-        dt = float(now) - last
-        return dt if 0.0 < dt <= MAX_PERIOD_FACTOR * nominal else nominal
 
     def decide(self, p: np.ndarray, dt: float, polygon: np.ndarray,
                weight_of: Callable[[np.ndarray, np.ndarray], np.ndarray], mode: str,

@@ -109,7 +109,7 @@ class OavcStrategy(MoveToCentroid):
 
     def update(self, obs: Observation, neighbours: Sequence[Neighbour]) -> Decision:
         p = obs.position
-        dt = self.period(obs.time)
+        dt = self.clock.elapsed(obs.time)
         nb = np.array([n.position for n in neighbours], dtype=np.float64).reshape(-1, 2)
         cell = oavc_cell(p, nb, self.obstacles, self.radius, self.bounds)
         density = self.context.domain.mass_element.ravel()

@@ -39,6 +39,7 @@ from typing import ClassVar
 
 import numpy as np
 
+from coverage_ros.core.control.period import ControlPeriod
 from coverage_ros.core.geometry import points_in_polygon
 from coverage_ros.core.strategies.base import (
     Decision,
@@ -68,9 +69,6 @@ from coverage_ros.errors import ConfigError
 #: kept out of the obstacle memory (the bisector already separates the robots). Covers pose
 #: latency (0.22 m/s for ~0.3 s) and range noise.
 NEIGHBOUR_POINT_MARGIN = 0.1
-#: An observed control period longer than this many nominal periods (a pause, a restart) is not
-#: used to scale the step; the nominal period is.
-MAX_PERIOD_FACTOR = 5.0
 #: The density over the guided map's candidates counts as flat (no goal to be guided to) when
 #: its largest value is within this share of its smallest.
 FLAT_DENSITY = 0.01
@@ -150,7 +148,7 @@ class BvcStrategy(Strategy):
         self.memory = ObstacleMemory.covering(self.bounds, self.params.grid_resolution)
         self.nf_cells = int(math.ceil(self.nf_radius / self.params.grid_resolution))
         self.graph = WindowGraph(2 * self.nf_cells + 1, self.params.grid_resolution)
-        self._last_time: float | None = None
+        self.clock = ControlPeriod(self.params.period)
         self._goal: np.ndarray | None = None
         self._last_step: np.ndarray | None = None  # centroid - position at the last update
 
@@ -161,7 +159,7 @@ class BvcStrategy(Strategy):
 
     def update(self, obs: Observation, neighbours: Sequence[Neighbour]) -> Decision:
         p = obs.position
-        dt = self._period(obs.time)
+        dt = self.clock.elapsed(obs.time)
         if obs.scan is None:
             return self._stay(p, "no scan yet")
         points = obs.scan.points(np.asarray(obs.pose, dtype=np.float64))
@@ -219,14 +217,6 @@ class BvcStrategy(Strategy):
         ahead = p + step * (EXTEND_FACTOR * tol / dist)
         inside = points_in_polygon(ahead[None], cell.polygon)[0]
         return ahead if inside else target
-
-    def _period(self, now: float) -> float:
-        last, self._last_time = self._last_time, float(now)
-        nominal = self.params.period
-        if last is None:
-            return nominal
-        dt = float(now) - last
-        return dt if 0.0 < dt <= MAX_PERIOD_FACTOR * nominal else nominal
 
     def _stay(self, p: np.ndarray, reason: str, cell: BufferedCell | None = None) -> Decision:
         return Decision(goal=p.copy(), velocity=None, cell=np.zeros(0, np.int64),

@@ -115,7 +115,10 @@ def soak_section(duration: float, folder: Path, say, robots: int = 8, world: str
             "log_bytes_second_half": total - first,
             "recovered": recovered, "H_final": summary["metrics"]["H"],
             "H_start": summary["metrics"]["H_start"],
-            "collisions": sum(r["collisions"] for r in summary["robots"])}
+            "collisions": sum(r["collisions"] for r in summary["robots"]),
+            "collisions_by_robot": {r["id"]: {"robots": r.get("robot_collisions", 0),
+                                              "walls": r.get("wall_collisions", 0)}
+                                    for r in summary["robots"] if r["collisions"]}}
 
 
 def _recoveries(series: list[list[float]], restarts: list[str]) -> list[dict]:

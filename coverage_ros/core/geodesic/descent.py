@@ -4,8 +4,11 @@ Sec. 4).
 The control of Eq. 8 is a step toward the cell's virtual centroid. :func:`reachable_goal` keeps
 the part of that straight step that stays in free space; when the step is blocked almost at once
 (a robot in a doorway heading for a centroid beyond the door frame) it walks along the gradient
-through the free space instead (:func:`descent_walk`, the paper's next-vertex rule repeated).
-:func:`next_vertex` is that rule itself (pseudo-code line 32).
+through the free space instead (:func:`descent_walk`, the paper's next-vertex rule repeated),
+or - where every step along the gradient is blocked, as at the corner of a door jamb whose way
+on starts sideways or backwards - heads for the vertex within a short path that lies farthest
+along the gradient (:func:`ball_descent`). :func:`next_vertex` is the paper's rule itself
+(pseudo-code line 32).
 
 Grid coordinates ``(gx, gy)`` are in cells; covectors in grid axes (chart units).
 """
@@ -15,6 +18,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from scipy.sparse.csgraph import dijkstra
 
 from coverage_ros.core.geodesic.domain import CoverageDomain
 
@@ -25,6 +29,9 @@ WALK_CELLS = 20.0
 #: Walk steps must make progress along the gradient: cos of at most ~84 degrees off it (a robot
 #: beside a door jamb may have to step almost sideways before it can go on).
 WALK_MIN_ALIGNMENT = 0.1
+#: The farthest-along vertex of :func:`ball_descent` is searched within paths this many times
+#: the walk's length (a detour round a jamb is longer than the straight way on).
+BALL_PATH_FACTOR = 1.5
 
 
 def reachable_goal(domain: CoverageDomain, base_node: int, own_grid: np.ndarray,
@@ -34,9 +41,17 @@ def reachable_goal(domain: CoverageDomain, base_node: int, own_grid: np.ndarray,
     goal_grid = clip_reachable(domain, own_grid, own_grid + step_grid)
     wanted = float(np.hypot(*step_grid))
     if wanted > 1.0 and float(np.hypot(*(goal_grid - own_grid))) < BLOCKED_FRACTION * wanted:
-        walk = descent_walk(domain, base_node, covector, min(wanted, WALK_CELLS))
+        length = min(wanted, WALK_CELLS)
+        walk = descent_walk(domain, base_node, covector, length)
         if float(np.hypot(*(walk - own_grid))) > float(np.hypot(*(goal_grid - own_grid))):
             goal_grid = walk
+        # The walk stops where no step makes progress along the gradient (the corner of a
+        # door jamb: the robot must step sideways or back first). A robot left there would
+        # count as converged for ever while its cell's centroid lies beyond the door.
+        direction = step_grid / wanted
+        ball = ball_descent(domain, base_node, direction, length)
+        if float((ball - goal_grid) @ direction) > 1.0:
+            goal_grid = ball
     return goal_grid
 
 
@@ -84,6 +99,32 @@ def descent_walk(domain: CoverageDomain, base: int, covector: np.ndarray,
         node = nxt
         travelled += float(lengths[k])
     return domain.node_centers(np.array([node]))[0]
+
+
+def ball_descent(domain: CoverageDomain, base: int, direction: np.ndarray,
+                 length_cells: float) -> np.ndarray:
+    """Grid point of the vertex farthest along ``direction`` (a unit vector, grid axes) among
+    those within a path of ``BALL_PATH_FACTOR * length_cells`` cells from vertex ``base`` (path
+    lengths in the domain's metric, scaled by the cheapest edge at ``base``); ``base`` itself
+    if it has no edges."""
+    graph = domain.graph
+    W = graph.shape[1]
+    r, c = divmod(base, W)
+    lengths = np.hypot(graph.offsets[:, 0], graph.offsets[:, 1]).astype(np.float64)
+    cost = graph.cost[r, c]
+    ok = np.isfinite(cost)
+    if not ok.any():
+        return domain.node_centers(np.array([base]))[0]
+    unit = float(np.min(cost[ok] / lengths[ok]))
+    dist = dijkstra(graph.csr, directed=True, indices=base,
+                    limit=BALL_PATH_FACTOR * length_cells * unit)
+    reached = np.flatnonzero(np.isfinite(dist))
+    pts = domain.node_centers(reached)
+    own = domain.node_centers(np.array([base]))[0]
+    progress = (pts - own) @ direction
+    best = np.flatnonzero(progress >= progress.max() - 1e-9)
+    k = best[np.argmin(dist[reached[best]])]  # the nearest of equally good ones
+    return pts[k]
 
 
 def next_vertex(domain: CoverageDomain, base: int, covector: np.ndarray) -> np.ndarray:

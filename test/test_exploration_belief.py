@@ -13,6 +13,7 @@ from hypothesis import strategies as st
 from coverage_ros.core.exploration.belief import Belief, BeliefConfig, Evidence, entropy
 from coverage_ros.core.exploration.sensor_model import (
     ScanCells,
+    footprint_cells,
     reference_scan_cells,
     scan_cells,
 )
@@ -39,6 +40,19 @@ def room_scan(pose, room=(0.0, 0.0, 4.0, 3.0)):
         ty = np.where(s > 0, (y1 - pose[1]) / s, np.where(s < 0, (y0 - pose[1]) / s, np.inf))
     r = np.minimum(tx, ty)
     return np.where(r <= LIDAR.range_max, r, np.inf)
+
+
+def disc_scan(pose, centre, radius):
+    """``room_scan`` with a disc (another robot's body) in the room."""
+    a = pose[2] + LIDAR.angle_min + LIDAR.angle_increment * np.arange(LIDAR.beams)
+    d = np.stack([np.cos(a), np.sin(a)], axis=-1)
+    rel = np.asarray(centre) - pose[:2]
+    along = d @ rel
+    miss2 = rel @ rel - along ** 2
+    with np.errstate(invalid="ignore"):
+        t = along - np.sqrt(radius ** 2 - miss2)
+    hit = (miss2 <= radius ** 2) & (t > 0)
+    return np.where(hit, np.minimum(t, room_scan(pose)), room_scan(pose))
 
 
 def cells_xy(lat: GridMap, idx: np.ndarray) -> np.ndarray:
@@ -294,3 +308,49 @@ def test_a_turned_obstacle_seen_from_all_around_is_closed():
     assert not snap.observed[inside] and parts[inside] != parts[outside]
     undecided = snap.observed & (snap.entropy >= 0.55)
     assert undecided.sum() <= 0.01 * snap.observed.sum(), undecided.sum()
+
+
+def test_footprint_cells_are_the_cells_within_radius_and_half_a_cell():
+    lat = lattice(40, 40)
+    for xy in ((1.0, 1.0), (1.013, 0.987), (0.03, 0.5), (-0.5, 0.5)):
+        got = footprint_cells(lat, np.array(xy), 0.105)
+        rows, cols = np.divmod(np.arange(lat.width * lat.height), lat.width)
+        centres = lat.cell_centers(np.stack([rows, cols], axis=-1))
+        want = np.flatnonzero(np.hypot(*(centres - np.array(xy)).T) <= 0.105 + 0.5 * RES)
+        assert np.array_equal(got, want), xy
+    assert len(footprint_cells(lat, np.array([1.0, 1.0]), 0.105)) in range(21, 30)
+
+
+def test_a_body_seen_before_discovery_is_freed_by_the_robots_footprint():
+    """A team starts in a cluster and its lidars see each other's bodies for seconds before
+    they hear each other's states: the body edges freeze occupied, a ring around each robot's
+    start it could never leave (its clearance below the configuration space's). Each robot's
+    own footprint is free ground, counted so that it wins in every belief it reaches."""
+    lat = lattice()
+    a_pose, b_pose = np.array([1.0, 1.5, 0.0]), np.array([1.33, 1.5, math.pi])
+    radius = 0.105
+    ranges = disc_scan(a_pose, b_pose[:2], radius)
+    a, b = Belief(lat, 0), Belief(lat, 1)
+    for _ in range(30):  # 3 s at 10 Hz, no neighbour known yet
+        a.add_scan(scan_cells(lat, a_pose, ranges, LIDAR.angle_min, LIDAR.angle_increment,
+                              LIDAR.range_min, LIDAR.range_max))
+
+    def b_is_free_to_move(belief: Belief) -> bool:
+        grid = GridMap(belief.occupancy_percent(), RES)
+        # free where believed free or unknown, as an exploring robot plans
+        clearance = grid.clearance(unknown_is_free=True)
+        col, row = (int(v) for v in np.floor(lat.world_to_grid(b_pose[:2])))
+        return bool(clearance[row, col] > radius + 0.5 * RES)
+
+    assert not b_is_free_to_move(a)  # the ring is there, frozen ...
+    assert b.merge(a.take_changes(10 ** 6)) > 0 and not b_is_free_to_move(b)
+    for _ in range(5):  # ... and B's own scans (blind to its body) cannot clear it
+        b.add_scan(scan_cells(lat, b_pose, room_scan(b_pose), LIDAR.angle_min,
+                              LIDAR.angle_increment, LIDAR.range_min, LIDAR.range_max))
+    assert not b_is_free_to_move(b)
+    assert b.add_footprint(footprint_cells(lat, b_pose[:2], radius)) > 0
+    assert b_is_free_to_move(b)
+    a.merge(b.take_changes(10 ** 6))
+    assert b_is_free_to_move(a)
+    # Once only: the same footprint again changes nothing (and sends nothing).
+    assert b.add_footprint(footprint_cells(lat, b_pose[:2], radius)) == 0

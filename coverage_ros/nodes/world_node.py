@@ -282,6 +282,10 @@ class WorldNode(Node):
             self._next_odom = max(self._next_odom + 1.0 / self.config.odom_rate_hz, t)
         for scan in scans:
             self._publish_scan(scan)
+        for c in self.sim.take_contacts():
+            self.get_logger().warning(
+                f"robot {c.robot_id} touched {'a wall' if c.kind == 'wall' else 'a robot'} at "
+                f"({c.position[0]:.2f}, {c.position[1]:.2f}), sim time {c.time:.2f} s")
 
     # ------------------------------------------------------------------ publishing
     def _publish_clock(self) -> None:

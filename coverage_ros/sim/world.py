@@ -101,6 +101,21 @@ class Scan:
     pose: tuple[float, float, float]
 
 
+@dataclass(frozen=True)
+class Contact:
+    """A robot's body began to touch something: a ``"wall"`` (static geometry) or a
+    ``"robot"``, at sim time ``time`` [s], the robot at ``position`` (x, y) [m]."""
+
+    time: float
+    robot_id: int
+    kind: str
+    position: tuple[float, float]
+
+
+#: Contacts kept for :meth:`World.take_contacts` (the oldest are dropped beyond this).
+CONTACTS_KEPT = 256
+
+
 class World:
     """A pymunk world of one :class:`WorldSpec` with any number of robots."""
 
@@ -123,6 +138,7 @@ class World:
         self.space.iterations = SOLVER_ITERATIONS
         self._add_static(self.geometry)
         self._owner: dict[pymunk.Shape, int] = {}
+        self._contacts: list[Contact] = []
         self.space.on_collision(ROBOT_TYPE, STATIC_TYPE, begin=self._on_wall_contact)
         self.space.on_collision(ROBOT_TYPE, ROBOT_TYPE, begin=self._on_robot_contact)
         self._placer = FreePlacer(spec)
@@ -294,14 +310,26 @@ class World:
         return circles, np.concatenate([np.full(len(static), -1), owner]).astype(np.int64)
 
     # ------------------------------------------------------------------ contacts
+    def take_contacts(self) -> list[Contact]:
+        """The contacts that began since the last call (at most ``CONTACTS_KEPT``)."""
+        out, self._contacts = self._contacts, []
+        return out
+
+    def _contact(self, rid: int, kind: str) -> None:
+        x, y = self.robots[rid].body.position
+        self._contacts.append(Contact(self.time, rid, kind, (float(x), float(y))))
+        del self._contacts[:-CONTACTS_KEPT]
+
     def _on_wall_contact(self, arbiter: pymunk.Arbiter, space: pymunk.Space, data) -> None:
         for shape in arbiter.shapes:
             rid = self._owner.get(shape)
             if rid is not None:
                 self.robots[rid].wall_collisions += 1
+                self._contact(rid, "wall")
 
     def _on_robot_contact(self, arbiter: pymunk.Arbiter, space: pymunk.Space, data) -> None:
         for shape in arbiter.shapes:
             rid = self._owner.get(shape)
             if rid is not None:
                 self.robots[rid].robot_collisions += 1
+                self._contact(rid, "robot")

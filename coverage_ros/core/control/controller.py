@@ -39,7 +39,7 @@ from coverage_ros.core.control.safety import SafetyConfig, SafetyFilter
 from coverage_ros.core.control.tracking import PathTracker, TrackerConfig
 from coverage_ros.core.exploration.belief import Belief
 from coverage_ros.core.exploration.maps import navigation_domain
-from coverage_ros.core.exploration.sensor_model import scan_cells
+from coverage_ros.core.exploration.sensor_model import footprint_cells, scan_cells
 from coverage_ros.core.geodesic.domain import CoverageDomain
 from coverage_ros.core.geometry import wrap_angle
 from coverage_ros.core.strategies import (
@@ -152,7 +152,8 @@ class RobotController:
 
     def integrate_scan(self, scan: Scan, pose: np.ndarray, now: float) -> int:
         """Exploring: add what one scan, taken at ``pose``, saw to the belief (returns on the
-        neighbours' bodies are robots, not walls); how many cells changed."""
+        neighbours' bodies are robots, not walls), and the robot's own footprint (free
+        ground); how many cells changed."""
         if self.belief is None:
             return 0
         own = self.config.robot
@@ -161,7 +162,8 @@ class RobotController:
         cells = scan_cells(self.belief.lattice, pose, scan.ranges, scan.angle_min,
                            scan.angle_increment, scan.range_min, scan.range_max,
                            ignore_discs=discs)
-        return self.belief.add_scan(cells)
+        under = footprint_cells(self.belief.lattice, pose[:2], own.radius)
+        return self.belief.add_scan(cells) + self.belief.add_footprint(under)
 
     def update(self, now: float) -> UpdateResult | None:
         """One coverage period; None until the robot knows its pose."""

@@ -25,6 +25,14 @@ the other (below a quarter of returns the log-odds is already at most -1.5, p < 
 rule leans to occupied at the margin (the log-odds alone would switch at a share of 0.32), the
 safe side for navigation.
 
+A robot's own footprint: where a robot stands there is no wall, whatever lidars saw there. A
+teammate's lidar that saw the robot's body before it heard the robot's state (a team starting in
+a cluster sees itself for seconds before discovery) marks the body's edge occupied, often
+enough to freeze it - a ring the robot could then never leave, its clearance to the ring below
+the configuration space's. So each robot counts its footprint (:meth:`Belief.add_footprint`)
+as ``FOOTPRINT_MISSES`` misses of its own, past any freeze: more than the returns a whole team
+puts in a cell before it freezes, so the cells are free in every belief the evidence reaches.
+
 Cells whose belief entropy has dropped below ``frozen_entropy`` (tau' of Bhattacharya et al.)
 are frozen: the robot's own scans no longer count there, so a decided cell stops generating
 traffic and the belief of an explored map stops changing.
@@ -47,6 +55,11 @@ from coverage_ros.errors import ConfigError
 
 #: Largest count kept per source, cell and kind (uint16 storage).
 COUNT_MAX = 65535
+#: Misses a robot counts for each cell of its own footprint (see module docstring). A cell
+#: freezes after about ``edge_after`` observations, so a team of n robots puts at most about
+#: 12 n returns there; the edge rule needs returns >= 1/4 of all observations, so 1000 misses
+#: clear a cell for any team below ~300 robots.
+FOOTPRINT_MISSES = 1000
 
 
 @dataclass(frozen=True)
@@ -187,6 +200,21 @@ class Belief:
                 changed += len(idx)
             self._version += bool(changed)
             return changed
+
+    def add_footprint(self, cells: np.ndarray) -> int:
+        """The cells under this robot's body (``footprint_cells``): free, as at least
+        ``FOOTPRINT_MISSES`` own misses each, frozen or not (see module docstring); how many
+        cells changed."""
+        idx = np.asarray(cells, np.int64).ravel()
+        idx = idx[(idx >= 0) & (idx < self._n)]
+        with self._lock:
+            _, misses = self._source(self.own_id)
+            idx = idx[misses[idx] < FOOTPRINT_MISSES]
+            self._misses[idx] += FOOTPRINT_MISSES - misses[idx].astype(np.int64)
+            misses[idx] = FOOTPRINT_MISSES
+            self._dirty[idx] = True
+            self._version += bool(len(idx))
+            return len(idx)
 
     def merge(self, evidence: Evidence) -> int:
         """Take another robot's evidence (a grow-only state: per cell, the largest count heard

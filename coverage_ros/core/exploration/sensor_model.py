@@ -10,6 +10,8 @@ Per beam (REP 117 ranges):
 * a return on another robot (within ``ignore_discs``): free up to it, but no obstacle - robots
   are not walls.
 
+The robot's own footprint (:func:`footprint_cells`) is free ground: the robot stands on it.
+
 Each cell counts at most once per scan (once free or once occupied; occupied wins), so a cell
 crossed by many beams near the robot is not made more certain than one crossed by a single beam.
 
@@ -156,3 +158,24 @@ def reference_scan_cells(lattice: GridMap, pose: np.ndarray, ranges: np.ndarray,
     free -= occupied
     return ScanCells(np.array(sorted(free), dtype=np.int64),
                      np.array(sorted(occupied), dtype=np.int64))
+
+
+def footprint_cells(lattice: GridMap, xy: np.ndarray, radius: float) -> np.ndarray:
+    """Flat indices (sorted) of the lattice cells under a disc robot of ``radius`` [m] at
+    ``xy`` [m]: cells whose centre lies within ``radius`` + half a cell, the configuration
+    space's own clearance (a planned robot centre keeps every blocked cell centre farther away
+    than that), so the cells holding the edge of its body - where a teammate's lidar returns
+    land - are included."""
+    reach = float(radius) + 0.5 * lattice.resolution
+    g = lattice.world_to_grid(np.asarray(xy, dtype=np.float64).reshape(2))
+    span = reach / lattice.resolution
+    H, W = lattice.shape
+    c0, c1 = max(int(math.floor(g[0] - span)), 0), min(int(math.ceil(g[0] + span)) + 1, W)
+    r0, r1 = max(int(math.floor(g[1] - span)), 0), min(int(math.ceil(g[1] + span)) + 1, H)
+    if c0 >= c1 or r0 >= r1:
+        return np.zeros(0, np.int64)
+    cols, rows = np.meshgrid(np.arange(c0, c1), np.arange(r0, r1))
+    # Cell (col, row) has its centre at grid coordinates (col + 0.5, row + 0.5).
+    d = np.hypot(cols + 0.5 - g[0], rows + 0.5 - g[1]) * lattice.resolution
+    inside = d <= reach
+    return np.sort(rows[inside].astype(np.int64) * W + cols[inside])

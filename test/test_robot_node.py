@@ -37,7 +37,10 @@ def team():
     world = NodeProcess.world_node(domain, "world:=office", "starts:=1.0,1.0,0.0")
     robot = NodeProcess([exe, "--ros-args", "-r", "__ns:=/robot_0", "-p", "robot_id:=0",
                          "-p", "use_sim_time:=true", "-p", "world:=office",
-                         "-p", "neighbour_timeout:=1.5"], domain, env)
+                         "-p", "neighbour_timeout:=1.5",
+                         # A team of two whose other robot never comes: it listens for it
+                         # (listen_timeout) and then starts alone, saying so.
+                         "-p", "team_size:=2", "-p", "listen_timeout:=3.0"], domain, env)
     client = RosClient(domain)
     yield world, robot, client
     client.close()
@@ -75,6 +78,7 @@ def test_robot_publishes_its_state_goal_plan_cell_and_commands(team):
                              timeout=10.0)
     assert abs(moving.linear.x) <= 0.22 + 1e-9 and abs(moving.angular.z) <= 2.84 + 1e-9
     assert robot.alive() and world.alive()
+    assert "heard 0 of the 1 other robots (team_size 2)" in robot.output()
 
 
 def test_neighbours_are_discovered_and_bad_states_dropped(team):

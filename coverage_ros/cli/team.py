@@ -255,6 +255,7 @@ def run(args: argparse.Namespace) -> int:
                      "update_load": float(load), "explore": bool(args.explore),
                      "strategy_params": args.strategy_params,
                      "manual": m.role == "human", "map_free": bool(args.map_free),
+                     "team_size": len(team),
                      **spec_parameters(m.spec), **extra} for m in team}
     processes = plan_processes(params, per_process, {rid for _, rid, _ in faults} |
                                set(remote), out / "params")

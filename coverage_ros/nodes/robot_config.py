@@ -63,6 +63,12 @@ PARAMETERS: dict[str, tuple[Any, str]] = {  # name: (default, description)
                    "tracking_rate"),
     "comm_range": (0.0, "[m] neighbours farther than this are ignored; 0: no limit"),
     "neighbour_timeout": (2.0, "[s] a neighbour silent this long is ignored"),
+    "team_size": (0, "robots in the team, this one included (coverage-team sets it): before "
+                  "its first update the robot listens until it has heard the other team_size "
+                  "- 1 robots' states (or listen_timeout passed); 0: it listens for one look "
+                  "at the ROS graph (1.5 s)"),
+    "listen_timeout": (10.0, "[s] wall time a robot with team_size waits at most for its team "
+                       "before its first update; then it starts with those it heard, warning"),
     "pose_source": ("ground_truth", "where the robot's pose comes from: 'ground_truth' "
                     "(pose_topic) or 'tf' (map -> base_link from /tf, as AMCL or slam_toolbox "
                     "give it)"),
@@ -116,6 +122,8 @@ class RobotNodeConfig:
     use_scan: bool = True
     use_stamped_cmd_vel: bool = False
     robot_prefix: str = "robot_"
+    team_size: int = 0  # 0: unknown (listen for LISTEN_FIRST only)
+    listen_timeout: float = 10.0  # [s] wall, the longest wait for the team before moving
     connectivity: int = 8
     explore: ExploreIO | None = None  # exploring: the belief's lattice and its traffic
     map_free: GridMap | None = None  # no map: the area, every cell free
@@ -153,6 +161,12 @@ class RobotNodeConfig:
                                  self.goal_resend_distance)
         if self.connectivity not in (8, 16):
             raise ConfigError.at("connectivity", "must be 8 or 16", self.connectivity)
+        if self.team_size < 0:
+            raise ConfigError.at("team_size", "must be an integer >= 0 (0: unknown)",
+                                 self.team_size)
+        if not (math.isfinite(self.listen_timeout) and self.listen_timeout >= 0):
+            raise ConfigError.at("listen_timeout", "must be a number >= 0 [s]",
+                                 self.listen_timeout)
 
 
 @dataclass(frozen=True)
@@ -273,7 +287,9 @@ def load_robot_inputs(values: dict[str, Any], namespace: str,
         pose_topic=values["pose_topic"], pose_source=values["pose_source"],
         scan_topic=values["scan_topic"],
         use_scan=values["use_scan"], use_stamped_cmd_vel=values["use_stamped_cmd_vel"],
-        robot_prefix=prefix, connectivity=values["connectivity"], explore=explore,
+        robot_prefix=prefix, team_size=values["team_size"],
+        listen_timeout=values["listen_timeout"], connectivity=values["connectivity"],
+        explore=explore,
         map_free=map_free,
         manual=bool(values["manual"]), teleop_topic=values["teleop_topic"],
         drive=bool(values["drive"]), goal_topic=values["goal_topic"],

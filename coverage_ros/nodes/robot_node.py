@@ -35,6 +35,7 @@ from sensor_msgs.msg import JointState, LaserScan
 from std_srvs.srv import SetBool
 
 from coverage_ros.core.control.controller import RobotController
+from coverage_ros.core.control.listening import TeamListening
 from coverage_ros.core.control.pose_history import PoseHistory
 from coverage_ros.core.exploration.belief import Belief
 from coverage_ros.core.strategies import Scan
@@ -61,7 +62,8 @@ from coverage_ros.nodes.tf_input import TfPoseInput
 
 DISCOVERY_PERIOD = 1.0  # [s] wall time between looks at the ROS graph for new neighbours
 #: [s] wall time a robot listens for neighbours after its first pose before its first update
-#: (one look at the ROS graph and their states), so that it does not start with the whole map.
+#: (one look at the ROS graph and their states), so that it does not start with the whole map;
+#: with team_size until it heard them all (core/control/listening.py).
 LISTEN_FIRST = DISCOVERY_PERIOD + 0.5
 #: Scans that wait for the pose after their stamp (a second of a 5 Hz lidar).
 PENDING_SCANS = 5
@@ -89,7 +91,9 @@ class RobotNode(RobotRequests, Node):
         self._throttle = WarnThrottle(self.get_logger().warning)
         self._subs: dict[int, object] = {}
         self._last_tick = None
-        self._first_pose: float | None = None  # [s] monotonic
+        # Before the first update: listen for the team (wall time, as discovery runs).
+        self._listen = TeamListening(LISTEN_FIRST, self.config.team_size,
+                                     self.config.listen_timeout)
         self._pose_stamp = -math.inf  # [s] stamp of the last pose taken from pose_topic
         self._last_state = -math.inf
         self._paused = False  # asked before the map came: applied when the controller is built
@@ -213,8 +217,7 @@ class RobotNode(RobotRequests, Node):
         if self.controller is None:
             return
         self.controller.set_pose(pose)
-        if self._first_pose is None:
-            self._first_pose = time.monotonic()
+        self._listen.pose(time.monotonic())
         if self.exchange is not None:
             self._poses.add(stamp, pose)
             self._map_pending_scans()
@@ -306,9 +309,12 @@ class RobotNode(RobotRequests, Node):
     def _on_control(self) -> None:
         if self.controller is None:
             return
-        if self._first_pose is not None and time.monotonic() - self._first_pose < LISTEN_FIRST:
-            return  # still listening for neighbours
-        self._worker.request(self._now())
+        listening, warning = self._listen.listening(
+            time.monotonic(), len(self.controller.neighbours.entries))
+        if warning:
+            self.get_logger().warning(warning)
+        if not listening:
+            self._worker.request(self._now())
 
     def _update(self, now: float) -> None:
         """One coverage update and its messages (on the worker thread)."""

@@ -122,7 +122,7 @@ class RobotNode(RobotRequests, Node):
         self.regions = RegionInput(self, self._set_region, self._warn)
         self._scan_sub = None
         self.exchange: BeliefExchange | None = None
-        self._poses = PoseHistory()  # exploring: scans go into the belief from these
+        self._poses = PoseHistory()  # scans are placed from these (safety, belief)
         self._pending_scans: deque[tuple[float, Scan]] = deque(maxlen=PENDING_SCANS)
         if self.config.explore is not None:
             self._build(self.config.explore.lattice, Belief(self.config.explore.lattice,
@@ -218,8 +218,8 @@ class RobotNode(RobotRequests, Node):
             return
         self.controller.set_pose(pose)
         self._listen.pose(time.monotonic())
+        self._poses.add(stamp, pose)
         if self.exchange is not None:
-            self._poses.add(stamp, pose)
             self._map_pending_scans()
 
     def _on_scan(self, msg: LaserScan) -> None:
@@ -233,9 +233,15 @@ class RobotNode(RobotRequests, Node):
         scan = Scan(ranges=ranges, angle_min=float(msg.angle_min),
                     angle_increment=float(msg.angle_increment), range_min=float(msg.range_min),
                     range_max=float(msg.range_max))
-        c.set_scan(scan, conv.scan_to_points(msg, tuple(c.pose)))
+        # Safety's obstacles from the pose at the scan's stamp (the newest pose rotates a scan
+        # taken while turning by degrees); too close to measure = at the body's edge (a robot
+        # crept into a pillar's corner that its lidar no longer saw).
+        stamp = conv.from_time_msg(msg.header.stamp)
+        at = self._poses.at(stamp)
+        c.set_scan(scan, conv.scan_to_points(msg, tuple(c.pose) if at is None else at,
+                                             too_close_at=c.config.robot.radius))
         if self.exchange is not None:
-            self._pending_scans.append((conv.from_time_msg(msg.header.stamp), scan))
+            self._pending_scans.append((stamp, scan))
             self._map_pending_scans()
 
     def _map_pending_scans(self) -> None:

@@ -48,30 +48,6 @@ def test_laser_scan_keeps_rep117_values():
     assert angles[2] == pytest.approx(0.0)
 
 
-def test_a_return_too_close_to_measure_is_an_obstacle_at_the_body_for_the_safety_filter():
-    """REP 117's -inf (closer than range_min): dropped as a map point, but for the safety
-    filter an obstacle at the body's edge - a robot creeping towards a pillar's corner must
-    not lose it from its scan once nearer than range_min (0.12 m, its body reaches 0.105 m)."""
-    from coverage_ros.core.control.safety import SafetyConfig, SafetyFilter
-    from coverage_ros.core.geodesic.domain import CoverageDomain
-
-    lidar = LidarSpec(beams=360)
-    ranges = np.full(360, np.inf, dtype=np.float32)
-    ranges[175:186] = -np.inf  # straight ahead (angle 0 is beam 180), nearer than 0.12 m
-    msg = conv.laser_scan_msg(ranges, lidar, conv.to_time_msg(0.2), "robot_0/base_scan")
-    pose = (1.0, 1.0, 0.0)
-    assert len(conv.scan_to_points(msg, pose)) == 0
-    points = conv.scan_to_points(msg, pose, too_close_at=0.105)
-    assert len(points) == 11
-    assert np.allclose(np.hypot(*(points - pose[:2]).T), 0.105)
-    free = CoverageDomain.from_grid(GridMap(np.zeros((60, 60), np.int8), 0.05), 0.105)
-    f = SafetyFilter(free, SafetyConfig(radius=0.105))
-    assert f.filter(np.array(pose), 0.05, 0.0, scan_points=np.zeros((0, 2)))[0] == 0.05
-    assert f.filter(np.array(pose), 0.05, 0.0, scan_points=points)[0] == 0.0  # not ahead
-    assert f.filter(np.array([1.0, 1.0, math.pi]), 0.05, 0.0,
-                    scan_points=points)[0] == 0.05  # but away
-
-
 def test_odometry_message_fields():
     msg = conv.odometry_msg(conv.to_time_msg(1.0), "robot_1/odom", "robot_1/base_link",
                             (1.0, 2.0, 0.5), (0.2, 0.0, 0.1), (0.01, 0.002))

@@ -12,10 +12,11 @@ from conftest import WORLDS
 from coverage_ros.core.control.controller import ControllerConfig, RobotController
 from coverage_ros.core.control.neighbours import NeighbourTable
 from coverage_ros.core.control.planning import plan_path, segment_free
-from coverage_ros.core.control.safety import SafetyConfig, SafetyFilter
+from coverage_ros.core.control.safety import MEMORY_RADIUS, SafetyConfig, SafetyFilter, ScanMemory
 from coverage_ros.core.control.tracking import PathTracker, TrackerConfig
 from coverage_ros.core.geodesic.domain import CoverageDomain
 from coverage_ros.core.world import RobotSpec, load_world
+from coverage_ros.core.strategies import Scan
 from coverage_ros.core.world.grid import OCCUPIED, GridMap
 
 RES = 0.05
@@ -116,6 +117,54 @@ def test_safety_filter_uses_scan_points():
     box = np.array([[1.2, y] for y in np.linspace(0.8, 1.2, 9)])  # not on the map, 9.5 cm ahead
     assert f.filter(np.array([1.0, 1.0, 0.0]), 0.22, 0.0, scan_points=box)[0] < 0.22
     assert f.filter(np.array([1.0, 1.0, math.pi]), 0.22, 0.0, scan_points=box)[0] == 0.22
+
+
+def box_scan(pose, box=(1.2, 1.3, 0.8, 1.2), beams=360, range_min=0.12):
+    """A 360-beam scan of one box (x0, x1, y0, y1) in free space, REP 117: -inf nearer than
+    range_min, +inf where a beam misses it."""
+    x0, x1, y0, y1 = box
+    a = pose[2] - math.pi + 2 * math.pi / beams * np.arange(beams)
+    c, s = np.cos(a), np.sin(a)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        tx = np.where(c > 0, (x0 - pose[0]) / c, np.inf)  # the box's near face
+        hit_y = pose[1] + tx * s
+    r = np.where((tx > 0) & (hit_y >= y0) & (hit_y <= y1), tx, np.inf)
+    r = np.where(r < range_min, -np.inf, r)
+    return Scan(ranges=r, angle_min=-math.pi, angle_increment=2 * math.pi / beams,
+                range_min=range_min, range_max=3.5)
+
+
+def test_an_obstacle_the_lidar_no_longer_sees_stays_in_the_safety_filter():
+    """A lidar sees nothing nearer than range_min (0.12 m; the body reaches 0.105 m): a robot
+    creeping at a box not on the map loses it from the scan just before contact. Its points
+    stay (ScanMemory) until a beam passes beyond them."""
+    d = room(wall=False)
+    f = SafetyFilter(d, SafetyConfig(radius=RADIUS))
+    memory = ScanMemory()
+    pose = np.array([0.9, 1.0, 0.0])  # the box's face is at x = 1.2
+    for _ in range(200):
+        scan = box_scan(pose)
+        points = memory.update(scan, pose, scan.points(pose))
+        v, w, _ = f.filter(pose, 0.05, 0.0, scan_points=points)
+        pose = drive(pose, v, w, 0.1)
+    assert 1.2 - pose[0] >= RADIUS  # never touched it
+    assert np.all(np.isneginf(box_scan(pose).ranges[175:186]))  # though it sees nothing there
+    # Without the memory the same creep ends inside the box's face.
+    pose = np.array([0.9, 1.0, 0.0])
+    for _ in range(200):
+        scan = box_scan(pose)
+        v, w, _ = f.filter(pose, 0.05, 0.0, scan_points=scan.points(pose))
+        pose = drive(pose, v, w, 0.1)
+    assert 1.2 - pose[0] < RADIUS
+    # What moved away is forgotten once a beam passes beyond it; what is far is dropped.
+    scan = box_scan(np.array([0.9, 1.0, 0.0]))
+    memory = ScanMemory()
+    assert len(memory.update(scan, np.array([0.9, 1.0, 0.0]), scan.points((0.9, 1.0, 0.0))))
+    empty = box_scan(np.array([0.9, 1.0, 0.0]), box=(5.0, 5.1, 0.8, 1.2))
+    assert len(memory.update(empty, np.array([0.9, 1.0, 0.0]), np.zeros((0, 2)))) == 0
+    memory.update(scan, np.array([0.9, 1.0, 0.0]), scan.points((0.9, 1.0, 0.0)))
+    far = np.array([0.9 - MEMORY_RADIUS - 0.4, 1.0, 0.0])
+    assert len(memory.update(box_scan(far), far, np.zeros((0, 2)))) == 0
 
 
 def test_neighbour_table_validates_and_expires():

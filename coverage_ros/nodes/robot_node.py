@@ -234,12 +234,10 @@ class RobotNode(RobotRequests, Node):
                     angle_increment=float(msg.angle_increment), range_min=float(msg.range_min),
                     range_max=float(msg.range_max))
         # Safety's obstacles from the pose at the scan's stamp (the newest pose rotates a scan
-        # taken while turning by degrees); too close to measure = at the body's edge (a robot
-        # crept into a pillar's corner that its lidar no longer saw).
+        # taken while turning by degrees), kept near the robot across scans (ScanMemory).
         stamp = conv.from_time_msg(msg.header.stamp)
-        at = self._poses.at(stamp)
-        c.set_scan(scan, conv.scan_to_points(msg, tuple(c.pose) if at is None else at,
-                                             too_close_at=c.config.robot.radius))
+        pose = self._poses.at(stamp) or tuple(c.pose)
+        c.set_scan(scan, conv.scan_to_points(msg, pose), pose)
         if self.exchange is not None:
             self._pending_scans.append((stamp, scan))
             self._map_pending_scans()

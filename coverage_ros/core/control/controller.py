@@ -35,7 +35,7 @@ from scipy.sparse.csgraph import dijkstra
 
 from coverage_ros.core.control.neighbours import NeighbourTable
 from coverage_ros.core.control.planning import plan_path
-from coverage_ros.core.control.safety import SafetyConfig, SafetyFilter
+from coverage_ros.core.control.safety import SafetyConfig, SafetyFilter, ScanMemory
 from coverage_ros.core.control.tracking import PathTracker, TrackerConfig
 from coverage_ros.core.exploration.belief import Belief
 from coverage_ros.core.exploration.maps import navigation_domain
@@ -126,6 +126,7 @@ class RobotController:
         self.pose: np.ndarray | None = None
         self.scan: Scan | None = None
         self.scan_points: np.ndarray | None = None
+        self.scan_memory = ScanMemory()
         self.goal: np.ndarray | None = None
         self.path: np.ndarray | None = None
         self.velocity: tuple[float, float] | None = None
@@ -147,8 +148,13 @@ class RobotController:
     def set_pose(self, pose: tuple[float, float, float]) -> None:
         self.pose = np.asarray(pose, dtype=np.float64)
 
-    def set_scan(self, scan: Scan, points_map: np.ndarray) -> None:
-        self.scan, self.scan_points = scan, points_map
+    def set_scan(self, scan: Scan, points_map: np.ndarray,
+                 pose: tuple[float, float, float] | None = None) -> None:
+        """The newest scan and its hit points in the map frame, taken at ``pose`` (default:
+        the current pose); the safety filter checks the points kept near the robot."""
+        self.scan = scan
+        at = self.pose if pose is None else np.asarray(pose, dtype=np.float64)
+        self.scan_points = self.scan_memory.update(scan, at, points_map)
 
     def integrate_scan(self, scan: Scan, pose: np.ndarray, now: float) -> int:
         """Exploring: add what one scan, taken at ``pose``, saw to the belief (returns on the

@@ -128,7 +128,7 @@ def run_exploration(truth: GridMap, choice: StrategyChoice, starts: np.ndarray,
                 others = np.delete(np.arange(n), i)
                 scan = simulate_scan(truth, poses[i], specs[i].lidar, poses[others, :2],
                                      radii[others], blocked)
-                ctrl.set_scan(scan, scan.points(poses[i]))
+                ctrl.set_scan(scan, scan.points(poses[i]), poses[i])
                 ctrl.integrate_scan(scan, poses[i], t)
         # 2. Coverage updates: everyone hears everyone's last state, then all update.
         if t + 1e-9 >= next_control:

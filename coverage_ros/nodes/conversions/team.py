@@ -156,20 +156,11 @@ def polygon_msg(stamp: Time, polygon: np.ndarray, frame_id: str = MAP_FRAME) -> 
     return msg
 
 
-def scan_to_points(msg: LaserScan, pose: tuple[float, float, float],
-                   too_close_at: float | None = None) -> np.ndarray:
+def scan_to_points(msg: LaserScan, pose: tuple[float, float, float]) -> np.ndarray:
     """``(M, 2)`` map-frame hit points of a scan taken at robot ``pose`` (the lidar sits at
-    the robot centre, axes as base_link); only finite returns within the sensor limits, and,
-    with ``too_close_at`` [m], a point at that range for every ``-inf`` return (REP 117:
-    something closer than range_min) - for a safety check, to which an obstacle within
-    range_min must not vanish (a TurtleBot3's lidar sees nothing nearer than 0.12 m, its body
-    reaches 0.105 m)."""
+    the robot centre, axes as base_link); only finite returns within the sensor limits."""
     angles, ranges = laser_scan_to_ranges(msg)
     ok = np.isfinite(ranges) & (ranges >= msg.range_min) & (ranges <= msg.range_max)
-    if too_close_at is not None:
-        close = np.isneginf(ranges)
-        ranges = np.where(close, too_close_at, ranges)
-        ok |= close
     a = angles[ok] + pose[2]
     r = ranges[ok]
     return np.stack([pose[0] + r * np.cos(a), pose[1] + r * np.sin(a)], axis=-1)

@@ -15,8 +15,8 @@ from coverage_ros.core.control.planning import plan_path, segment_free
 from coverage_ros.core.control.safety import MEMORY_RADIUS, SafetyConfig, SafetyFilter, ScanMemory
 from coverage_ros.core.control.tracking import PathTracker, TrackerConfig
 from coverage_ros.core.geodesic.domain import CoverageDomain
-from coverage_ros.core.world import RobotSpec, load_world
 from coverage_ros.core.strategies import Scan
+from coverage_ros.core.world import RobotSpec, load_world
 from coverage_ros.core.world.grid import OCCUPIED, GridMap
 
 RES = 0.05
@@ -119,10 +119,10 @@ def test_safety_filter_uses_scan_points():
     assert f.filter(np.array([1.0, 1.0, math.pi]), 0.22, 0.0, scan_points=box)[0] == 0.22
 
 
-def box_scan(pose, box=(1.2, 1.3, 0.8, 1.2), beams=360, range_min=0.12):
-    """A 360-beam scan of one box (x0, x1, y0, y1) in free space, REP 117: -inf nearer than
-    range_min, +inf where a beam misses it."""
-    x0, x1, y0, y1 = box
+def box_scan(pose, face=(1.2, 0.8, 1.2), beams=360, range_min=0.12):
+    """A 360-beam scan of a box's face x = x0, y0 <= y <= y1 (x0, y0, y1) in free space, REP
+    117: -inf nearer than range_min, +inf where a beam misses it."""
+    x0, y0, y1 = face
     a = pose[2] - math.pi + 2 * math.pi / beams * np.arange(beams)
     c, s = np.cos(a), np.sin(a)
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -160,7 +160,7 @@ def test_an_obstacle_the_lidar_no_longer_sees_stays_in_the_safety_filter():
     scan = box_scan(np.array([0.9, 1.0, 0.0]))
     memory = ScanMemory()
     assert len(memory.update(scan, np.array([0.9, 1.0, 0.0]), scan.points((0.9, 1.0, 0.0))))
-    empty = box_scan(np.array([0.9, 1.0, 0.0]), box=(5.0, 5.1, 0.8, 1.2))
+    empty = box_scan(np.array([0.9, 1.0, 0.0]), face=(5.0, 0.8, 1.2))
     assert len(memory.update(empty, np.array([0.9, 1.0, 0.0]), np.zeros((0, 2)))) == 0
     memory.update(scan, np.array([0.9, 1.0, 0.0]), scan.points((0.9, 1.0, 0.0)))
     far = np.array([0.9 - MEMORY_RADIUS - 0.4, 1.0, 0.0])

@@ -49,6 +49,9 @@ from coverage_ros.nodes.region_input import REGION_QOS, REGION_TOPIC, RegionInpu
 CONVERGED_BAND = 0.02  # H within 2 % of its final value counts as converged
 EXPLORE_PERIOD = 1.0  # [s] wall time between scores of an exploring team's merged belief
 TRACK_STEP = 0.05  # [m] a robot's path in summary.png gets a point every this far
+#: [s] wall time without /clock advancing after which the run is given up (the world node is
+#: stuck: a CI run's world blocked for good in a DDS publish of /clock after a robot restart).
+CLOCK_STALL = 60.0
 
 
 class TeamTracker:
@@ -179,10 +182,18 @@ class TeamTracker:
         end = self.ready_at + self.args.duration
         last_progress = last_metrics = last_explored = 0.0
         until = getattr(self.args, "until_explored", None)
+        advanced = (self.sim_time, time.monotonic())  # the clock's last step: (sim, wall)
         try:
             while self.sim_time < end:
                 rclpy.spin_once(self.node, timeout_sec=0.05)
                 self._check_children()
+                if self.sim_time > advanced[0]:
+                    advanced = (self.sim_time, time.monotonic())
+                elif time.monotonic() - advanced[1] > CLOCK_STALL:
+                    raise RuntimeError(
+                        f"the simulation clock stood at {self.sim_time:.1f} s for "
+                        f"{CLOCK_STALL:g} s of wall time: the world node is stuck (see "
+                        "logs/world.log)")
                 while self.faults and self.sim_time - self.ready_at >= self.faults[0][0]:
                     _, rid, action = self.faults.pop(0)
                     self._kill(rid) if action == "kill" else self._restart(rid)

@@ -167,6 +167,31 @@ def test_an_obstacle_the_lidar_no_longer_sees_stays_in_the_safety_filter():
     assert len(memory.update(box_scan(far), far, np.zeros((0, 2)))) == 0
 
 
+def test_a_wall_seen_again_and_again_is_no_nearer_in_the_memory_than_in_the_newest_scan():
+    """Scans placed from a slightly wrong pose (a turning robot's stamp a few ms off) put a
+    wall's points a little off it, some nearer the robot: the memory keeps only the newest
+    scan's points in every direction a beam measured, so they do not pile up into a wall nearer
+    than the real one that blocks a robot with room to pass (1.5 cm to spare beside a pillar)."""
+    d = room(wall=False)
+    f = SafetyFilter(d, SafetyConfig(radius=RADIUS))
+    memory = ScanMemory()
+    face = (1.2, 0.5, 1.5)
+    pose = np.array([1.2 - RADIUS - 0.015, 0.9, math.pi / 2])  # heading along the face
+    rng = np.random.default_rng(3)
+    for err in rng.uniform(-0.12, 0.12, 40):  # [rad] where each scan is placed
+        placed = pose + np.array([0.0, 0.0, err])
+        scan = box_scan(pose, face=face)
+        memory.update(scan, placed, scan.points(placed))
+    scan = box_scan(pose, face=face)
+    points = memory.update(scan, pose, scan.points(pose))
+    assert len(points) and np.all(points[:, 0] >= 1.2 - 1e-9)
+    v, _, why = f.filter(pose, 0.22, 0.0, scan_points=points)
+    assert v == 0.22, why
+    # Points nearer than the face would have stopped it.
+    ghost = np.array([[1.2 - 0.02, 1.0]])
+    assert f.filter(pose, 0.22, 0.0, scan_points=np.vstack([points, ghost]))[0] < 0.22
+
+
 def test_neighbour_table_validates_and_expires():
     t = NeighbourTable((0.0, 0.0, 4.0, 3.0), timeout=2.0)
     assert t.receive(1, {"x": 1.0, "y": 1.0, "weight": 0.2, "mass": 3.0}, now=10.0) == ""

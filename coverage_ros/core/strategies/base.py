@@ -58,10 +58,10 @@ class Scan:
             pts = pts + np.asarray(pose[:2])
         return pts
 
-    def sees(self, points: np.ndarray, pose: np.ndarray) -> np.ndarray:
-        """``(N,) bool``: which map-frame ``points (N, 2)`` the scan taken at ``pose`` saw as
-        free - no nearer than its nearest beam's return (no return: free up to
-        ``range_max``, REP 117; an invalid return shows nothing)."""
+    def _beams(self, points: np.ndarray, pose: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Each map-frame point's distance from the sensor, its nearest beam's index and
+        whether that beam exists (a scan narrower than a full circle misses some directions)."""
         pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
         rel = pts - np.asarray(pose[:2], dtype=np.float64)
         dist = np.hypot(rel[:, 0], rel[:, 1])
@@ -71,13 +71,28 @@ class Scan:
         if abs(beams * self.angle_increment - 2.0 * np.pi) < 1e-6:
             k %= beams  # a full circle wraps
         inside = (k >= 0) & (k < beams)
+        return dist, np.where(inside, k, 0), inside
+
+    def sees(self, points: np.ndarray, pose: np.ndarray) -> np.ndarray:
+        """``(N,) bool``: which map-frame ``points (N, 2)`` the scan taken at ``pose`` saw as
+        free - no nearer than its nearest beam's return (no return: free up to
+        ``range_max``, REP 117; an invalid return shows nothing)."""
+        dist, k, inside = self._beams(points, pose)
         r = np.asarray(self.ranges, dtype=np.float64)
         depth = np.where(np.isnan(r) | (r < self.range_min), 0.0,
                          np.where(np.isinf(r) & (r > 0), self.range_max,
                                   np.minimum(r, self.range_max)))
-        out = np.zeros(len(pts), dtype=bool)
-        out[inside] = dist[inside] <= depth[k[inside]]
-        return out
+        return inside & (dist <= depth[k])
+
+    def measures(self, points: np.ndarray, pose: np.ndarray) -> np.ndarray:
+        """``(N,) bool``: which map-frame ``points (N, 2)`` lie in the direction of a beam of
+        the scan taken at ``pose`` that returned a measurement (a range, or ``+inf``: nothing
+        within range_max); not those behind a beam too close to measure (``-inf``), a NaN, or
+        outside the scan's field of view."""
+        _, k, inside = self._beams(points, pose)
+        r = np.asarray(self.ranges, dtype=np.float64)
+        valid = ~np.isnan(r) & (r >= self.range_min)
+        return inside & valid[k]
 
 
 @dataclass(frozen=True)

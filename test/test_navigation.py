@@ -192,6 +192,26 @@ def test_a_wall_seen_again_and_again_is_no_nearer_in_the_memory_than_in_the_newe
     assert f.filter(pose, 0.22, 0.0, scan_points=np.vstack([points, ghost]))[0] < 0.22
 
 
+def test_a_late_pose_is_carried_forward_under_the_last_command_before_the_safety_check():
+    """A busy robot process reads its pose late: the tracker and the safety filter work from
+    the pose carried forward to now under the last command (else a robot driving at a box
+    checks its command from where it was, 8 cm back)."""
+    c = RobotController(room(wall=False), ControllerConfig(robot_id=0))
+    c.path = np.array([[1.0, 1.0], [3.0, 1.0]])
+    c.scan_points = np.array([[1.30, y] for y in np.linspace(0.8, 1.2, 9)])  # a box's face
+    c.set_pose((1.0, 1.0, 0.0), stamp=10.0)
+    c.tracker.override(0.22, 0.0)
+    assert c.command(10.0, 0.1)[0] == pytest.approx(0.22)  # from x = 1.0 the box is far enough
+    c.tracker.override(0.22, 0.0)
+    assert c.command(10.4, 0.1)[0] < 0.22  # 0.4 s later the robot is at x = 1.09
+    assert "slowed" in c.safety_note
+    assert "max 400 ms" in c.describe_pose_age()
+    # Carried forward by at most MAX_POSE_AGE; a pose without a stamp is taken as now.
+    c.set_pose((1.0, 1.0, 0.0))
+    c.tracker.override(0.22, 0.0)
+    assert c.command(99.0, 0.1)[0] == pytest.approx(0.22)
+
+
 def test_neighbour_table_validates_and_expires():
     t = NeighbourTable((0.0, 0.0, 4.0, 3.0), timeout=2.0)
     assert t.receive(1, {"x": 1.0, "y": 1.0, "weight": 0.2, "mass": 3.0}, now=10.0) == ""

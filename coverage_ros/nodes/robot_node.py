@@ -45,6 +45,7 @@ from coverage_ros.nodes.belief_exchange import OBSERVATIONS, OBSERVATIONS_TYPE, 
 from coverage_ros.nodes.goal_output import GoalOutput
 from coverage_ros.nodes.plumbing import (
     MAP_QOS,
+    POSE_QOS,
     SCAN_QOS,
     TEAM_QOS,
     ClockGuard,
@@ -114,7 +115,7 @@ class RobotNode(RobotRequests, Node):
         if self.config.pose_source == "tf":  # map -> base_link, as AMCL or slam_toolbox give it
             self.tf_input = TfPoseInput(self, self.frames, self._take_pose, self._warn)
         else:
-            self.create_subscription(Odometry, self.config.pose_topic, self._on_pose, TEAM_QOS)
+            self.create_subscription(Odometry, self.config.pose_topic, self._on_pose, POSE_QOS)
         if self.config.teleop_topic:
             self.create_subscription(Twist, self.config.teleop_topic, self._on_teleop, TEAM_QOS)
         self.create_service(SetBool, "set_manual", self._on_set_manual)
@@ -216,7 +217,7 @@ class RobotNode(RobotRequests, Node):
         """The robot's pose in the map frame at ``stamp`` [s] (from pose_topic or /tf)."""
         if self.controller is None:
             return
-        self.controller.set_pose(pose)
+        self.controller.set_pose(pose, stamp)
         self._listen.pose(time.monotonic())
         self._poses.add(stamp, pose)
         if self.exchange is not None:
@@ -398,7 +399,7 @@ class RobotNode(RobotRequests, Node):
         """Best effort: finish the running update, leave the robot standing."""
         self._worker.close()
         self.get_logger().info(self._worker.summary())
-        if self.controller is not None and (text := self.controller.describe_last()):
+        for text in self.controller.describe() if self.controller is not None else ():
             self.get_logger().info(text)
         if self.exchange is not None:
             self.get_logger().info(f"sent the evidence of {self.exchange.sent_cells} cells, "

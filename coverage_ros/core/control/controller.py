@@ -6,7 +6,9 @@ Two loops, as on the real robot:
   cell from the robot's pose, scan and the neighbours it currently trusts, and decides a goal
   (then a path is planned to it) or a velocity; also returns the state to publish.
 * :meth:`RobotController.command` (the tracking period, ~10 Hz): the tracker follows the path
-  (or the strategy's velocity is used), and the safety filter has the last word.
+  (or the strategy's velocity is used), and the safety filter has the last word. It steers and
+  checks from the pose carried forward to ``now`` under the last command when the pose is
+  older than that (a busy process reads its poses late; up to ``MAX_POSE_AGE``).
 
 Neighbours are known only from what they published (:class:`NeighbourTable`): entries with
 non-finite values, positions off the map, or older than ``neighbour_timeout`` are ignored.
@@ -28,6 +30,7 @@ from __future__ import annotations
 import math
 import threading
 import time
+from collections import deque
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -35,7 +38,8 @@ from scipy.sparse.csgraph import dijkstra
 
 from coverage_ros.core.control.neighbours import NeighbourTable
 from coverage_ros.core.control.planning import plan_path
-from coverage_ros.core.control.safety import SafetyConfig, SafetyFilter, ScanMemory
+from coverage_ros.core.control.recovery import ESCAPE_LOOK, StuckRecovery
+from coverage_ros.core.control.safety import SafetyConfig, SafetyFilter, ScanMemory, unicycle
 from coverage_ros.core.control.tracking import PathTracker, TrackerConfig
 from coverage_ros.core.exploration.belief import Belief
 from coverage_ros.core.exploration.maps import navigation_domain
@@ -63,6 +67,10 @@ EMPTY_CELL = 1e-6
 MAX_NEIGHBOUR_AGE = 0.5
 #: [m] goal changes smaller than this keep the current path (no replanning jitter).
 REPLAN_DISTANCE = 0.05
+#: [s] a pose is carried forward under the last command by at most this much of its age.
+MAX_POSE_AGE = 0.5
+#: Pose ages kept for :meth:`RobotController.describe_pose_age`.
+POSE_AGES_KEPT = 4096
 
 
 @dataclass(frozen=True)
@@ -123,7 +131,12 @@ class RobotController:
                                                            goal_tolerance=config.goal_tolerance))
         self.safety = SafetyFilter(domain, SafetyConfig(radius=config.robot.radius,
                                                         a_max=config.robot.a_max))
+        steer = self.tracker.config
+        self.recovery = StuckRecovery(config.robot.v_max, steer.heading_gain,
+                                      steer.turn_in_place)
         self.pose: np.ndarray | None = None
+        self.pose_stamp: float | None = None  # [s] when the pose was true (None: now)
+        self.pose_ages: deque[float] = deque(maxlen=POSE_AGES_KEPT)  # [s] at each command
         self.scan: Scan | None = None
         self.scan_points: np.ndarray | None = None
         self.scan_memory = ScanMemory()
@@ -139,14 +152,17 @@ class RobotController:
         #: Stopped and holding until resumed (cells and states keep being published).
         self.paused = False
         self._teleop = (0.0, 0.0, -math.inf)  # (v, w, receive time [s])
+        self._replan = False  # an escape ended: the next update plans a new path
         self._lock = threading.Lock()
 
     @property
     def needs_scan(self) -> bool:
         return self.strategy.needs_scan or self.belief is not None
 
-    def set_pose(self, pose: tuple[float, float, float]) -> None:
+    def set_pose(self, pose: tuple[float, float, float], stamp: float | None = None) -> None:
+        """The robot's pose in the map frame, true at ``stamp`` [s] (None: at every ``now``)."""
         self.pose = np.asarray(pose, dtype=np.float64)
+        self.pose_stamp = None if stamp is None else float(stamp)
 
     def set_scan(self, scan: Scan, points_map: np.ndarray,
                  pose: tuple[float, float, float] | None = None) -> None:
@@ -177,6 +193,7 @@ class RobotController:
             if self.pose is None:
                 return None
             pose, scan, goal, path = self.pose.copy(), self.scan, self.goal, self.path
+            replan = self._replan
         nbrs = self.neighbours.current(now, pose[:2], self.config.comm_range)
         t0 = time.perf_counter()
         snapshot, nav = None, self.domain
@@ -198,7 +215,7 @@ class RobotController:
             # bvc centroid near equilibrium) never moved the robot again.
             tol = self.tracker.config.goal_tolerance
             arrived = goal is not None and float(np.hypot(*(goal - pose[:2]))) < tol
-            if goal is None or path is None or stale or \
+            if goal is None or path is None or stale or replan or \
                     float(np.hypot(*(new_goal - goal))) > REPLAN_DISTANCE or \
                     (arrived and float(np.hypot(*(new_goal - pose[:2]))) >= tol):
                 goal, path = new_goal, plan_path(nav, pose[:2], new_goal)
@@ -218,6 +235,7 @@ class RobotController:
         result = UpdateResult(decision, path, state, [n.robot_id for n in nbrs], pose)
         with self._lock:
             self.velocity, self.goal, self.path = decision.velocity, goal, path
+            self._replan = self._replan and not replan
             self.heading = decision.heading if decision.velocity is not None else None
             self.last = result
             if nav is not self.safety.domain:
@@ -301,8 +319,17 @@ class RobotController:
     def _command(self, now: float, dt: float) -> tuple[float, float]:
         if self.pose is None:
             return 0.0, 0.0
+        pose = self._pose_now(now)
         limits = self.config.robot
-        if self.paused:
+        autonomous = not (self.paused or self.manual)
+        escape = self.recovery.command(pose, now) if autonomous else None
+        if self.recovery.ended:  # plan again from where the escape ended
+            self.recovery.ended = False
+            self.goal = self.path = None
+            self._replan = True
+        if escape is not None:
+            v, w = escape
+        elif self.paused:
             v, w = 0.0, 0.0
         elif self.manual:
             v, w, heard = self._teleop
@@ -317,13 +344,13 @@ class RobotController:
                 # held for a whole coverage period overshoots (and, saturated, spins).
                 # The path tracker's own heading gain and turn-in-place angle: one way to steer.
                 steer = self.tracker.config
-                err = float(wrap_angle(self.heading - self.pose[2]))
+                err = float(wrap_angle(self.heading - pose[2]))
                 w = steer.heading_gain * err
                 v = 0.0 if abs(err) > steer.turn_in_place else min(v, limits.v_max * math.cos(err))
             v = float(np.clip(v, -limits.v_max, limits.v_max))
             w = float(np.clip(w, -limits.w_max, limits.w_max))
         else:
-            v, w, _ = self.tracker.command(self.pose, self.path, dt)
+            v, w, _ = self.tracker.command(pose, self.path, dt)
         nbrs = self.neighbours.current(now)
         positions = np.array([n.position for n in nbrs]).reshape(-1, 2)
         # A neighbour may have moved since it published: grow it by how far it can have gone.
@@ -332,10 +359,43 @@ class RobotController:
                           + n.state.extra.get("v_max", own.v_max)
                           * min(max(now - n.stamp, 0.0), MAX_NEIGHBOUR_AGE)
                           for n in nbrs])
-        v, w, self.safety_note = self.safety.filter(self.pose, v, w, positions, radii,
+        wanted = v
+        v, w, self.safety_note = self.safety.filter(pose, v, w, positions, radii,
                                                     self.scan_points)
+        if escape is not None:
+            self.safety_note = self.recovery.describe() + \
+                (f"; {self.safety_note}" if self.safety_note else "")
+        elif autonomous:
+            self.recovery.observe(wanted, v, self.safety_note, pose, now,
+                                  lambda: self.safety.obstacles_near(pose, ESCAPE_LOOK,
+                                                                     self.scan_points))
         self.tracker.override(v, w)
         return v, w
+
+    def _pose_now(self, now: float) -> np.ndarray:
+        """The pose carried forward from its stamp to ``now`` under the last command (the
+        tracker's), by at most MAX_POSE_AGE; the age is kept for describe_pose_age."""
+        if self.pose_stamp is None:
+            return self.pose
+        age = now - self.pose_stamp
+        self.pose_ages.append(age)
+        age = min(max(age, 0.0), MAX_POSE_AGE)
+        if age == 0.0:
+            return self.pose
+        return unicycle(self.pose, self.tracker.v, self.tracker.w, np.array([age]))[0]
+
+    def describe_pose_age(self) -> str:
+        """One line on how old the poses were when commands were computed ('' if unknown)."""
+        if not self.pose_ages:
+            return ""
+        a = 1e3 * np.asarray(self.pose_ages)
+        return (f"pose age at the last {len(a)} commands: median {np.median(a):.0f} ms, 95 % "
+                f"{np.percentile(a, 95):.0f} ms, max {a.max():.0f} ms (carried forward up to "
+                f"{1e3 * MAX_POSE_AGE:.0f} ms under the last command)")
+
+    def describe(self) -> list[str]:
+        """Lines for the log at the end: the last decision, and the poses' ages."""
+        return [text for text in (self.describe_last(), self.describe_pose_age()) if text]
 
     def describe_last(self) -> str:
         """One line on the last decision (mode, target, path, safety), '' before the first."""

@@ -41,6 +41,20 @@ class SafetyConfig:
     a_max: float = RobotSpec().a_max  # [m/s^2] braking
 
 
+def unicycle(pose: np.ndarray, v: float, w: float, t: np.ndarray) -> np.ndarray:
+    """``(len(t), 3)`` poses of a differential drive holding ``(v, w)`` from ``pose`` for
+    each time in ``t`` [s] (an arc, or a straight line when ``w`` is 0)."""
+    t = np.asarray(t, dtype=np.float64)
+    yaw = pose[2] + w * t
+    if abs(w) < 1e-6:
+        x = pose[0] + v * t * math.cos(pose[2])
+        y = pose[1] + v * t * math.sin(pose[2])
+    else:
+        x = pose[0] + v / w * (np.sin(yaw) - math.sin(pose[2]))
+        y = pose[1] - v / w * (np.cos(yaw) - math.cos(pose[2]))
+    return np.stack([x, y, yaw], axis=-1)
+
+
 class ScanMemory:
     """The lidar points near the robot, kept across scans in the map frame.
 
@@ -104,15 +118,22 @@ class SafetyFilter:
         T = c.horizon + abs(v) / c.a_max
         length = abs(v) * T
         n = max(2, int(math.ceil(length / (CHECK_STEP_CELLS * self.domain.resolution))) + 1)
-        t = np.linspace(0.0, T, n)
-        yaw = pose[2] + w * t
-        if abs(w) < 1e-6:
-            x = pose[0] + v * t * math.cos(pose[2])
-            y = pose[1] + v * t * math.sin(pose[2])
-        else:
-            x = pose[0] + v / w * (np.sin(yaw) - math.sin(pose[2]))
-            y = pose[1] - v / w * (np.cos(yaw) - math.cos(pose[2]))
-        return np.stack([x, y], axis=-1)
+        return unicycle(pose, v, w, np.linspace(0.0, T, n))[:, :2]
+
+    def obstacles_near(self, position: np.ndarray, reach: float,
+                       scan_points: np.ndarray | None = None) -> np.ndarray:
+        """``(N, 2)`` map-frame obstacles within ``reach`` [m] of ``position``: the centres of
+        the map's obstacle cells and the given lidar points."""
+        geo = self.domain.geometry
+        cells = geo.world_to_cell(np.asarray(position[:2], dtype=np.float64)[None, :])[0]
+        k = int(math.ceil(reach / self.domain.resolution))
+        r0, c0 = max(cells[0] - k, 0), max(cells[1] - k, 0)
+        window = self.clearance[r0:cells[0] + k + 1, c0:cells[1] + k + 1]
+        rows, cols = np.nonzero(window <= 0.0)
+        pts = geo.cell_centers(np.stack([rows + r0, cols + c0], axis=-1)).reshape(-1, 2)
+        if scan_points is not None and len(scan_points):
+            pts = np.vstack([pts, np.asarray(scan_points, dtype=np.float64).reshape(-1, 2)])
+        return pts[np.hypot(*(pts - position[:2]).T) <= reach]
 
     def _clearance_at(self, pts: np.ndarray) -> np.ndarray:
         cells = self.domain.geometry.world_to_cell(pts)

@@ -395,7 +395,10 @@ class RobotController:
 
     def describe(self) -> list[str]:
         """Lines for the log at the end: the last decision, and the poses' ages."""
-        return [text for text in (self.describe_last(), self.describe_pose_age()) if text]
+        n = self.recovery.escapes
+        escapes = f"backed off {n} time(s) after being held still (recovery)" if n else ""
+        return [text for text in (self.describe_last(), self.describe_pose_age(), escapes)
+                if text]
 
     def describe_last(self) -> str:
         """One line on the last decision (mode, target, path, safety), '' before the first."""

@@ -54,9 +54,6 @@ MAP_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
 SCAN_QOS = qos_profile_sensor_data
 TEAM_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 STREAM_QOS = QoSProfile(depth=5, reliability=ReliabilityPolicy.BEST_EFFORT)
-#: A robot's own pose: only the newest counts (a busy executor reading a deeper queue oldest
-#: first steered and checked its commands from poses 0.5 s old at 20 Hz).
-POSE_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE)
 CLOCK_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
 
 #: [s] wall time between two warnings of the same kind.

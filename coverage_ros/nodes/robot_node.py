@@ -45,7 +45,6 @@ from coverage_ros.nodes.belief_exchange import OBSERVATIONS, OBSERVATIONS_TYPE, 
 from coverage_ros.nodes.goal_output import GoalOutput
 from coverage_ros.nodes.plumbing import (
     MAP_QOS,
-    POSE_QOS,
     SCAN_QOS,
     TEAM_QOS,
     ClockGuard,
@@ -115,7 +114,7 @@ class RobotNode(RobotRequests, Node):
         if self.config.pose_source == "tf":  # map -> base_link, as AMCL or slam_toolbox give it
             self.tf_input = TfPoseInput(self, self.frames, self._take_pose, self._warn)
         else:
-            self.create_subscription(Odometry, self.config.pose_topic, self._on_pose, POSE_QOS)
+            self.create_subscription(Odometry, self.config.pose_topic, self._on_pose, TEAM_QOS)
         if self.config.teleop_topic:
             self.create_subscription(Twist, self.config.teleop_topic, self._on_teleop, TEAM_QOS)
         self.create_service(SetBool, "set_manual", self._on_set_manual)

@@ -422,3 +422,30 @@ def test_vectorized_snap_equals_snap_point_by_point():
         np.testing.assert_array_equal(nodes, nodes1)
         np.testing.assert_allclose(costs, costs1, rtol=0, atol=1e-12)
         np.testing.assert_array_equal(g, g1)
+
+
+def test_a_depth_map_kept_for_a_larger_radius_answers_a_smaller_one_alike():
+    domain = CoverageDomain.from_world(load_world(WORLDS / "office.yaml"), 0.105)
+    rng = np.random.default_rng(3)
+    H, W = domain.shape
+    free = np.argwhere(domain.free)[:, ::-1] + 0.5
+    answers = []
+    for origin in free[rng.choice(len(free), 6, replace=False)]:
+        pts = rng.uniform([0, 0], [W, H], (3000, 2))
+        dist = np.hypot(*(pts - origin).T)
+        depths: dict = {}
+        domain.visible_mask(origin, pts, float(np.hypot(H, W)), depths)  # the whole domain
+        for radius in (5.0, 20.0, 60.0):
+            near = pts[dist <= radius]
+            fresh = domain.visible_mask(origin, near, radius)
+            kept = domain.visible_mask(origin, near, radius, depths)
+            np.testing.assert_array_equal(kept, fresh)
+            answers.append(fresh)
+        assert len(depths) == 1  # the whole-domain map served every smaller radius
+        small: dict = {}  # and one made for a small radius is not used for a larger one
+        domain.visible_mask(origin, pts[dist <= 5.0], 5.0, small)
+        far = pts[dist <= 60.0]
+        np.testing.assert_array_equal(domain.visible_mask(origin, far, 60.0, small),
+                                      domain.visible_mask(origin, far, 60.0))
+    answers = np.concatenate(answers)
+    assert answers.any() and not answers.all()  # walls hide some points, not all

@@ -75,9 +75,9 @@ def counting_searches() -> Iterator[SearchCount]:
             np.size(kwargs["indices"]))
         return out
 
-    def visible_mask(self, origin, points, radius):
+    def visible_mask(self, origin, points, radius, depths=None):
         count.sighted += len(points)
-        return plain_mask(self, origin, points, radius)
+        return plain_mask(self, origin, points, radius, depths)
 
     for module in _SEARCH_MODULES:
         if module.dijkstra is not scipy_dijkstra:

@@ -314,18 +314,40 @@ class CoverageDomain:
         return int(np.clip(2 ** math.ceil(math.log2(2.0 * math.pi * math.hypot(H, W))),
                            1024, 16384))
 
-    def visible_mask(self, origin: np.ndarray, points: np.ndarray, radius: float) -> np.ndarray:
+    @property
+    def occluder_centers(self) -> np.ndarray:
+        """``(M, 2)`` grid coordinates of the :attr:`occluders`' centres (x = column + 0.5)."""
+        key = "occluder_centers"
+        if key not in self._cache:
+            rr, cc = np.nonzero(self.occluders)
+            self._cache[key] = np.stack([cc + 0.5, rr + 0.5], axis=-1).astype(np.float64)
+        return self._cache[key]
+
+    def visible_mask(self, origin: np.ndarray, points: np.ndarray, radius: float,
+                     depths: dict | None = None) -> np.ndarray:
         """``(N,) bool``: grid points (within ``radius`` cells of the grid point ``origin``)
-        in line of sight of it; blocked cells are discs of half a cell diagonal."""
+        in line of sight of it; blocked cells are discs of half a cell diagonal.
+
+        ``depths``, a dict the caller keeps, holds the depth maps made so far by origin: one
+        made for a radius at least as large is used again. That changes no answer - an
+        occluder outside a radius' box is farther than any point the radius allows, so it
+        cannot hide one."""
+        key = (float(origin[0]), float(origin[1]))
+        held = depths.get(key) if depths is not None else None
+        if held is not None and held[0] >= radius:
+            return visible_from(origin, points, held[1])
         H, W = self.shape
         R = radius + 2.0
-        c0, c1 = max(int(origin[0] - R), 0), min(int(origin[0] + R) + 1, W)
-        r0, r1 = max(int(origin[1] - R), 0), min(int(origin[1] + R) + 1, H)
-        rr, cc = np.nonzero(self.occluders[r0:r1, c0:c1])
-        if len(rr) == 0:
+        occ = self.occluder_centers
+        if R < max(H, W):  # a box around the origin; the whole domain's otherwise
+            occ = occ[(np.abs(occ[:, 0] - origin[0]) <= R + 1.0)
+                      & (np.abs(occ[:, 1] - origin[1]) <= R + 1.0)]
+        if len(occ) == 0:
             return np.ones(len(points), dtype=bool)
-        occ = np.stack([cc + (c0 + 0.5), rr + (r0 + 0.5)], axis=-1)
-        return visible_from(origin, points, polar_depth(origin, occ, self.depth_bins))
+        depth = polar_depth(origin, occ, self.depth_bins)
+        if depths is not None:
+            depths[key] = (radius, depth)
+        return visible_from(origin, points, depth)
 
     def seeds(self, point_map: np.ndarray, nodes: np.ndarray, centers: np.ndarray,
               radius: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

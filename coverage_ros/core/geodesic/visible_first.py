@@ -67,13 +67,16 @@ def visible_first_search(domain: CoverageDomain, local: LocalGraph,
                 best[i], winner[i] = c, k
     # Settled: in line of sight of the winner (snap seeds of the winner count as seen).
     settled = np.zeros(n, dtype=bool)
+    # One depth map per generator over the whole domain (the reach of its farthest corner)
+    # serves both line-of-sight passes.
+    depths: dict = {}
     for k in range(k_gens):
         mine = np.flatnonzero(winner == k)
         if len(mine) == 0:
             continue
-        d2 = ((centers[mine] - grids[k]) ** 2).sum(axis=1)
-        reach = math.sqrt(float(d2.max()))
-        settled[mine] = domain.visible_mask(grids[k], centers[mine], reach)
+        gx, gy = grids[k]
+        reach = math.hypot(max(gx, W - gx), max(gy, H - gy))
+        settled[mine] = domain.visible_mask(grids[k], centers[mine], reach, depths)
         own_snap = snap_best[k][0]
         settled[own_snap[winner[own_snap] == k]] = True
     dist = np.full(first + k_gens, np.inf)
@@ -86,14 +89,14 @@ def visible_first_search(domain: CoverageDomain, local: LocalGraph,
     hidden = np.flatnonzero(free & ~settled)
     if len(hidden):
         _search_hidden(domain, local, hidden, settled, dist, pred, label, grids, biases,
-                       snap_best)
+                       snap_best, depths)
     return dist, pred, label
 
 
 def _search_hidden(domain: CoverageDomain, local: LocalGraph, hidden: np.ndarray,
                    settled: np.ndarray, dist: np.ndarray, pred: np.ndarray, label: np.ndarray,
                    grids: np.ndarray, biases: np.ndarray,
-                   snap_best: list[tuple[np.ndarray, np.ndarray]]) -> None:
+                   snap_best: list[tuple[np.ndarray, np.ndarray]], depths: dict) -> None:
     """Dijkstra over the hidden cells from their settled neighbours and from every generator's
     own seeds among them (in line of sight, or snap edges); fills the arrays in place."""
     n = local.n
@@ -109,23 +112,21 @@ def _search_hidden(domain: CoverageDomain, local: LocalGraph, hidden: np.ndarray
     # Hidden rows: their graph edges within the sub-graph; border rows: edges into hidden
     # cells. A visibility domain's graph is the grid's own (no chart edges): its edge table.
     nb_table, cost_table = domain.graph.edge_table
-    rows, cols, vals = [], [], []
+    counts, cols, vals = [], [], []
     for start in (hidden, border):
         to = nb_table[start]  # (s, K) node ids, n where there is no edge
         inside = pos[to] >= 0
         if start is border:
             inside &= ~np.append(settled, True)[to]
-        rows.append(np.broadcast_to(pos[start][:, None], to.shape)[inside])
+        counts.append(inside.sum(axis=1))  # row-major selection: rows stay in order
         cols.append(pos[to[inside]])
         vals.append(cost_table[start][inside])
     # One virtual source per generator: to its border cells at their settled distance, and to
     # the hidden cells it snaps to or sees (at its snap / straight-line cost).
-    snap_cost = []
+    to_border, snap_cost = [], []
     for k in range(k_gens):
         mine = border[label[border + 1] == k]
-        rows.append(np.full(len(mine), m + k))
-        cols.append(pos[mine])
-        vals.append(dist[mine + 1])
+        to_border.append((pos[mine], dist[mine + 1]))
         snap_nodes, snap_costs = snap_best[k]
         hid = (pos[snap_nodes] >= 0) & ~settled[snap_nodes]  # hidden: pos < len(hidden)
         cost = np.full(len(hidden), np.inf)
@@ -138,18 +139,23 @@ def _search_hidden(domain: CoverageDomain, local: LocalGraph, hidden: np.ndarray
     # being strictly longer, any label or parent): only the others need a line-of-sight test,
     # which is most of this search's cost (a team bunched in a corner of depot leaves half of
     # the map hidden from its nearest robot; a few hundred cells then get a shorter line).
-    upper = dijkstra(_graph(rows, cols, vals, snap_cost, m, size), directed=True,
-                     indices=sources, min_only=True)[:len(hidden)]
+    d, p, src = dijkstra(_graph(counts, cols, vals, to_border, snap_cost, size), directed=True,
+                         indices=sources, min_only=True, return_predecessors=True)
+    upper = d[:len(hidden)]
     hc = local.centers[hidden]
+    shorter = False
     for k in range(k_gens):
         e = np.hypot(hc[:, 0] - grids[k, 0], hc[:, 1] - grids[k, 1]) * res + biases[k]
         better = np.flatnonzero(e <= upper + 1e-9)
         if len(better):
             reach = float(np.max(e[better] - biases[k])) / res
-            seen = better[domain.visible_mask(grids[k], hc[better], reach)]
+            seen = better[domain.visible_mask(grids[k], hc[better], reach, depths)]
             np.minimum.at(snap_cost[k], seen, e[seen])
-    d, p, src = dijkstra(_graph(rows, cols, vals, snap_cost, m, size), directed=True,
-                         indices=sources, min_only=True, return_predecessors=True)
+            shorter = shorter or bool(len(seen))
+    if shorter:  # (a line no shorter than the path found changes nothing: the first stands)
+        d, p, src = dijkstra(_graph(counts, cols, vals, to_border, snap_cost, size),
+                             directed=True, indices=sources, min_only=True,
+                             return_predecessors=True)
     h = np.arange(len(hidden))
     reached = np.isfinite(d[h])
     lid = hidden[h[reached]] + 1
@@ -161,15 +167,20 @@ def _search_hidden(domain: CoverageDomain, local: LocalGraph, hidden: np.ndarray
     pred[lid] = mapped
 
 
-def _graph(rows: list[np.ndarray], cols: list[np.ndarray], vals: list[np.ndarray],
-           seeds: list[np.ndarray], m: int, size: int) -> csr_matrix:
-    """The sub-graph's edges plus, per generator k, a source row m + k to every hidden cell
-    with a finite ``seeds[k]`` cost (no edge appears twice)."""
-    r, c, v = list(rows), list(cols), list(vals)
-    for k, cost in enumerate(seeds):
+def _graph(counts: list[np.ndarray], cols: list[np.ndarray], vals: list[np.ndarray],
+           to_border: list[tuple[np.ndarray, np.ndarray]], seeds: list[np.ndarray],
+           size: int) -> csr_matrix:
+    """The sub-graph's rows in order (``counts`` edges each, their ``cols`` and ``vals``),
+    then per generator k a source row to its border cells (``to_border[k]``: sub indices and
+    costs) and to every hidden cell with a finite ``seeds[k]`` cost; built as CSR directly
+    (no edge appears twice, so there is nothing to sum or sort)."""
+    counts, cols, vals = list(counts), list(cols), list(vals)
+    for (b_cols, b_vals), cost in zip(to_border, seeds, strict=True):
         to = np.flatnonzero(np.isfinite(cost))
-        r.append(np.full(len(to), m + k))
-        c.append(to)
-        v.append(cost[to])
-    return csr_matrix((np.maximum(np.concatenate(v), 1e-12),  # 0 would be no edge
-                       (np.concatenate(r), np.concatenate(c))), shape=(size, size))
+        counts.append(np.array([len(b_cols) + len(to)]))
+        cols += [b_cols, to]
+        vals += [b_vals, cost[to]]
+    indptr = np.zeros(size + 1, dtype=np.int32)
+    np.cumsum(np.concatenate(counts), out=indptr[1:])
+    return csr_matrix((np.maximum(np.concatenate(vals), 1e-12),  # 0 would be no edge
+                       np.concatenate(cols).astype(np.int32), indptr), shape=(size, size))

@@ -244,3 +244,41 @@ def test_coverage_teleop_takes_the_robot_over_and_hands_it_back(team):
     while "robot 0: autonomous" not in robot.output() and time.monotonic() < deadline:
         client.spin_for(0.2)
     assert "robot 0: autonomous" in robot.output()
+
+
+def test_a_robot_on_the_events_executor_covers_and_stops_cleanly():
+    """COVERAGE_ROS_EXECUTOR=events (coverage-team --executor events): the same robot on
+    rclpy's EventsExecutor updates, drives and ends on SIGINT with code 0 and its exit log."""
+    from geometry_msgs.msg import Twist
+    from sensor_msgs.msg import JointState
+
+    from coverage_ros.nodes import conversions as conv
+
+    domain = domain_id(12)
+    env = ros_env(domain, COVERAGE_ROS_EXECUTOR="events")
+    with NodeProcess.world_node(domain, "world:=office", "starts:=1.0,1.0,0.0") as world, \
+            NodeProcess([sys.executable, "-m", "coverage_ros.nodes.robot_node", "--ros-args",
+                         "-r", "__ns:=/robot_0", "-p", "robot_id:=0", "-p", "use_sim_time:=true",
+                         "-p", "world:=office"], domain, env) as robot:
+        client = RosClient(domain)
+        try:
+            client.wait_for("/robot_0/coverage_state", JointState,
+                            lambda m: "mass" in conv.coverage_state_values(m), timeout=40.0)
+            client.wait_for("/robot_0/cmd_vel", Twist, lambda m: abs(m.linear.x) > 0.01,
+                            timeout=20.0)
+        finally:
+            client.close()
+        assert world.alive() and robot.alive()
+        assert robot.stop(timeout=10.0) == 0, robot.output()
+        assert "executor: events" in robot.output()
+        assert "coverage updates, one every" in robot.output()
+
+
+def test_an_unknown_executor_is_refused_with_one_line():
+    env = ros_env(domain_id(11), COVERAGE_ROS_EXECUTOR="fast")
+    out = subprocess.run([sys.executable, "-m", "coverage_ros.nodes.robot_node", "--ros-args",
+                          "-p", "robot_id:=0"], env=env, capture_output=True, text=True,
+                         timeout=60, cwd=REPO)
+    assert out.returncode == 2
+    err = out.stderr.strip().splitlines()
+    assert len(err) == 1 and "COVERAGE_ROS_EXECUTOR='fast'" in err[0], out.stderr

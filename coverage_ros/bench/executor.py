@@ -5,8 +5,9 @@ A publisher process sends what a robot of a 16-robot team receives - 15 neighbou
 ``coverage_state`` at 2.5 Hz, its ground truth at 10 Hz, ``/clock`` at 10 Hz, its scan at 5 Hz -
 to a listener process whose node subscribes to all of it and runs a 10 Hz tracking timer and a
 2 Hz "update" timer, either with the ``SingleThreadedExecutor`` (what robot_node uses, with its
-own update thread) or with a ``MultiThreadedExecutor`` and the update timer in a
-``MutuallyExclusiveCallbackGroup`` (ros2/examples' callback_group.py). The listener's CPU time
+own update thread), with a ``MultiThreadedExecutor`` and the update timer in a
+``MutuallyExclusiveCallbackGroup`` (ros2/examples' callback_group.py), or with rclpy's
+``EventsExecutor`` (``rclpy.experimental``: its dispatch loop in C++). The listener's CPU time
 over the window, per message received, is the figure; the last stdout line is JSON.
 """
 
@@ -58,6 +59,7 @@ def _listener(kind: str, warmup: float, seconds: float) -> None:
     from nav_msgs.msg import Odometry
     from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
     from rclpy.executors import MultiThreadedExecutor, SingleThreadedExecutor
+    from rclpy.experimental.events_executor import EventsExecutor
     from rosgraph_msgs.msg import Clock
     from sensor_msgs.msg import JointState, LaserScan
 
@@ -76,7 +78,8 @@ def _listener(kind: str, warmup: float, seconds: float) -> None:
     node.create_timer(0.1, lambda: None)  # tracking
     group = MutuallyExclusiveCallbackGroup() if kind == "multi" else None
     node.create_timer(0.5, lambda: None, callback_group=group)  # coverage update
-    executor = MultiThreadedExecutor() if kind == "multi" else SingleThreadedExecutor()
+    executor = {"multi": MultiThreadedExecutor, "single": SingleThreadedExecutor,
+                "events": EventsExecutor}[kind]()
     executor.add_node(node)
     end_warm = time.monotonic() + warmup
     while time.monotonic() < end_warm:
@@ -111,23 +114,26 @@ def measure(kind: str, seconds: float, warmup: float = 3.0) -> dict:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--role", choices=("bench", "publisher", "single", "multi"), default="bench")
+    ap.add_argument("--role", default="bench",
+                    choices=("bench", "publisher", "single", "multi", "events"))
     ap.add_argument("--seconds", type=float, default=20.0)
     ap.add_argument("--warmup", type=float, default=3.0)
     args = ap.parse_args(argv)
     if args.role == "publisher":
         _publisher(args.seconds)
         return 0
-    if args.role in ("single", "multi"):
+    if args.role in ("single", "multi", "events"):
         _listener(args.role, args.warmup, args.seconds)
         return 0
     rows = {}
-    for kind in ("single", "multi"):
+    for kind in ("single", "multi", "events"):
         print(f"executor {kind}: {args.seconds:g} s ...", file=sys.stderr, flush=True)
         rows[kind] = measure(kind, args.seconds, args.warmup)
         print(f"  {rows[kind]}", file=sys.stderr, flush=True)
     ratio = rows["multi"]["us_per_message"] / max(rows["single"]["us_per_message"], 1e-9)
-    print(json.dumps({**rows, "multi_over_single": round(ratio, 2)}))
+    events = rows["events"]["us_per_message"] / max(rows["single"]["us_per_message"], 1e-9)
+    print(json.dumps({**rows, "multi_over_single": round(ratio, 2),
+                      "events_over_single": round(events, 2)}))
     return 0
 
 

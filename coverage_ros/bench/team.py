@@ -5,9 +5,9 @@ Runs ``coverage-team`` (world node + the robots' processes, geodesic strategy by
 achieved real-time factor, CPU (% of one core) and memory per robot (all robot processes'
 figures over the number of robots), and how often the robots updated their cells: the largest
 of the robots' median periods between coverage updates, read back from their logs (each robot
-logs its update statistics when it stops). ``--robots-per-process K`` and
-``--discovery-server`` are passed to the launcher. Progress goes to stderr; the last stdout
-line is JSON.
+logs its update statistics when it stops). ``--robots-per-process K``,
+``--discovery-server`` and ``--executor`` are passed to the launcher. Progress goes to stderr;
+the last stdout line is JSON.
 """
 
 from __future__ import annotations
@@ -21,6 +21,7 @@ import tempfile
 from pathlib import Path
 
 from coverage_ros.cli.team import main as team_main
+from coverage_ros.nodes.runner import EXECUTORS
 
 DEPOT = Path(__file__).resolve().parents[2].parent / "shared" / "maps" / "depot.yaml"
 #: A robot's update statistics line (nodes/plumbing.UpdateWorker.summary) in its log.
@@ -50,13 +51,16 @@ def main(argv: list[str] | None = None) -> int:
                     help="robots per process (default: the launcher's for this machine)")
     ap.add_argument("--discovery-server", action="store_true",
                     help="a Fast DDS discovery server instead of simple discovery")
+    ap.add_argument("--executor", choices=EXECUTORS, default=EXECUTORS[0],
+                    help="rclpy executor of every node process (the launcher's --executor)")
     ap.add_argument("--keep", type=Path, help="keep the run's output folder here")
     args = ap.parse_args(argv)
     with tempfile.TemporaryDirectory(prefix="bench-team-") as tmp:
         out = args.keep or Path(tmp)
         extra = (["--robots-per-process", str(args.robots_per_process)]
                  if args.robots_per_process else []) + \
-            (["--discovery-server"] if args.discovery_server else [])
+            (["--discovery-server"] if args.discovery_server else []) + \
+            ["--executor", args.executor]
         code = team_main(["--robots", str(args.robots), "--world", args.world, "--strategy",
                           args.strategy, "--duration", str(args.duration), "--seed",
                           str(args.seed), "--rtf", "1.0", "--stats", "--out", str(out),
@@ -71,6 +75,7 @@ def main(argv: list[str] | None = None) -> int:
         "robots": args.robots, "world": Path(args.world).name, "strategy": args.strategy,
         "robot_processes": procs["robot_processes"],
         "discovery": "server" if args.discovery_server else "simple",
+        "executor": args.executor,
         "sim_time": round(summary["sim_time"] - (summary["ready_at"] or 0.0), 1),
         "rtf": summary["rtf"],
         "rss_mb_per_robot": procs["per_robot"]["rss_mb"],

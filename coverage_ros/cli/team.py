@@ -47,6 +47,7 @@ from coverage_ros.core.world import load_planar_world, write_team
 from coverage_ros.core.world.region import Region, parse_region_text
 from coverage_ros.core.world.yaml_io import yaml_mapping
 from coverage_ros.errors import ConfigError, CoverageError
+from coverage_ros.nodes.runner import EXECUTOR_ENV, EXECUTORS
 from coverage_ros.worlds import resolve_world_path
 
 #: [s] wall time the children get to stop cleanly after an interrupt before SIGTERM, then SIGKILL
@@ -141,6 +142,10 @@ def build_parser() -> argparse.ArgumentParser:
                     help="run a Fast DDS discovery server on this address (default "
                     "127.0.0.1:11811) and make every process a client of it "
                     "(ROS_DISCOVERY_SERVER) instead of simple discovery")
+    ap.add_argument("--executor", choices=EXECUTORS, default=None,
+                    help="rclpy executor of every node process (COVERAGE_ROS_EXECUTOR; default "
+                    "single: SingleThreadedExecutor; events: rclpy's experimental "
+                    "EventsExecutor, less CPU per message)")
     ap.add_argument("--quiet", action="store_true", help="no progress display")
     return ap
 
@@ -237,6 +242,8 @@ def run(args: argparse.Namespace) -> int:
     env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     env["ROS_DOMAIN_ID"] = str(domain_id)
     env["PYTHONUNBUFFERED"] = "1"
+    if args.executor is not None:
+        env[EXECUTOR_ENV] = args.executor
     if discovery is not None:
         env["ROS_DISCOVERY_SERVER"] = "{}:{}".format(*discovery)
         env["ROS_SUPER_CLIENT"] = "TRUE"  # robots find neighbours in the graph: see all of it

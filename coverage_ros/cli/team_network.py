@@ -28,7 +28,8 @@ DEFAULT_DISCOVERY_PORT = 11811  # Fast DDS's default for a discovery server
 DISCOVERY_START_TIMEOUT = 10.0  # [s] wall time for the server to say it runs
 #: Environment a remote robot needs besides ROS_DOMAIN_ID (when set on the launcher's host).
 FORWARDED_ENV = ("ROS_AUTOMATIC_DISCOVERY_RANGE", "ROS_STATIC_PEERS", "ROS_DISCOVERY_SERVER",
-                 "ROS_SUPER_CLIENT", "RMW_IMPLEMENTATION", "FASTDDS_BUILTIN_TRANSPORTS")
+                 "ROS_SUPER_CLIENT", "RMW_IMPLEMENTATION", "FASTDDS_BUILTIN_TRANSPORTS",
+                 "COVERAGE_ROS_EXECUTOR")
 
 
 def parse_remote_robots(text: str | None, n: int) -> list[int]:

@@ -4,10 +4,17 @@ Start-up errors (bad parameters, world files, maps) end the process with one lin
 ``<name>: error: ...`` on stderr and exit code 2; so does a :class:`FatalConfigError` raised
 later from a callback (e.g. a map that arrives and does not fit the configuration). SIGINT and
 SIGTERM end it cleanly with code 0, also when they interrupt a callback mid-way.
+
+The executor is rclpy's ``SingleThreadedExecutor`` unless the environment variable
+``COVERAGE_ROS_EXECUTOR`` is ``events``: then rclpy's ``EventsExecutor``
+(``rclpy.experimental``, its dispatch loop in C++: 0.24-0.30x the CPU per message received in
+``scripts/bench_executor``), spun by ``spin_once`` in a loop - its ``spin()`` did not return on
+SIGINT here. ``coverage-team --executor`` sets it for every process of a team.
 """
 
 from __future__ import annotations
 
+import os
 import sys
 from collections.abc import Callable
 
@@ -20,6 +27,33 @@ from rclpy.node import Node
 from coverage_ros.errors import CoverageError
 
 STARTUP_ERRORS = (CoverageError, ParameterException, OSError)
+#: Values of ``COVERAGE_ROS_EXECUTOR`` (module docstring); the first is the default.
+EXECUTORS = ("single", "events")
+EXECUTOR_ENV = "COVERAGE_ROS_EXECUTOR"
+
+
+def executor_kind() -> str:
+    """The executor the environment asks for (:data:`EXECUTORS`)."""
+    kind = os.environ.get(EXECUTOR_ENV, "") or EXECUTORS[0]
+    if kind not in EXECUTORS:
+        raise CoverageError(f"environment variable {EXECUTOR_ENV}={kind!r}: expected one of "
+                            f"{', '.join(EXECUTORS)}")
+    return kind
+
+
+def _executor(kind: str):
+    if kind == "events":
+        from rclpy.experimental.events_executor import EventsExecutor
+        return EventsExecutor()
+    return SingleThreadedExecutor()
+
+
+def _spin(executor, kind: str, context) -> None:
+    if kind == "events":
+        while context.ok():
+            executor.spin_once(timeout_sec=0.2)
+    else:
+        executor.spin()
 
 
 class FatalConfigError(CoverageError):
@@ -47,6 +81,11 @@ def run_nodes(name: str, make_nodes: Callable[[], list[Node]], args=None,
               cleanup: Callable[[Node], None] | None = None) -> int:
     """:func:`run_node` for several nodes in one process (the composition idiom): all of them
     on one single-threaded executor; ``cleanup`` runs for each before it is destroyed."""
+    try:
+        kind = executor_kind()
+    except CoverageError as exc:
+        print(f"{name}: error: {exc}", file=sys.stderr)
+        return 2
     rclpy.init(args=args)
     try:
         nodes = make_nodes()
@@ -54,12 +93,14 @@ def run_nodes(name: str, make_nodes: Callable[[], list[Node]], args=None,
         print(f"{name}: error: {exc}", file=sys.stderr)
         rclpy.try_shutdown()
         return 2
-    executor = SingleThreadedExecutor()
+    executor = _executor(kind)
+    if kind != EXECUTORS[0]:
+        nodes[0].get_logger().info(f"executor: {kind} ({EXECUTOR_ENV})")
     for node in nodes:
         executor.add_node(node)
     code = 0
     try:
-        executor.spin()
+        _spin(executor, kind, nodes[0].context)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except FatalConfigError as exc:

@@ -97,7 +97,6 @@ class MassCells:
         self._xy_centred = self.xy - self._centre
         _, self._nearest = ndimage.distance_transform_edt(~feasible, return_indices=True)
         self._zero = domain.density <= 0.0  # rho = 0: outside the targets and on obstacles
-        self._occluders: np.ndarray | None = None  # (M, 2) grid centres, built on first use
 
     @functools.cached_property
     def regions(self) -> int:
@@ -184,16 +183,14 @@ class MassCells:
         cannot see set to -1."""
         out = labels.copy()
         P = np.asarray(positions, dtype=np.float64).reshape(-1, 2)
-        if self._occluders is None:  # blocked cells that can block a line of sight, once
-            rr, cc = np.nonzero(self.domain.occluders)
-            self._occluders = np.stack([cc + 0.5, rr + 0.5], axis=-1).astype(np.float64)
+        occluders = self.domain.occluder_centers  # (M, 2) grid centres, made once per domain
         for i in range(len(P)) if agents is None else agents:
             own = np.flatnonzero(out == i)
-            if len(own) == 0 or len(self._occluders) == 0:
+            if len(own) == 0 or len(occluders) == 0:
                 continue
             # The same line-of-sight model as CoverageDomain.visible_mask, over the whole map.
             origin = self.domain.to_grid(P[i])[0]
-            depth = polar_depth(origin, self._occluders, self.domain.depth_bins)
+            depth = polar_depth(origin, occluders, self.domain.depth_bins)
             out[own[~visible_from(origin, self.grid[own], depth)]] = -1
         return out
 

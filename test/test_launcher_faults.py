@@ -87,6 +87,16 @@ def test_impossible_runs_are_refused_before_anything_starts(tmp_path, args, mess
     assert not (out / "logs").exists()
 
 
+def test_an_unknown_executor_in_the_environment_is_refused_before_anything_starts(tmp_path):
+    out = tmp_path / "team"
+    proc = subprocess.run(TEAM + ["--out", str(out)], capture_output=True, text=True,
+                          timeout=120, env=ros_env(domain_id(26), COVERAGE_ROS_EXECUTOR="bad"))
+    assert proc.returncode == 2, proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and "COVERAGE_ROS_EXECUTOR='bad'" in lines[0], proc.stderr
+    assert not (out / "logs").exists()
+
+
 def _children(pid: int) -> list[psutil.Process]:
     try:
         return psutil.Process(pid).children(recursive=True)

@@ -47,7 +47,7 @@ from coverage_ros.core.world import load_planar_world, write_team
 from coverage_ros.core.world.region import Region, parse_region_text
 from coverage_ros.core.world.yaml_io import yaml_mapping
 from coverage_ros.errors import ConfigError, CoverageError
-from coverage_ros.nodes.runner import EXECUTOR_ENV, EXECUTORS
+from coverage_ros.nodes.runner import EXECUTOR_ENV, EXECUTORS, executor_kind
 from coverage_ros.worlds import resolve_world_path
 
 #: [s] wall time the children get to stop cleanly after an interrupt before SIGTERM, then SIGKILL
@@ -216,6 +216,7 @@ def run(args: argparse.Namespace) -> int:
                              sorted({rid for _, rid, _ in faults if rid in remote}))
     discovery = (parse_discovery_address(args.discovery_server)
                  if args.discovery_server is not None else None)
+    args.executor = args.executor or executor_kind()  # a bad COVERAGE_ROS_EXECUTOR: refused
     check_reach(dict(os.environ), remote, discovery is not None)
     load = args.update_load if args.update_load is not None else default_update_load(args.robots)
     if not (math.isfinite(load) and 0 < load <= 1):
@@ -242,8 +243,7 @@ def run(args: argparse.Namespace) -> int:
     env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     env["ROS_DOMAIN_ID"] = str(domain_id)
     env["PYTHONUNBUFFERED"] = "1"
-    if args.executor is not None:
-        env[EXECUTOR_ENV] = args.executor
+    env[EXECUTOR_ENV] = args.executor
     if discovery is not None:
         env["ROS_DISCOVERY_SERVER"] = "{}:{}".format(*discovery)
         env["ROS_SUPER_CLIENT"] = "TRUE"  # robots find neighbours in the graph: see all of it

@@ -80,7 +80,7 @@ def run_node(name: str, make_node: Callable[[], Node], args=None,
 def run_nodes(name: str, make_nodes: Callable[[], list[Node]], args=None,
               cleanup: Callable[[Node], None] | None = None) -> int:
     """:func:`run_node` for several nodes in one process (the composition idiom): all of them
-    on one single-threaded executor; ``cleanup`` runs for each before it is destroyed."""
+    on one executor (module docstring); ``cleanup`` runs for each before it is destroyed."""
     try:
         kind = executor_kind()
     except CoverageError as exc:

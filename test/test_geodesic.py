@@ -13,6 +13,13 @@ from coverage_ros.core.geodesic.cell import COLD_STRIDE, SearchCache, cold_radiu
 from coverage_ros.core.geodesic.domain import CoverageDomain
 from coverage_ros.core.geodesic.graph import octile_bound
 from coverage_ros.core.geodesic.reference import obvious_cell, paper_cell
+from coverage_ros.core.geodesic.tangents import (
+    SIGHT_TILE,
+    polar_depth,
+    sight_tiles,
+    tile_index,
+    visible_from,
+)
 from coverage_ros.core.geodesic.tessellation import Generator, tessellate
 from coverage_ros.core.world import cluster_starts, load_world
 from coverage_ros.core.world.grid import OCCUPIED, GridMap
@@ -449,3 +456,57 @@ def test_a_depth_map_kept_for_a_larger_radius_answers_a_smaller_one_alike():
                                       domain.visible_mask(origin, far, 60.0))
     answers = np.concatenate(answers)
     assert answers.any() and not answers.all()  # walls hide some points, not all
+
+
+def test_line_of_sight_decided_by_tiles_equals_the_test_point_by_point():
+    """sight_tiles decides whole tiles (seen, hidden) and leaves the rest to visible_from; the
+    answers must be visible_from's for every point: cell centres, random points, points on tile
+    edges and corners, outside the grid, and origins on tile corners, edges and cell centres."""
+    rng = np.random.default_rng(11)
+    H, W = 130, 170
+    yy, xx = np.mgrid[0:H, 0:W]
+    centres = np.stack([xx.ravel() + 0.5, yy.ravel() + 0.5], axis=-1)
+    decided = []
+    for trial in range(60):
+        blocked = rng.random((H, W)) < (0.002, 0.01, 0.05)[trial % 3]
+        rr, cc = np.nonzero(blocked)
+        occ = np.stack([cc + 0.5, rr + 0.5], axis=-1).astype(float)
+        origin = rng.uniform([0, 0], [W, H])
+        if trial % 4 == 0:
+            origin = np.round(origin / SIGHT_TILE) * SIGHT_TILE
+        elif trial % 4 == 1:
+            origin = np.floor(origin) + 0.5
+        depth = polar_depth(origin, occ, 2048)
+        pts = np.concatenate([centres, rng.uniform([-5, -5], [W + 5, H + 5], (4000, 2)),
+                              np.round(rng.uniform([0, 0], [W, H], (2000, 2)) / SIGHT_TILE)
+                              * SIGHT_TILE])
+        states = sight_tiles(origin, depth, (H, W))
+        tiled = visible_from(origin, pts, depth, (states, tile_index(pts, (H, W))))
+        np.testing.assert_array_equal(tiled, visible_from(origin, pts, depth))
+        decided.append(np.mean(states >= 0))
+    assert 0.3 < np.mean(decided) < 1.0  # the tiles decide much, not all
+
+
+def test_the_whole_domain_search_gives_each_robots_cell_with_tiles_as_without(monkeypatch):
+    """The visible-first search with line of sight decided by tiles settles the same cells as
+    with every point tested alone (the tiles switched off)."""
+    from coverage_ros.core.geodesic import sight
+    world = load_world(WORLDS / "office.yaml")
+    starts = cluster_starts(world.grid, 6, 0.105, np.random.default_rng(1))
+    gens = [Generator(p) for p in starts[:, :2]]
+    calls = []
+    plain = sight.LineOfSight.sight_tiles
+    monkeypatch.setattr(sight.LineOfSight, "sight_tiles",
+                        lambda self, *a: calls.append(1) or plain(self, *a))
+
+    def cells(domain):
+        return [np.sort(geodesic_cell(domain, g, [h for h in gens if h is not g]).nodes)
+                for g in gens]
+
+    tiled = cells(CoverageDomain.from_world(world, 0.105))
+    assert calls  # the whole-domain search ran and used the tiles
+    monkeypatch.setattr(sight, "TILED_FROM", 10**12)
+    monkeypatch.setattr(sight.LineOfSight, "sight_tiles",  # every tile to be tested
+                        lambda self, *a: np.full(len(plain(self, *a)), -1, dtype=np.int8))
+    for a, b in zip(tiled, cells(CoverageDomain.from_world(world, 0.105)), strict=True):
+        np.testing.assert_array_equal(a, b)

@@ -75,9 +75,9 @@ def counting_searches() -> Iterator[SearchCount]:
             np.size(kwargs["indices"]))
         return out
 
-    def visible_mask(self, origin, points, radius, depths=None):
+    def visible_mask(self, origin, points, radius, depths=None, point_tiles=None):
         count.sighted += len(points)
-        return plain_mask(self, origin, points, radius, depths)
+        return plain_mask(self, origin, points, radius, depths, point_tiles)
 
     for module in _SEARCH_MODULES:
         if module.dijkstra is not scipy_dijkstra:

@@ -26,7 +26,7 @@ import numpy as np
 from scipy import ndimage
 
 from coverage_ros.core.geodesic.graph import GridGraph, build_grid_graph
-from coverage_ros.core.geodesic.tangents import polar_depth, visible_from
+from coverage_ros.core.geodesic.sight import LineOfSight
 from coverage_ros.core.world.density import Density, UniformDensity, density_on_grid
 from coverage_ros.core.world.grid import GridMap
 from coverage_ros.core.world.spec import WorldSpec
@@ -46,7 +46,7 @@ def tie_bias(grid_xy: np.ndarray) -> float:
 
 
 @dataclass(frozen=True, eq=False)
-class CoverageDomain:
+class CoverageDomain(LineOfSight):
     geometry: GridMap
     graph: GridGraph
     density: np.ndarray  # (H, W) float64 >= 0, zero on blocked cells
@@ -286,68 +286,6 @@ class CoverageDomain:
             keep = has[i]
             out.append((nodes[i, keep], costs[i, keep] + tie_bias(g[i]), g[i]))
         return out
-
-    # ------------------------------------------------------------------ line of sight
-    @property
-    def sees_straight(self) -> bool:
-        """Whether straight chart segments are geodesics (Euclidean metric, no wrap), so that
-        sources may be joined to every cell in line of sight."""
-        return self.graph.euclidean and not any(self.graph.wrap)
-
-    @property
-    def occluders(self) -> np.ndarray:
-        """``(H, W) bool``: blocked cells next to a free one (the only ones that can block a
-        line of sight between free cells)."""
-        key = "occluders"
-        if key not in self._cache:
-            blocked = ~self.free
-            near_free = ndimage.binary_dilation(self.free, structure=np.ones((3, 3), bool))
-            self._cache[key] = blocked & near_free
-        return self._cache[key]
-
-    @property
-    def depth_bins(self) -> int:
-        """Angular bins of every line-of-sight depth map on this domain (fixed per domain, so
-        that every computation of "visible" agrees): enough to resolve one cell at the far
-        side of the grid."""
-        H, W = self.shape
-        return int(np.clip(2 ** math.ceil(math.log2(2.0 * math.pi * math.hypot(H, W))),
-                           1024, 16384))
-
-    @property
-    def occluder_centers(self) -> np.ndarray:
-        """``(M, 2)`` grid coordinates of the :attr:`occluders`' centres (x = column + 0.5)."""
-        key = "occluder_centers"
-        if key not in self._cache:
-            rr, cc = np.nonzero(self.occluders)
-            self._cache[key] = np.stack([cc + 0.5, rr + 0.5], axis=-1).astype(np.float64)
-        return self._cache[key]
-
-    def visible_mask(self, origin: np.ndarray, points: np.ndarray, radius: float,
-                     depths: dict | None = None) -> np.ndarray:
-        """``(N,) bool``: grid points (within ``radius`` cells of the grid point ``origin``)
-        in line of sight of it; blocked cells are discs of half a cell diagonal.
-
-        ``depths``, a dict the caller keeps, holds the depth maps made so far by origin: one
-        made for a radius at least as large is used again. That changes no answer - an
-        occluder outside a radius' box is farther than any point the radius allows, so it
-        cannot hide one."""
-        key = (float(origin[0]), float(origin[1]))
-        held = depths.get(key) if depths is not None else None
-        if held is not None and held[0] >= radius:
-            return visible_from(origin, points, held[1])
-        H, W = self.shape
-        R = radius + 2.0
-        occ = self.occluder_centers
-        if R < max(H, W):  # a box around the origin; the whole domain's otherwise
-            occ = occ[(np.abs(occ[:, 0] - origin[0]) <= R + 1.0)
-                      & (np.abs(occ[:, 1] - origin[1]) <= R + 1.0)]
-        if len(occ) == 0:
-            return np.ones(len(points), dtype=bool)
-        depth = polar_depth(origin, occ, self.depth_bins)
-        if depths is not None:
-            depths[key] = (radius, depth)
-        return visible_from(origin, points, depth)
 
     def seeds(self, point_map: np.ndarray, nodes: np.ndarray, centers: np.ndarray,
               radius: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

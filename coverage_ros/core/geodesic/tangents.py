@@ -23,6 +23,10 @@ import numpy as np
 
 #: [cells] radius of the disc that covers a blocked unit cell (half its diagonal).
 CELL_HALF_DIAGONAL = math.sqrt(0.5)
+#: [cells] side of the square tiles whose line of sight :func:`sight_tiles` decides whole.
+SIGHT_TILE = 16
+#: sight tiles spanning more than 2**10 depth bins (close to the origin) are not decided whole
+_WIDEST_LEVEL = 10
 
 
 def ancestor_table(parent: np.ndarray) -> list[np.ndarray]:
@@ -80,15 +84,99 @@ def polar_depth(origin: np.ndarray, blocked_xy: np.ndarray, bins: int) -> np.nda
     return depth
 
 
-def visible_from(origin: np.ndarray, points: np.ndarray, depth: np.ndarray) -> np.ndarray:
+def visible_from(origin: np.ndarray, points: np.ndarray, depth: np.ndarray,
+                 tiles: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """``(N,) bool``: points (grid coordinates) closer to ``origin`` than the depth map's
-    obstacle along their direction."""
+    obstacle along their direction.
+
+    ``tiles``, optional, is ``(states, point_tiles)``: :func:`sight_tiles` of this origin and
+    depth map, and :func:`tile_index` of the points. Points in a tile decided whole take its
+    answer; only the others are tested one by one. The answer is the same either way."""
+    if tiles is not None:
+        states, point_tiles = tiles
+        s = np.where(point_tiles >= 0, states[np.maximum(point_tiles, 0)], -1)
+        out = s == 1
+        mixed = np.flatnonzero(s < 0)
+        if len(mixed):
+            out[mixed] = visible_from(origin, points[mixed], depth)
+        return out
     d = points - origin
     dist = np.hypot(d[:, 0], d[:, 1])
     bins = len(depth)
     idx = (np.floor((np.arctan2(d[:, 1], d[:, 0]) + math.pi) / (2.0 * math.pi / bins))
            .astype(np.int64) % bins)
     return dist <= depth[idx]
+
+
+def tile_index(points: np.ndarray, shape: tuple[int, int], tile: int = SIGHT_TILE) -> np.ndarray:
+    """``(N,)`` the flat index (row-major) of the :func:`sight_tiles` tile holding each point
+    (grid coordinates) of a grid of ``shape`` cells; -1 for a point outside the grid."""
+    H, W = shape
+    nx = -(-W // tile)
+    col = np.floor(points[:, 0] / tile)
+    row = np.floor(points[:, 1] / tile)
+    inside = (points[:, 0] >= 0) & (points[:, 0] < W) & (points[:, 1] >= 0) & (points[:, 1] < H)
+    return np.where(inside, row * nx + col, -1).astype(np.int64)
+
+
+def sight_tiles(origin: np.ndarray, depth: np.ndarray, shape: tuple[int, int],
+                tile: int = SIGHT_TILE) -> np.ndarray:
+    """``(ny * nx,) int8`` over the square tiles of ``tile`` x ``tile`` cells of a grid of
+    ``shape`` cells (row-major; tile ``(i, j)`` spans x in ``[j tile, (j + 1) tile]``, y in
+    ``[i tile, (i + 1) tile]``): 1 where :func:`visible_from` ``origin`` with ``depth`` is true
+    for every point of the tile, 0 where it is false for every one, -1 where it may vary (or
+    the tile holds the origin).
+
+    A tile away from the origin spans an angle under pi: its points' directions fall in the
+    bins between its corners' (one more bin each side for rounding), and their distances
+    between the tile's nearest and farthest point. It is seen whole when its farthest point is
+    nearer than every depth of those bins, and hidden whole when its nearest point is beyond
+    all of them. Range minima and maxima come from sparse tables over the depth map repeated
+    three times (so that a range crossing the angle -pi reads on unbroken)."""
+    H, W = shape
+    ny, nx = -(-H // tile), -(-W // tile)
+    x0 = np.tile(np.arange(nx, dtype=np.float64) * tile, ny) - origin[0]
+    y0 = np.repeat(np.arange(ny, dtype=np.float64) * tile, nx) - origin[1]
+    x1, y1 = x0 + tile, y0 + tile
+    holds = (x0 <= 0) & (x1 >= 0) & (y0 <= 0) & (y1 >= 0)
+    near = np.hypot(np.maximum(np.maximum(x0, -x1), 0.0), np.maximum(np.maximum(y0, -y1), 0.0))
+    far = np.hypot(np.maximum(np.abs(x0), np.abs(x1)), np.maximum(np.abs(y0), np.abs(y1)))
+    mid = np.arctan2((y0 + y1) / 2.0, (x0 + x1) / 2.0)
+    corners = np.arctan2(np.stack([y0, y0, y1, y1]), np.stack([x0, x1, x0, x1]))
+    off = (corners - mid + math.pi) % (2.0 * math.pi) - math.pi  # within (-pi/2, pi/2)
+    bins = len(depth)
+    step = 2.0 * math.pi / bins
+    lo = np.floor((mid + off.min(axis=0) + math.pi) / step).astype(np.int64) - 1 + bins
+    hi = np.floor((mid + off.max(axis=0) + math.pi) / step).astype(np.int64) + 1 + bins
+    lo = np.clip(lo, 0, 3 * bins - 1)
+    hi = np.clip(np.maximum(hi, lo), 0, 3 * bins - 1)
+    level = np.floor(np.log2(hi - lo + 1)).astype(np.int64)
+    wide = holds | (level > _WIDEST_LEVEL)  # (tiles next to the origin: tested point by point)
+    level = np.minimum(level, _WIDEST_LEVEL)
+    base = int(lo.min())
+    least, most = _range_tables(np.tile(depth, 3)[base:int(hi.max()) + 1], int(level.max()) + 1)
+    lo, right = lo - base, np.maximum(hi - base - (1 << level) + 1, 0)
+    lowest = np.minimum(least[level, lo], least[level, right])
+    highest = np.maximum(most[level, lo], most[level, right])
+    states = np.full(ny * nx, -1, dtype=np.int8)
+    states[(far * (1.0 + 1e-12) + 1e-9 <= lowest) & ~wide] = 1
+    states[(near - 1e-9 > highest) & ~wide] = 0
+    return states
+
+
+def _range_tables(values: np.ndarray, levels: int) -> tuple[np.ndarray, np.ndarray]:
+    """Sparse tables ``(levels, len(values))``: entry ``[k, i]`` is the minimum (maximum) of
+    ``values[i : i + 2**k]`` (as far as the array goes)."""
+    least = np.empty((levels, len(values)))
+    most = np.empty((levels, len(values)))
+    least[0] = most[0] = values
+    for k in range(1, levels):
+        h = 1 << (k - 1)
+        least[k] = least[k - 1]
+        most[k] = most[k - 1]
+        np.minimum(least[k - 1][:-h], least[k - 1][h:], out=least[k][:-h])
+        np.maximum(most[k - 1][:-h], most[k - 1][h:], out=most[k][:-h])
+    return least, most
 
 
 def depth_bins(radius_cells: float) -> int:

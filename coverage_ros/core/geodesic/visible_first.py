@@ -26,6 +26,7 @@ from scipy.sparse.csgraph import dijkstra
 
 from coverage_ros.core.geodesic.domain import CoverageDomain, tie_bias
 from coverage_ros.core.geodesic.local_search import LocalGraph
+from coverage_ros.core.geodesic.tangents import SIGHT_TILE
 
 
 def visible_first_search(domain: CoverageDomain, local: LocalGraph,
@@ -48,11 +49,15 @@ def visible_first_search(domain: CoverageDomain, local: LocalGraph,
     cx, cy = np.arange(W) + 0.5, np.arange(H) + 0.5
     best = np.full((H, W), np.inf)
     winner = np.full((H, W), -1, dtype=np.int64)
+    d = np.empty((H, W))
+    closer = np.empty((H, W), dtype=bool)
     for k in range(k_gens):  # squared distances separate into a row and a column term
-        d = np.sqrt((cy[:, None] - grids[k, 1]) ** 2 + (cx[None, :] - grids[k, 0]) ** 2)
-        d *= res
+        np.add(((cy - grids[k, 1]) * res)[:, None] ** 2, ((cx - grids[k, 0]) * res)[None, :] ** 2,
+               out=d)
+        np.sqrt(d, out=d)
         d += biases[k]
-        np.putmask(winner, d < best, k)
+        np.less(d, best, out=closer)
+        np.putmask(winner, closer, k)
         np.minimum(best, d, out=best)
     best, winner = best.ravel(), winner.ravel()
     best[~free] = np.inf
@@ -70,13 +75,16 @@ def visible_first_search(domain: CoverageDomain, local: LocalGraph,
     # One depth map per generator over the whole domain (the reach of its farthest corner)
     # serves both line-of-sight passes.
     depths: dict = {}
+    reaches = [math.hypot(max(gx, W - gx), max(gy, H - gy)) for gx, gy in grids]
+    nx = -(-W // SIGHT_TILE)
+    node_tiles = ((np.arange(H) // SIGHT_TILE)[:, None] * nx
+                  + (np.arange(W) // SIGHT_TILE)[None, :]).ravel()
     for k in range(k_gens):
         mine = np.flatnonzero(winner == k)
         if len(mine) == 0:
             continue
-        gx, gy = grids[k]
-        reach = math.hypot(max(gx, W - gx), max(gy, H - gy))
-        settled[mine] = domain.visible_mask(grids[k], centers[mine], reach, depths)
+        settled[mine] = domain.visible_mask(grids[k], centers[mine], reaches[k], depths,
+                                            node_tiles[mine])
         own_snap = snap_best[k][0]
         settled[own_snap[winner[own_snap] == k]] = True
     dist = np.full(first + k_gens, np.inf)
@@ -89,38 +97,45 @@ def visible_first_search(domain: CoverageDomain, local: LocalGraph,
     hidden = np.flatnonzero(free & ~settled)
     if len(hidden):
         _search_hidden(domain, local, hidden, settled, dist, pred, label, grids, biases,
-                       snap_best, depths)
+                       snap_best, (depths, reaches, node_tiles[hidden]))
     return dist, pred, label
 
 
 def _search_hidden(domain: CoverageDomain, local: LocalGraph, hidden: np.ndarray,
                    settled: np.ndarray, dist: np.ndarray, pred: np.ndarray, label: np.ndarray,
                    grids: np.ndarray, biases: np.ndarray,
-                   snap_best: list[tuple[np.ndarray, np.ndarray]], depths: dict) -> None:
+                   snap_best: list[tuple[np.ndarray, np.ndarray]],
+                   sight: tuple[dict, list[float], np.ndarray]) -> None:
     """Dijkstra over the hidden cells from their settled neighbours and from every generator's
-    own seeds among them (in line of sight, or snap edges); fills the arrays in place."""
+    own seeds among them (in line of sight, or snap edges); fills the arrays in place.
+    ``sight``: the depth maps made so far, each generator's whole-domain reach, and the
+    hidden cells' line-of-sight tiles."""
     n = local.n
     first = n + 1
     res = domain.resolution
     k_gens = len(grids)
-    nb, edge = local.nb[hidden], local.edge[hidden]  # local ids (1..n; 0 = sink)
-    border = np.unique(nb[edge & settled[np.maximum(nb - 1, 0)] & (nb > 0)]) - 1
+    nb_table, cost_table = domain.graph.edge_table  # (n, K) node ids, n where no edge
+    # A visibility domain's graph is the grid's own (no chart edges): its edge table serves.
+    to_hidden = nb_table[hidden]
+    settled_x = np.append(settled, False)  # (index n: the table's "no edge")
+    mark = np.zeros(n + 1, dtype=bool)
+    mark[to_hidden[settled_x[to_hidden]]] = True
+    border = np.flatnonzero(mark[:n])
     sub = np.concatenate([hidden, border])  # sub index -> node index
-    pos = np.full(n + 1, -1, dtype=np.int64)  # (index n: the tables' "no edge" sentinel)
-    pos[sub] = np.arange(len(sub))
+    pos = np.full(n + 1, -1, dtype=np.int32)
+    pos[sub] = np.arange(len(sub), dtype=np.int32)
     m = len(sub)
     # Hidden rows: their graph edges within the sub-graph; border rows: edges into hidden
-    # cells. A visibility domain's graph is the grid's own (no chart edges): its edge table.
-    nb_table, cost_table = domain.graph.edge_table
+    # cells. Rows are selected row-major, so they stay in order (CSR built directly).
     counts, cols, vals = [], [], []
-    for start in (hidden, border):
-        to = nb_table[start]  # (s, K) node ids, n where there is no edge
+    for start, to in ((hidden, to_hidden), (border, nb_table[border])):
         inside = pos[to] >= 0
         if start is border:
-            inside &= ~np.append(settled, True)[to]
-        counts.append(inside.sum(axis=1))  # row-major selection: rows stay in order
+            inside &= ~settled_x[to]
+        counts.append(inside.sum(axis=1))
         cols.append(pos[to[inside]])
         vals.append(cost_table[start][inside])
+    rows = (np.concatenate(counts), np.concatenate(cols), np.concatenate(vals))
     # One virtual source per generator: to its border cells at their settled distance, and to
     # the hidden cells it snaps to or sees (at its snap / straight-line cost).
     to_border, snap_cost = [], []
@@ -139,23 +154,28 @@ def _search_hidden(domain: CoverageDomain, local: LocalGraph, hidden: np.ndarray
     # being strictly longer, any label or parent): only the others need a line-of-sight test,
     # which is most of this search's cost (a team bunched in a corner of depot leaves half of
     # the map hidden from its nearest robot; a few hundred cells then get a shorter line).
-    d, p, src = dijkstra(_graph(counts, cols, vals, to_border, snap_cost, size), directed=True,
+    d, p, src = dijkstra(_graph(rows, to_border, snap_cost, size), directed=True,
                          indices=sources, min_only=True, return_predecessors=True)
     upper = d[:len(hidden)]
     hc = local.centers[hidden]
+    depths, reaches, tiles = sight
     shorter = False
-    for k in range(k_gens):
-        e = np.hypot(hc[:, 0] - grids[k, 0], hc[:, 1] - grids[k, 1]) * res + biases[k]
-        better = np.flatnonzero(e <= upper + 1e-9)
-        if len(better):
-            reach = float(np.max(e[better] - biases[k])) / res
-            seen = better[domain.visible_mask(grids[k], hc[better], reach, depths)]
-            np.minimum.at(snap_cost[k], seen, e[seen])
-            shorter = shorter or bool(len(seen))
+    for k in range(k_gens):  # (cells in tiles hidden whole from the generator drop out first)
+        states = domain.sight_tiles(grids[k], reaches[k], depths)[tiles]
+        near = np.flatnonzero(states != 0)
+        e = np.hypot(hc[near, 0] - grids[k, 0], hc[near, 1] - grids[k, 1]) * res + biases[k]
+        keep = e <= upper[near] + 1e-9
+        better, e = near[keep], e[keep]
+        whole = states[better] == 1
+        test = np.flatnonzero(~whole)
+        if len(test):
+            whole[test] = domain.visible_mask(grids[k], hc[better[test]], reaches[k], depths)
+        seen = better[whole]
+        np.minimum.at(snap_cost[k], seen, e[whole])
+        shorter = shorter or bool(len(seen))
     if shorter:  # (a line no shorter than the path found changes nothing: the first stands)
-        d, p, src = dijkstra(_graph(counts, cols, vals, to_border, snap_cost, size),
-                             directed=True, indices=sources, min_only=True,
-                             return_predecessors=True)
+        d, p, src = dijkstra(_graph(rows, to_border, snap_cost, size), directed=True,
+                             indices=sources, min_only=True, return_predecessors=True)
     h = np.arange(len(hidden))
     reached = np.isfinite(d[h])
     lid = hidden[h[reached]] + 1
@@ -167,20 +187,19 @@ def _search_hidden(domain: CoverageDomain, local: LocalGraph, hidden: np.ndarray
     pred[lid] = mapped
 
 
-def _graph(counts: list[np.ndarray], cols: list[np.ndarray], vals: list[np.ndarray],
+def _graph(rows: tuple[np.ndarray, np.ndarray, np.ndarray],
            to_border: list[tuple[np.ndarray, np.ndarray]], seeds: list[np.ndarray],
            size: int) -> csr_matrix:
-    """The sub-graph's rows in order (``counts`` edges each, their ``cols`` and ``vals``),
-    then per generator k a source row to its border cells (``to_border[k]``: sub indices and
-    costs) and to every hidden cell with a finite ``seeds[k]`` cost; built as CSR directly
-    (no edge appears twice, so there is nothing to sum or sort)."""
-    counts, cols, vals = list(counts), list(cols), list(vals)
+    """The sub-graph's ``rows`` in order (edge counts per row, their columns and costs), then
+    per generator k a source row to its border cells (``to_border[k]``: sub indices and costs)
+    and to every hidden cell with a finite ``seeds[k]`` cost; built as CSR directly (no edge
+    appears twice, so there is nothing to sum or sort)."""
+    counts, cols, vals = [rows[0]], [rows[1]], [rows[2]]
     for (b_cols, b_vals), cost in zip(to_border, seeds, strict=True):
         to = np.flatnonzero(np.isfinite(cost))
         counts.append(np.array([len(b_cols) + len(to)]))
-        cols += [b_cols, to]
-        vals += [b_vals, cost[to]]
+        cols += [b_cols, to.astype(np.int32)]
+        vals += [np.maximum(b_vals, 1e-12), np.maximum(cost[to], 1e-12)]  # (0: no edge)
     indptr = np.zeros(size + 1, dtype=np.int32)
     np.cumsum(np.concatenate(counts), out=indptr[1:])
-    return csr_matrix((np.maximum(np.concatenate(vals), 1e-12),  # 0 would be no edge
-                       np.concatenate(cols).astype(np.int32), indptr), shape=(size, size))
+    return csr_matrix((np.concatenate(vals), np.concatenate(cols), indptr), shape=(size, size))

@@ -1,0 +1,118 @@
+"""Line of sight on a coverage domain: which blocked cells can hide anything, the polar depth
+maps made from them, and the tests of points against those maps (one by one, or a tile of
+cells at a time when many are asked). :class:`LineOfSight` is a part of
+:class:`~coverage_ros.core.geodesic.domain.CoverageDomain`, kept in a room of its own."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy import ndimage
+
+from coverage_ros.core.geodesic.tangents import (
+    SIGHT_TILE,
+    polar_depth,
+    sight_tiles,
+    tile_index,
+    visible_from,
+)
+
+#: points from which :meth:`LineOfSight.visible_mask` decides line of sight by tiles first
+TILED_FROM = 2048
+
+
+class LineOfSight:
+    """Line-of-sight queries of a domain (needs ``free``, ``shape``, ``graph`` and a
+    ``_cache`` dict from the class it is part of)."""
+
+    @property
+    def sees_straight(self) -> bool:
+        """Whether straight chart segments are geodesics (Euclidean metric, no wrap), so that
+        sources may be joined to every cell in line of sight."""
+        return self.graph.euclidean and not any(self.graph.wrap)
+
+    @property
+    def occluders(self) -> np.ndarray:
+        """``(H, W) bool``: blocked cells next to a free one (the only ones that can block a
+        line of sight between free cells)."""
+        key = "occluders"
+        if key not in self._cache:
+            blocked = ~self.free
+            near_free = ndimage.binary_dilation(self.free, structure=np.ones((3, 3), bool))
+            self._cache[key] = blocked & near_free
+        return self._cache[key]
+
+    @property
+    def depth_bins(self) -> int:
+        """Angular bins of every line-of-sight depth map on this domain (fixed per domain, so
+        that every computation of "visible" agrees): enough to resolve one cell at the far
+        side of the grid."""
+        H, W = self.shape
+        return int(np.clip(2 ** math.ceil(math.log2(2.0 * math.pi * math.hypot(H, W))),
+                           1024, 16384))
+
+    @property
+    def occluder_centers(self) -> np.ndarray:
+        """``(M, 2)`` grid coordinates of the :attr:`occluders`' centres (x = column + 0.5)."""
+        key = "occluder_centers"
+        if key not in self._cache:
+            rr, cc = np.nonzero(self.occluders)
+            self._cache[key] = np.stack([cc + 0.5, rr + 0.5], axis=-1).astype(np.float64)
+        return self._cache[key]
+
+    def visible_mask(self, origin: np.ndarray, points: np.ndarray, radius: float,
+                     depths: dict | None = None,
+                     point_tiles: np.ndarray | None = None) -> np.ndarray:
+        """``(N,) bool``: grid points (within ``radius`` cells of the grid point ``origin``)
+        in line of sight of it; blocked cells are discs of half a cell diagonal.
+
+        ``depths``, a dict the caller keeps, holds the depth maps made so far by origin: one
+        made for a radius at least as large is used again. That changes no answer - an
+        occluder outside a radius' box is farther than any point the radius allows, so it
+        cannot hide one. With ``depths``, many points are first decided a tile at a time
+        (:meth:`sight_tiles`; same answers); ``point_tiles``, the points'
+        :func:`~coverage_ros.core.geodesic.tangents.tile_index` when the caller has them,
+        saves working them out."""
+        held = self._depth_map(origin, radius, depths)
+        if held is None:
+            return np.ones(len(points), dtype=bool)
+        if depths is None or len(points) < TILED_FROM:
+            return visible_from(origin, points, held[1])
+        if point_tiles is None:
+            point_tiles = tile_index(points, self.shape)
+        return visible_from(origin, points, held[1],
+                            (self.sight_tiles(origin, radius, depths), point_tiles))
+
+    def sight_tiles(self, origin: np.ndarray, radius: float, depths: dict) -> np.ndarray:
+        """:func:`~coverage_ros.core.geodesic.tangents.sight_tiles` of the depth map that
+        :meth:`visible_mask` uses for ``origin`` and ``radius`` (made once, kept in
+        ``depths``): per tile, 1 seen whole, 0 hidden whole, -1 to be tested point by point;
+        all 1 when no occluder lies within the radius' box."""
+        held = self._depth_map(origin, radius, depths)
+        if held is None:
+            H, W = self.shape
+            return np.ones(-(-H // SIGHT_TILE) * -(-W // SIGHT_TILE), dtype=np.int8)
+        if held[2] is None:
+            held[2] = sight_tiles(origin, held[1], self.shape)
+        return held[2]
+
+    def _depth_map(self, origin: np.ndarray, radius: float, depths: dict | None) -> list | None:
+        """``[radius, depth map, tile states or None]`` for ``origin`` (kept in ``depths``),
+        or None when no occluder lies within the radius' box."""
+        key = (float(origin[0]), float(origin[1]))
+        held = depths.get(key) if depths is not None else None
+        if held is not None and held[0] >= radius:
+            return held
+        H, W = self.shape
+        R = radius + 2.0
+        occ = self.occluder_centers
+        if R < max(H, W):  # a box around the origin; the whole domain's otherwise
+            occ = occ[(np.abs(occ[:, 0] - origin[0]) <= R + 1.0)
+                      & (np.abs(occ[:, 1] - origin[1]) <= R + 1.0)]
+        if len(occ) == 0:
+            return None
+        held = [radius, polar_depth(origin, occ, self.depth_bins), None]
+        if depths is not None:
+            depths[key] = held
+        return held

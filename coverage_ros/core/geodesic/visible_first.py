@@ -144,9 +144,7 @@ def _search_hidden(domain: CoverageDomain, local: LocalGraph, hidden: np.ndarray
         to_border.append((pos[mine], dist[mine + 1]))
         snap_nodes, snap_costs = snap_best[k]
         hid = (pos[snap_nodes] >= 0) & ~settled[snap_nodes]  # hidden: pos < len(hidden)
-        cost = np.full(len(hidden), np.inf)
-        np.minimum.at(cost, pos[snap_nodes[hid]], snap_costs[hid])
-        snap_cost.append(cost)
+        snap_cost.append(_least(pos[snap_nodes[hid]], snap_costs[hid]))
     size = m + k_gens
     sources = np.arange(m, size)
     # First without the straight lines into hidden cells: the distances found are lengths of
@@ -170,9 +168,10 @@ def _search_hidden(domain: CoverageDomain, local: LocalGraph, hidden: np.ndarray
         test = np.flatnonzero(~whole)
         if len(test):
             whole[test] = domain.visible_mask(grids[k], hc[better[test]], reaches[k], depths)
-        seen = better[whole]
-        np.minimum.at(snap_cost[k], seen, e[whole])
-        shorter = shorter or bool(len(seen))
+        if whole.any():
+            snap_cost[k] = _least(np.concatenate([snap_cost[k][0], better[whole]]),
+                                  np.concatenate([snap_cost[k][1], e[whole]]))
+            shorter = True
     if shorter:  # (a line no shorter than the path found changes nothing: the first stands)
         d, p, src = dijkstra(_graph(rows, to_border, snap_cost, size), directed=True,
                              indices=sources, min_only=True, return_predecessors=True)
@@ -187,19 +186,28 @@ def _search_hidden(domain: CoverageDomain, local: LocalGraph, hidden: np.ndarray
     pred[lid] = mapped
 
 
+def _least(cells: np.ndarray, costs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each of ``cells`` once, at the least of its ``costs``."""
+    if len(cells) == 0:
+        return cells.astype(np.int32), costs
+    unique, inverse = np.unique(cells, return_inverse=True)
+    least = np.full(len(unique), np.inf)
+    np.minimum.at(least, inverse, costs)
+    return unique.astype(np.int32), least
+
+
 def _graph(rows: tuple[np.ndarray, np.ndarray, np.ndarray],
-           to_border: list[tuple[np.ndarray, np.ndarray]], seeds: list[np.ndarray],
-           size: int) -> csr_matrix:
+           to_border: list[tuple[np.ndarray, np.ndarray]],
+           seeds: list[tuple[np.ndarray, np.ndarray]], size: int) -> csr_matrix:
     """The sub-graph's ``rows`` in order (edge counts per row, their columns and costs), then
     per generator k a source row to its border cells (``to_border[k]``: sub indices and costs)
-    and to every hidden cell with a finite ``seeds[k]`` cost; built as CSR directly (no edge
-    appears twice, so there is nothing to sum or sort)."""
+    and to its hidden seed cells (``seeds[k]``: hidden indices, each once, and costs); built as
+    CSR directly (no edge appears twice, so there is nothing to sum or sort)."""
     counts, cols, vals = [rows[0]], [rows[1]], [rows[2]]
-    for (b_cols, b_vals), cost in zip(to_border, seeds, strict=True):
-        to = np.flatnonzero(np.isfinite(cost))
+    for (b_cols, b_vals), (to, cost) in zip(to_border, seeds, strict=True):
         counts.append(np.array([len(b_cols) + len(to)]))
-        cols += [b_cols, to.astype(np.int32)]
-        vals += [np.maximum(b_vals, 1e-12), np.maximum(cost[to], 1e-12)]  # (0: no edge)
+        cols += [b_cols, to]
+        vals += [np.maximum(b_vals, 1e-12), np.maximum(cost, 1e-12)]  # (0: no edge)
     indptr = np.zeros(size + 1, dtype=np.int32)
     np.cumsum(np.concatenate(counts), out=indptr[1:])
     return csr_matrix((np.concatenate(vals), np.concatenate(cols), indptr), shape=(size, size))

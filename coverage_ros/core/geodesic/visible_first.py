@@ -164,13 +164,10 @@ def _search_hidden(domain: CoverageDomain, local: LocalGraph, hidden: np.ndarray
         e = np.hypot(hc[near, 0] - grids[k, 0], hc[near, 1] - grids[k, 1]) * res + biases[k]
         keep = e <= upper[near] + 1e-9
         better, e = near[keep], e[keep]
-        whole = states[better] == 1
-        test = np.flatnonzero(~whole)
-        if len(test):
-            whole[test] = domain.visible_mask(grids[k], hc[better[test]], reaches[k], depths)
-        if whole.any():
-            snap_cost[k] = _least(np.concatenate([snap_cost[k][0], better[whole]]),
-                                  np.concatenate([snap_cost[k][1], e[whole]]))
+        seen = domain.visible_mask(grids[k], hc[better], reaches[k], depths, tiles[better])
+        if seen.any():
+            snap_cost[k] = _least(np.concatenate([snap_cost[k][0], better[seen]]),
+                                  np.concatenate([snap_cost[k][1], e[seen]]))
             shorter = True
     if shorter:  # (a line no shorter than the path found changes nothing: the first stands)
         d, p, src = dijkstra(_graph(rows, to_border, snap_cost, size), directed=True,

@@ -143,7 +143,7 @@ def sight_tiles(origin: np.ndarray, depth: np.ndarray, shape: tuple[int, int],
     far = np.hypot(np.maximum(np.abs(x0), np.abs(x1)), np.maximum(np.abs(y0), np.abs(y1)))
     mid = np.arctan2((y0 + y1) / 2.0, (x0 + x1) / 2.0)
     corners = np.arctan2(np.stack([y0, y0, y1, y1]), np.stack([x0, x1, x0, x1]))
-    off = (corners - mid + math.pi) % (2.0 * math.pi) - math.pi  # within (-pi/2, pi/2)
+    off = (corners - mid + math.pi) % (2.0 * math.pi) - math.pi  # |off| < 3 pi / 4
     bins = len(depth)
     step = 2.0 * math.pi / bins
     lo = np.floor((mid + off.min(axis=0) + math.pi) / step).astype(np.int64) - 1 + bins

@@ -52,9 +52,9 @@ def visible_first_search(domain: CoverageDomain, local: LocalGraph,
     d = np.empty((H, W))
     closer = np.empty((H, W), dtype=bool)
     for k in range(k_gens):  # squared distances separate into a row and a column term
-        np.add(((cy - grids[k, 1]) * res)[:, None] ** 2, ((cx - grids[k, 0]) * res)[None, :] ** 2,
-               out=d)
+        np.add((cy - grids[k, 1])[:, None] ** 2, (cx - grids[k, 0])[None, :] ** 2, out=d)
         np.sqrt(d, out=d)
+        d *= res  # (in this order: the distances of the searches that tests compare it with)
         d += biases[k]
         np.less(d, best, out=closer)
         np.putmask(winner, closer, k)

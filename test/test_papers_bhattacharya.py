@@ -49,8 +49,10 @@ def test_the_counter_counts_every_vertex_a_search_settles_and_then_steps_aside()
 def test_fig13_the_l_leaves_the_papers_37300_vertices_and_an_update_never_visits_more():
     """The complete diagram expands about the paper's 37,300 vertices. With three agents each
     robot's cell is a third of the map and its neighbours' wavefronts must be followed to its
-    edge: a warm update is one pass over at most the whole map - about what the paper's own
-    decentralized pseudo-code expands (our heapq reference of it) -, a cold one at most two."""
+    edge: every update, the first (cold) one included, is one pass over at most the whole map -
+    about what the paper's own decentralized pseudo-code expands (our heapq reference of it).
+    (A cold update used to search a limited radius first and the whole map again when the cell
+    reached round the L: 74,718 vertices.)"""
     domain = bh.l_domain()
     for seed in (0, 1):
         starts = bh.spread_points(domain, 3, np.random.default_rng(seed), bh.FIG13_SEPARATION)
@@ -64,7 +66,7 @@ def test_fig13_the_l_leaves_the_papers_37300_vertices_and_an_update_never_visits
         gens = [Generator(p) for p in starts]
         ref = [paper_cell(domain, gens[i], gens[:i] + gens[i + 1:]).expanded for i in range(3)]
         assert warm <= 1.25 * statistics.median(ref)
-        assert max(visits) <= 2.05 * count.settled
+        assert max(visits) <= count.settled
 
 
 def test_fig13_more_robots_visit_far_fewer_vertices_than_the_complete_diagram():

@@ -97,9 +97,10 @@ def geodesic_cell(domain: CoverageDomain, own: Generator, others: Sequence[Gener
     power = bool(np.ptp(weights) > 0)
     max_edge = domain.graph.max_edge_cost
     hint = cache.cell_radius if cache is not None else None
+    cold = hint is None or not hint > 0
     if len(others) == 0 or whole:
         L = math.inf
-    elif hint is not None and hint > 0:
+    elif not cold:
         # Rounded up to whole steps so the small changes of the cell radius between updates
         # keep the search region (and its cache) the same.
         step = RADIUS_STEP_CELLS * res
@@ -128,9 +129,15 @@ def geodesic_cell(domain: CoverageDomain, own: Generator, others: Sequence[Gener
         # The whole map, settling what is in line of sight first, when the region is most of
         # it (a team still bunched up leaves a few robots half the map each) or a first pass
         # was too short (a small cell may border the cell of a robot far away along paths,
-        # whose distance certifies the border: several growth passes in a bunched team).
-        if not power and (whole or (method == "visibility"
-                                    and (local.covers_all or passes > 1))):
+        # whose distance certifies the border: several growth passes in a bunched team). The
+        # other sources, too, search the whole map without a limit when the region is most of
+        # it: a limited pass there settles nearly as many vertices, and a cell reaching beyond
+        # the radius (round an obstacle) would search the map again (Fig. 13: two passes of
+        # 37,400). On a chart that wraps the region is always the whole graph; there only a
+        # cold update (whose radius is unlimited anyway) does.
+        wraps = any(domain.graph.wrap)
+        if not power and (whole or (local.covers_all and (cold or not wraps))
+                          or (method == "visibility" and passes > 1)):
             if not whole:
                 local = local_graph_for(domain, None, centers[:1], radii[:1], math.inf)
                 idx = np.arange(len(gens))  # every generator takes part (touching: into gens)

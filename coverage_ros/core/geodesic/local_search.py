@@ -140,10 +140,11 @@ def lens_distance(x: np.ndarray, y: np.ndarray, a: np.ndarray, ra: float, b: np.
 
 
 def required_blocks(domain: CoverageDomain, centers: np.ndarray, radii: np.ndarray, L: float,
-                    margin_cells: float = 0.0) -> np.ndarray:
+                    margin_cells: float = 0.0, enough: float = math.inf) -> np.ndarray:
     """``(Hb, Wb)`` bool over the global block grid: blocks that may hold a point of the own
     ball (generator 0, radius L) or of a cone (generators 1..; radii L_j), grown by
-    ``margin_cells``. ``centers`` are grid coordinates."""
+    ``margin_cells``. ``centers`` are grid coordinates. Returned early, a part of them, once
+    the blocks found hold ``enough`` free cells (the caller then takes the whole map)."""
     H, W = domain.shape
     Hb, Wb = -(-H // BLOCK), -(-W // BLOCK)
     blocks = np.zeros((Hb, Wb), dtype=bool)
@@ -170,6 +171,8 @@ def required_blocks(domain: CoverageDomain, centers: np.ndarray, radii: np.ndarr
                                radius / lam_cells)
             sub = (dk + dq - 2.0 * slack) * lam_cells <= radius
         blocks[a0:a1, b0:b1] |= sub
+        if math.isfinite(enough) and _free_counts(domain)[blocks].sum() >= enough:
+            break  # (blocks only grow: the whole region would hold enough too)
     return blocks
 
 
@@ -274,9 +277,10 @@ def local_graph_for(domain: CoverageDomain, cache: SearchCache | None, centers: 
         cache.hits += 1
         return cache.graph
     margin = CACHE_MARGIN_CELLS if cache is not None else 0.0
-    blocks = required_blocks(domain, centers, radii, L, margin)
     counts = _free_counts(domain)
-    if counts[blocks].sum() >= WHOLE_SHARE * counts.sum():
+    whole = WHOLE_SHARE * counts.sum()
+    blocks = required_blocks(domain, centers, radii, L, margin, enough=whole)
+    if counts[blocks].sum() >= whole:
         # Most of the map: the domain's one whole-map graph, shared by every search on it (a
         # robot whose cell is most of the map keeps no copy of its own; a whole-map search
         # settles what is in line of sight first, see cell.py).

@@ -6,12 +6,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import WORLDS
+from conftest import WORLDS, shared_map
 
 from coverage_ros.core.geodesic.cell import geodesic_cell
 from coverage_ros.core.geodesic.domain import CoverageDomain
 from coverage_ros.core.geodesic.euclidean import euclidean_labels
-from coverage_ros.core.geodesic.tessellation import Generator, tessellate
+from coverage_ros.core.geodesic.tessellation import Generator, fast_tessellate, tessellate
 from coverage_ros.core.world import load_world
 
 
@@ -62,3 +62,27 @@ def test_one_search_is_kept_per_domain():
         gens = [Generator(p) for p in _points(domain, 3, 0, seed)]
         geodesic_cell(domain, gens[0], gens[1:], whole=True)
     assert sum(1 for k in domain._cache if "shared" in str(k)) == 1
+
+
+@pytest.mark.parametrize("world, seed, blocked", [
+    ("office", 6, 1), ("u_shape", 7, 0), ("tb3_sandbox", 8, 0), ("depot", 9, 2),
+])
+def test_fast_tessellation_is_the_centralized_one(world, seed, blocked):
+    """fast_tessellate (the launcher's and the viewer's score) gives tessellate's labels,
+    distances, masses and costs; with unequal power weights it is tessellate itself."""
+    path = WORLDS / f"{world}.yaml" if (WORLDS / f"{world}.yaml").exists() else shared_map(world)
+    domain = CoverageDomain.from_world(load_world(path), 0.105)
+    P = _points(domain, 12 - blocked, blocked, seed)
+    gens = [Generator(p) for p in P]
+    fast, ref = fast_tessellate(domain, gens), tessellate(domain, gens)
+    assert np.array_equal(fast.labels, ref.labels)
+    mine = ref.labels >= 0
+    assert np.allclose(fast.distances[mine], ref.distances[mine], rtol=1e-12, atol=1e-12)
+    assert np.isinf(fast.distances[~mine]).all()
+    assert np.allclose(fast.masses, ref.masses, rtol=1e-12)
+    assert fast.cost == pytest.approx(ref.cost, rel=1e-12)
+    if world in ("office", "depot"):  # walls: the hidden cells' search ran
+        assert (ref.labels != euclidean_labels(domain, gens)).any()
+    weighted = [Generator(p, 0.3 * (k % 2)) for k, p in enumerate(P)]
+    fast, ref = fast_tessellate(domain, weighted), tessellate(domain, weighted)
+    assert np.array_equal(fast.labels, ref.labels) and fast.cost == ref.cost

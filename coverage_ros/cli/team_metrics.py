@@ -12,8 +12,9 @@ on schedule; and at the end computes the summary metrics (definitions in README 
 * ``min_separation``: smallest distance between two robot centres during the run (the
   simulator checks every physics step);
 * ``converged_at``: first sim time from which H stayed within 2 % of its final value;
-* ``H_series``: ``[[t, H], ...]``, H every METRICS_PERIOD of wall time (t: sim time since the
-  team was ready).
+* ``H_series``: ``[[t, H], ...]``, H every METRICS_PERIOD of wall time, or up to
+  METRICS_LONGEST times less often where one tessellation takes longer than METRICS_SHARE of
+  that (t: sim time since the team was ready).
 """
 
 from __future__ import annotations
@@ -38,7 +39,7 @@ from std_srvs.srv import SetBool
 
 from coverage_ros.cli.processes import ProcessStats
 from coverage_ros.cli.team_exploration import TeamExploration
-from coverage_ros.core.geodesic.tessellation import Generator, tessellate
+from coverage_ros.core.geodesic.tessellation import Generator, fast_tessellate
 from coverage_ros.core.metrics import coverage_ratio, mass_deviation
 from coverage_ros.core.world.region import Region
 from coverage_ros.core.world.robot import NUMBER_FIELDS
@@ -48,6 +49,11 @@ from coverage_ros.nodes.region_input import REGION_QOS, REGION_TOPIC, RegionInpu
 
 CONVERGED_BAND = 0.02  # H within 2 % of its final value counts as converged
 EXPLORE_PERIOD = 1.0  # [s] wall time between scores of an exploring team's merged belief
+#: Share of one core the launcher spends on H samples at most, up to METRICS_LONGEST periods
+#: between samples: a tessellation of 64 robots on depot takes 0.4-2 s on two busy cores, CPU
+#: the robots need.
+METRICS_SHARE = 0.1
+METRICS_LONGEST = 3.0
 TRACK_STEP = 0.05  # [m] a robot's path in summary.png gets a point every this far
 #: [s] wall time without /clock advancing after which the run is given up (the world node is
 #: stuck: a CI run's world blocked for good in a DDS publish of /clock after a robot restart).
@@ -181,6 +187,7 @@ class TeamTracker:
         self.H_samples.append((self.ready_at, self._cost()))
         end = self.ready_at + self.args.duration
         last_progress = last_metrics = last_explored = 0.0
+        metrics_wait = metrics_period
         until = getattr(self.args, "until_explored", None)
         advanced = (self.sim_time, time.monotonic())  # the clock's last step: (sim, wall)
         try:
@@ -200,9 +207,12 @@ class TeamTracker:
                 now = time.monotonic()
                 if self.proc_stats is not None:
                     self.proc_stats.sample(now)
-                if now - last_metrics >= metrics_period:
+                if now - last_metrics >= metrics_wait:
                     last_metrics = now
                     self.H_samples.append((self.sim_time, self._cost()))
+                    took = time.monotonic() - now
+                    metrics_wait = min(METRICS_LONGEST * metrics_period,
+                                       max(metrics_period, took / METRICS_SHARE))
                 if self.exploration is not None and now - last_explored >= EXPLORE_PERIOD:
                     last_explored = now
                     fraction = self.exploration.sample(self.sim_time - self.ready_at)
@@ -273,7 +283,7 @@ class TeamTracker:
         if not ids:
             return math.nan
         P = np.array([self.poses[i][:2] for i in ids])
-        return float(tessellate(self.domain, self._generators(ids, P)).cost)
+        return float(fast_tessellate(self.domain, self._generators(ids, P)).cost)
 
     def _progress(self, end: float, final: bool = False) -> None:
         if self.args.quiet:
@@ -299,8 +309,8 @@ class TeamTracker:
     def summary(self, wall_time: float, interrupted: bool) -> dict:
         alive = self._present()
         P = np.array([self.poses[i][:2] for i in alive]).reshape(-1, 2)
-        tess = tessellate(self.domain, self._generators(alive, P)) if len(P) else None
-        H_start = float(tessellate(self.domain, self._generators(
+        tess = fast_tessellate(self.domain, self._generators(alive, P)) if len(P) else None
+        H_start = float(fast_tessellate(self.domain, self._generators(
             list(range(self.args.robots)), self.starts[:, :2])).cost)
         sensing = np.array([self.team[i].spec.sensor_radius for i in alive])
         robots = []
@@ -351,7 +361,7 @@ class TeamTracker:
 
         alive = self._present()
         P = np.array([self.poses[i][:2] for i in alive]).reshape(-1, 2)
-        own = tessellate(self.domain, self._generators(alive, P)).labels if len(P) else None
+        own = fast_tessellate(self.domain, self._generators(alive, P)).labels if len(P) else None
         n = self.args.robots
         render_team(path, self.world.grid, own, alive, self.starts,
                     [self.tracks.get(i, []) for i in range(n)], self.domain.density,

@@ -1,7 +1,7 @@
 """Coverage metrics of a live team, computed with the core off the caller's thread.
 
 The coverage cost H and the cell masses of the robots' positions come from the centralized
-tessellation (:func:`coverage_ros.core.geodesic.tessellation.tessellate`), as
+tessellation (:func:`coverage_ros.core.geodesic.tessellation.fast_tessellate`), as
 ``coverage-plan`` reports them. With visibility-based distances one tessellation takes ~0.05 s on a
 12 m x 8 m office and ~0.1-0.5 s on large maps, so it runs on one worker thread: a viewer keeps
 taking messages
@@ -85,14 +85,14 @@ class LiveMetrics:
 
     def _compute(self, grid: GridMap, t: float, robots: list[RobotSample],
                  log_cells: Callable[[], bool] | None) -> None:
-        from coverage_ros.core.geodesic.tessellation import Generator, tessellate
+        from coverage_ros.core.geodesic.tessellation import Generator, fast_tessellate
 
         domain = self._domain_of(grid)
         if domain is None:
             return
         try:
-            tess = tessellate(domain, [Generator(np.array(p, dtype=np.float64), float(w))
-                                       for _, p, w in robots])
+            tess = fast_tessellate(domain, [Generator(np.array(p, dtype=np.float64), float(w))
+                                            for _, p, w in robots])
         except Exception as exc:  # e.g. every robot off the map
             self.warn("metrics", f"coverage metrics at t={t:.2f} s skipped: {exc}")
             return

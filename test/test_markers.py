@@ -91,6 +91,36 @@ def test_team_markers_replace_by_namespace_and_id_and_delete_who_left():
     assert all(by[(k, 7)].action == Marker.DELETE for k in conv.MARKER_KINDS)
 
 
+def test_a_robots_line_markers_are_built_again_only_for_a_new_outline_or_plan():
+    """The outline and plan markers (thousands of points for a large cell) are reused while
+    the robot's outline and plan arrays are the same ones, with the new stamp; a new array
+    gives new points."""
+    from visualization_msgs.msg import Marker
+
+    first, later = conv.to_time_msg(3.0), conv.to_time_msg(3.5)
+    square = np.array([[[0, 0], [1, 0]], [[1, 0], [1, 1]], [[1, 1], [0, 1]], [[0, 1], [0, 0]]],
+                      float)
+    r = conv.RobotMarkers(2, (0.0, 1.0, 0.0), position=(0.5, 0.5), outline=square,
+                          plan=np.array([[0.5, 0.5], [0.9, 0.9]]))
+
+    def kinds(stamp):
+        return {m.ns: m for m in conv.robot_markers(r, stamp, lifetime=5.0)}
+
+    a = kinds(first)
+    b = kinds(later)
+    assert b["cell"] is a["cell"] and b["plan"] is a["plan"]
+    assert b["cell"].header.stamp.nanosec == later.nanosec and len(b["cell"].points) == 8
+    r.outline = square[:2] * 2.0  # a new cell
+    c = kinds(later)
+    assert c["cell"] is not a["cell"] and len(c["cell"].points) == 4
+    assert c["cell"].points[1].x == 2.0 and c["plan"] is a["plan"]
+    assert kinds(later)["cell"] is c["cell"]
+    r.plan = None  # the plan went away: deleted, not the old one shown
+    assert kinds(later)["plan"].action == Marker.DELETE
+    # another lifetime (or frame) builds anew: a reused marker never carries stale settings
+    assert conv.robot_markers(r, later, lifetime=2.0)[0].lifetime.sec == 2
+
+
 @pytest.mark.integration
 @pytest.mark.slow
 def test_a_team_shows_in_rviz_markers_and_a_robot_that_leaves_is_cleared(tmp_path):

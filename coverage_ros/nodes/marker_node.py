@@ -135,7 +135,9 @@ class MarkerNode(Node):
     @staticmethod
     def _on_cell(r: conv.RobotMarkers, msg: OccupancyGrid) -> None:
         grid = conv.cell_grid_to_grid(msg)
-        r.outline = None if grid is None else outline_segments(grid.occupancy == 100, grid)
+        outline = None if grid is None else outline_segments(grid.occupancy == 100, grid)
+        if not _same(outline, r.outline):  # (the same cell again keeps its built marker)
+            r.outline = outline
 
     @staticmethod
     def _on_goal_pose(r: conv.RobotMarkers, msg: PoseStamped) -> None:
@@ -145,7 +147,9 @@ class MarkerNode(Node):
     @staticmethod
     def _on_plan(r: conv.RobotMarkers, msg: Path) -> None:
         pts = conv.path_to_points(msg)
-        r.plan = pts if len(pts) and np.isfinite(pts).all() else None
+        plan = pts if len(pts) and np.isfinite(pts).all() else None
+        if not _same(plan, r.plan):
+            r.plan = plan
 
     def _publish(self) -> None:
         now = time.monotonic()
@@ -163,6 +167,10 @@ class MarkerNode(Node):
         self.pub.publish(conv.team_markers(active, gone, stamp, self.frame, self.lifetime,
                                            region, self._region_shown))
         self._region_shown = len(region)
+
+
+def _same(a: np.ndarray | None, b: np.ndarray | None) -> bool:
+    return a is b or (a is not None and b is not None and np.array_equal(a, b))
 
 
 def main(args=None) -> int:

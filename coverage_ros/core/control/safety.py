@@ -27,6 +27,9 @@ SAFE_SCALES = (1.0, 0.6, 0.3, 0.12, 0.0)
 MEMORY_RADIUS = 0.5
 #: [m] kept points closer together than this count once.
 MEMORY_CELL = 0.01
+#: Key of a memory cell (column * stride + row): unique for cells within 2^31 cells (21,000 km)
+#: of the origin.
+_KEY_STRIDE = 1 << 32
 
 
 @dataclass(frozen=True)
@@ -79,8 +82,9 @@ class ScanMemory:
             old = old[~scan.measures(old, pose)]
         pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
         kept = np.concatenate([pts[np.hypot(*(pts - p).T) <= MEMORY_RADIUS], old])
-        _, first = np.unique(np.floor(kept / MEMORY_CELL).astype(np.int64), axis=0,
-                             return_index=True)
+        # One point per MEMORY_CELL (the first), by a 1-D key: np.unique over rows is slow.
+        cell = np.floor(kept / MEMORY_CELL).astype(np.int64)
+        _, first = np.unique(cell[:, 0] * _KEY_STRIDE + cell[:, 1], return_index=True)
         self.points = kept[np.sort(first)]
         return self.points
 

@@ -226,6 +226,23 @@ def test_neighbour_table_validates_and_expires():
     assert t.current(13.0, own=np.array([0.5, 0.5]), comm_range=1.0) == []
 
 
+def test_robots_of_one_process_share_a_neighbours_state_checked_once_per_map():
+    """The state hub passes one ``parsed`` dict per message: tables with the same map extent
+    get the same (read-only) state, a table with another extent checks the values itself."""
+    a, b = (NeighbourTable((0.0, 0.0, 4.0, 3.0), timeout=2.0) for _ in range(2))
+    small = NeighbourTable((0.0, 0.0, 2.0, 2.0), timeout=2.0)
+    parsed: dict = {}
+    values = {"x": 3.0, "y": 1.0, "weight": 0.1}
+    assert a.receive(7, values, 1.0, parsed) == b.receive(7, values, 1.5, parsed) == ""
+    assert "outside the map" in small.receive(7, values, 1.0, parsed)
+    assert len(parsed) == 2
+    sa, sb = a.current(1.5)[0], b.current(1.5)[0]
+    assert sa.state is sb.state and sa.stamp == 1.0 and sb.stamp == 1.5
+    with pytest.raises(ValueError):
+        sa.state.position[0] = 0.0  # shared: read-only
+    assert small.current(1.0) == []
+
+
 def test_controller_update_and_command():
     d = room()
     c = RobotController(d, ControllerConfig(robot_id=0))

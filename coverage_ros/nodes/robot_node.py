@@ -291,11 +291,13 @@ class RobotNode(RobotRequests, Node):
             return
         self.take_state(robot_id, values)
 
-    def take_state(self, robot_id: int, values: dict[str, float]) -> None:
-        """A neighbour's parsed coverage_state (from this node's subscription or the hub)."""
+    def take_state(self, robot_id: int, values: dict[str, float],
+                   parsed: dict | None = None) -> None:
+        """A neighbour's parsed coverage_state (from this node's subscription or the hub,
+        which passes its ``parsed``: see ``NeighbourTable.receive``)."""
         if self.controller is None:
             return
-        why = self.controller.neighbours.receive(robot_id, values, self._now())
+        why = self.controller.neighbours.receive(robot_id, values, self._now(), parsed)
         if why:
             self._warn(f"state{robot_id}", f"dropped coverage_state of robot {robot_id}: {why}")
 

@@ -106,8 +106,9 @@ class SharedInputs:
 class StateHub:
     """The neighbour states of a process's robots: one subscription per ``coverage_state``
     topic of the team, each message parsed once and given to every local robot but its
-    sender. ``robots`` have ``robot_id`` and ``take_state(sender, values)``; ``node`` owns the
-    subscriptions; ``warn(key, text)`` reports a dropped message."""
+    sender, checked and built into a state once. ``robots`` have ``robot_id`` and
+    ``take_state(sender, values, parsed)``; ``node`` owns the subscriptions; ``warn(key,
+    text)`` reports a dropped message."""
 
     def __init__(self, node, robots: list, prefix: str,
                  warn: Callable[[str, str], object]) -> None:
@@ -132,7 +133,8 @@ class StateHub:
         except ValueError as exc:
             self._warn(f"state{sender}", f"dropped coverage_state of robot {sender}: {exc}")
             return
+        parsed: dict = {}  # checked and built once per map extent, for every robot
         for robot in self.robots:
             if robot.robot_id != sender:
-                robot.take_state(sender, values)
+                robot.take_state(sender, values, parsed)
                 self.delivered += 1

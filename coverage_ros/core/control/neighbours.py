@@ -38,33 +38,20 @@ class NeighbourTable:
         self.entries: dict[int, _Entry] = {}
         self._lock = threading.Lock()
 
-    def receive(self, robot_id: int, values: dict[str, float], now: float) -> str:
-        """Store a neighbour's published values; returns "" or why they were rejected."""
-        for key, v in values.items():
-            if key in STATE_KEYS[:4] and not math.isfinite(v):
-                return f"{key} is {v!r}"
-        x, y = values["x"], values["y"]
-        xmin, ymin, xmax, ymax = self.extent
-        if not (xmin - MAP_MARGIN <= x <= xmax + MAP_MARGIN
-                and ymin - MAP_MARGIN <= y <= ymax + MAP_MARGIN):
-            return f"position ({x:.2f}, {y:.2f}) is outside the map"
-        weight = values.get("weight", 0.0)
-        if weight < 0:
-            return f"weight {weight!r} < 0"
-        virtual = None
-        if "virtual_x" in values and "virtual_y" in values:
-            virtual = np.array([values["virtual_x"], values["virtual_y"]])
-            if not np.all(np.isfinite(virtual)):
-                virtual = None
-        extra = {k: v for k, v in values.items()
-                 if k not in STATE_KEYS and k not in ("virtual_x", "virtual_y")}
-        mass = values.get("mass")
-        entry = _Entry(SharedState(
-            position=np.array([x, y]), weight=weight,
-            mass=mass if mass is not None and math.isfinite(mass) else None,
-            virtual=virtual, extra=extra), now)
+    def receive(self, robot_id: int, values: dict[str, float], now: float,
+                parsed: dict | None = None) -> str:
+        """Store a neighbour's published values; returns "" or why they were rejected.
+        ``parsed``, kept by the caller for one message, holds its :func:`parse_state` results
+        by map extent: the robots of one process check and build a neighbour's state once."""
+        state = None if parsed is None else parsed.get(self.extent)
+        if state is None:
+            state = parse_state(values, self.extent)
+            if parsed is not None:
+                parsed[self.extent] = state
+        if isinstance(state, str):
+            return state
         with self._lock:
-            self.entries[robot_id] = entry
+            self.entries[robot_id] = _Entry(state, now)
         return ""
 
     def current(self, now: float, own: np.ndarray | None = None, comm_range: float = 0.0,
@@ -82,3 +69,36 @@ class NeighbourTable:
             out.append(Neighbour(rid, e.state, e.received))
         return out
 
+
+
+def parse_state(values: dict[str, float], extent: tuple[float, float, float, float]
+                ) -> SharedState | str:
+    """A neighbour's published ``values`` as a state, or why they are rejected (non-finite
+    position, weight, mass or cost; a position off the map's ``extent`` beyond MAP_MARGIN; a
+    negative weight). A state is never changed once made, so robots may share one."""
+    for key, v in values.items():
+        if key in STATE_KEYS[:4] and not math.isfinite(v):
+            return f"{key} is {v!r}"
+    x, y = values["x"], values["y"]
+    xmin, ymin, xmax, ymax = extent
+    if not (xmin - MAP_MARGIN <= x <= xmax + MAP_MARGIN
+            and ymin - MAP_MARGIN <= y <= ymax + MAP_MARGIN):
+        return f"position ({x:.2f}, {y:.2f}) is outside the map"
+    weight = values.get("weight", 0.0)
+    if weight < 0:
+        return f"weight {weight!r} < 0"
+    virtual = None
+    if "virtual_x" in values and "virtual_y" in values:
+        virtual = np.array([values["virtual_x"], values["virtual_y"]])
+        if not np.all(np.isfinite(virtual)):
+            virtual = None
+    extra = {k: v for k, v in values.items()
+             if k not in STATE_KEYS and k not in ("virtual_x", "virtual_y")}
+    mass = values.get("mass")
+    position = np.array([x, y])
+    for a in (position, virtual):  # (shared: read-only)
+        if a is not None:
+            a.flags.writeable = False
+    return SharedState(position=position, weight=weight,
+                       mass=mass if mass is not None and math.isfinite(mass) else None,
+                       virtual=virtual, extra=extra)

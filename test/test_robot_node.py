@@ -246,16 +246,18 @@ def test_coverage_teleop_takes_the_robot_over_and_hands_it_back(team):
     assert "robot 0: autonomous" in robot.output()
 
 
-def test_a_robot_on_the_events_executor_covers_and_stops_cleanly():
-    """COVERAGE_ROS_EXECUTOR=events (coverage-team --executor events): the same robot on
-    rclpy's EventsExecutor updates, drives and ends on SIGINT with code 0 and its exit log."""
+@pytest.mark.parametrize("kind", ["", "single"])
+def test_a_robot_on_either_executor_covers_and_stops_cleanly(kind):
+    """Without COVERAGE_ROS_EXECUTOR a robot runs on rclpy's EventsExecutor, with ``single``
+    (coverage-team --executor single) on the SingleThreadedExecutor; on either it updates,
+    drives and ends on SIGINT with code 0 and its exit log."""
     from geometry_msgs.msg import Twist
     from sensor_msgs.msg import JointState
 
     from coverage_ros.nodes import conversions as conv
 
     domain = domain_id(12)
-    env = ros_env(domain, COVERAGE_ROS_EXECUTOR="events")
+    env = ros_env(domain, COVERAGE_ROS_EXECUTOR=kind)
     with NodeProcess.world_node(domain, "world:=office", "starts:=1.0,1.0,0.0") as world, \
             NodeProcess([sys.executable, "-m", "coverage_ros.nodes.robot_node", "--ros-args",
                          "-r", "__ns:=/robot_0", "-p", "robot_id:=0", "-p", "use_sim_time:=true",
@@ -270,7 +272,7 @@ def test_a_robot_on_the_events_executor_covers_and_stops_cleanly():
             client.close()
         assert world.alive() and robot.alive()
         assert robot.stop(timeout=10.0) == 0, robot.output()
-        assert "executor: events" in robot.output()
+        assert f"executor: {kind or 'events'} " in robot.output()
         assert "coverage updates, one every" in robot.output()
 
 

@@ -144,8 +144,8 @@ def build_parser() -> argparse.ArgumentParser:
                     "(ROS_DISCOVERY_SERVER) instead of simple discovery")
     ap.add_argument("--executor", choices=EXECUTORS, default=None,
                     help="rclpy executor of every node process (COVERAGE_ROS_EXECUTOR; default "
-                    "single: SingleThreadedExecutor; events: rclpy's experimental "
-                    "EventsExecutor, less CPU per message)")
+                    "events: rclpy's EventsExecutor, a fraction of the CPU per message; "
+                    "single: SingleThreadedExecutor)")
     ap.add_argument("--quiet", action="store_true", help="no progress display")
     return ap
 

@@ -42,8 +42,8 @@ class RobotMarkers:
     plan: np.ndarray | None = None  # (M, 2)
     mode: str = ""
     # kind -> (the outline or plan array it was built from, its marker): a line marker of
-    # thousands of points is rebuilt only when a new array came (64 robots' outlines took a
-    # fifth of a core at 2 Hz); its stamp is set anew on every use
+    # thousands of points is rebuilt only when a new array came (building 64 robots' outlines
+    # at 2 Hz took two fifths of the marker node's CPU); its stamp is set anew on every use
     built: dict = field(default_factory=dict, repr=False, compare=False)
 
 

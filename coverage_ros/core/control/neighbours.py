@@ -70,7 +70,6 @@ class NeighbourTable:
         return out
 
 
-
 def parse_state(values: dict[str, float], extent: tuple[float, float, float, float]
                 ) -> SharedState | str:
     """A neighbour's published ``values`` as a state, or why they are rejected (non-finite

@@ -157,11 +157,26 @@ def _search_hidden(domain: CoverageDomain, local: LocalGraph, hidden: np.ndarray
     upper = d[:len(hidden)]
     hc = local.centers[hidden]
     depths, reaches, tiles = sight
+    # The hidden cells by line-of-sight tile, and per tile the longest path found into it: a
+    # tile whose nearest point is farther from a generator in a straight line than every path
+    # found into the tile cannot give that generator a shorter line (nor need its test).
+    small = tiles.astype(np.uint16) if len(tiles) and tiles.max() < 1 << 16 else tiles
+    by_tile = np.argsort(small, kind="stable")  # (16-bit keys: a radix sort)
+    present, starts, counts = np.unique(tiles[by_tile], return_index=True, return_counts=True)
+    longest = np.maximum.reduceat(upper[by_tile], starts)
+    nx = -(-domain.shape[1] // SIGHT_TILE)
+    tx0, ty0 = (present % nx) * float(SIGHT_TILE), (present // nx) * float(SIGHT_TILE)
     shorter = False
     for k in range(k_gens):  # (cells in tiles hidden whole from the generator drop out first)
-        states = domain.sight_tiles(grids[k], reaches[k], depths)[tiles]
-        near = np.flatnonzero(states != 0)
-        e = np.hypot(hc[near, 0] - grids[k, 0], hc[near, 1] - grids[k, 1]) * res + biases[k]
+        gx, gy = grids[k]
+        gap = np.hypot(np.maximum(np.maximum(tx0 - gx, gx - tx0 - SIGHT_TILE), 0.0),
+                       np.maximum(np.maximum(ty0 - gy, gy - ty0 - SIGHT_TILE), 0.0))
+        may = gap * (res * (1.0 - 1e-12)) + biases[k] <= longest + 1e-9
+        if not may.any():
+            continue
+        may &= domain.sight_tiles(grids[k], reaches[k], depths)[present] != 0
+        near = by_tile[_ranges(starts[may], counts[may])]
+        e = np.hypot(hc[near, 0] - gx, hc[near, 1] - gy) * res + biases[k]
         keep = e <= upper[near] + 1e-9
         better, e = near[keep], e[keep]
         seen = domain.visible_mask(grids[k], hc[better], reaches[k], depths, tiles[better])
@@ -181,6 +196,12 @@ def _search_hidden(domain: CoverageDomain, local: LocalGraph, hidden: np.ndarray
     from_source = parent >= m
     mapped = np.where(from_source, first + (parent - m), sub[np.minimum(parent, m - 1)] + 1)
     pred[lid] = mapped
+
+
+def _ranges(starts: np.ndarray, counts: np.ndarray) -> np.ndarray:
+    """The indices ``starts[i] .. starts[i] + counts[i] - 1`` of every range, in order."""
+    ends = np.cumsum(counts)
+    return np.arange(ends[-1] if len(ends) else 0) + np.repeat(starts - (ends - counts), counts)
 
 
 def _least(cells: np.ndarray, costs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

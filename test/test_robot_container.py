@@ -38,7 +38,7 @@ def _params(ids, **extra):
 def test_robots_are_grouped_and_faulty_or_single_ones_run_alone(tmp_path):
     procs = plan_processes(_params(range(7)), 3, alone={4}, params_dir=tmp_path)
     assert [(p.name, p.ids) for p in procs] == [
-        ("robots_0-2", (0, 1, 2)), ("robots_3-6", (3, 5, 6)), ("robot_4", (4,))]
+        ("robots_0_2_5", (0, 2, 5)), ("robots_1_3_6", (1, 3, 6)), ("robot_4", (4,))]
     by_name = {p.name: p for p in procs}
     # A robot on its own is the plain robot_node, exactly as ros2 run would start it.
     cmd = by_name["robot_4"].cmd
@@ -47,17 +47,31 @@ def test_robots_are_grouped_and_faulty_or_single_ones_run_alone(tmp_path):
         "--ros-args", "-r", "__ns:=/robot_4", "-p", "robot_id:=4", "-p", "strategy:=lloyd",
         "-p", "robot_radius:=0.14"]
     # A group: robot_container with its ids and one parameters file of per-node sections.
-    cmd = by_name["robots_3-6"].cmd
+    cmd = by_name["robots_1_3_6"].cmd
     k = cmd.index("--ros-args")
-    assert cmd[k - 3:k] == ["3", "5", "6"] and "robot_container" in cmd[k - 4]
+    assert cmd[k - 3:k] == ["1", "3", "6"] and "robot_container" in cmd[k - 4]
     params_file = cmd[cmd.index("--params-file") + 1]
     sections = yaml.safe_load(Path(params_file).read_text())
-    assert list(sections) == ["/robot_3/coverage_robot", "/robot_5/coverage_robot",
+    assert list(sections) == ["/robot_1/coverage_robot", "/robot_3/coverage_robot",
                               "/robot_6/coverage_robot"]
-    assert sections["/robot_5/coverage_robot"]["ros__parameters"] == _params([5])[5]
+    assert sections["/robot_3/coverage_robot"]["ros__parameters"] == _params([3])[3]
     # The last group of one robot gets a robot_node, not a container of one.
     procs = plan_processes(_params(range(3)), 2, alone=set(), params_dir=tmp_path)
-    assert sorted(p.name for p in procs) == ["robot_2", "robots_0-1"]
+    assert sorted(p.name for p in procs) == ["robot_1", "robots_0-2_every_2"]
+    procs = plan_processes(_params(range(4)), 4, alone=set(), params_dir=tmp_path)
+    assert [(p.name, p.ids) for p in procs] == [("robots_0-3", (0, 1, 2, 3))]
+
+
+def test_the_outer_ring_of_a_start_cluster_is_spread_over_the_processes(tmp_path):
+    """Ids are dealt to the processes in turn: the launcher's start cluster puts the highest
+    ids (the largest cells, the costliest updates) on its outside, and each of 4 processes of
+    16 robots gets 4 of the 16 outermost instead of one process all of them."""
+    procs = plan_processes(_params(range(64)), 16, alone=set(), params_dir=tmp_path)
+    assert [p.name for p in procs] == [f"robots_{g}-{60 + g}_every_4" for g in range(4)]
+    assert sorted(i for p in procs for i in p.ids) == list(range(64))
+    assert all(len(p.ids) == 16 and sum(i >= 48 for i in p.ids) == 4 for p in procs)
+    procs = plan_processes(_params(range(10)), 4, alone=set(), params_dir=tmp_path)
+    assert [p.ids for p in procs] == [(0, 3, 6, 9), (1, 4, 7), (2, 5, 8)]
 
 
 def test_default_robots_per_process_shares_processes_beyond_eight_robots_per_core():

@@ -119,7 +119,7 @@ def test_a_mixed_team_from_a_team_file(tmp_path, sandbox):
             got = {k: r[source][k] for k in expected}
             assert got == pytest.approx(expected), (r["id"], source, r[source])
         i = r["id"]
-        log = (out / "logs" / ("robots_0-1.log" if i < 2 else "robots_2-3.log")).read_text()
+        log = (out / "logs" / f"robots_{i % 2}-{i % 2 + 2}_every_2.log").read_text()
         line = next(t for t in log.splitlines() if f"[robot_{i}.coverage_robot]: robot {i}:" in t)
         assert f"radius {radius:g} m, v_max {v_max:g} m/s" in line, line
         assert f"sensor_radius {sensing:g} m, power_weight {sensing:g} m" in line, line

@@ -9,6 +9,7 @@ process of its own: a fault must take down that robot only.
 
 from __future__ import annotations
 
+import itertools
 import math
 import os
 from dataclasses import dataclass
@@ -84,21 +85,39 @@ def robot_node_command(rid: int, params: dict[str, object]) -> list[str]:
     return executable("robot_node") + ros_args(f"/robot_{rid}", **params)
 
 
+def group_name(ids: list[int]) -> str:
+    """The process (and log) name of a group of robot ids in increasing order:
+    ``robots_<first>-<last>`` for consecutive ids, ``robots_<first>-<last>_every_<step>`` for
+    ids a fixed step apart, else ``robots_<id>_<id>_...``."""
+    steps = {b - a for a, b in itertools.pairwise(ids)}
+    if len(steps) != 1:
+        return "robots_" + "_".join(str(i) for i in ids)
+    step = steps.pop()
+    return f"robots_{ids[0]}-{ids[-1]}" + ("" if step == 1 else f"_every_{step}")
+
+
 def plan_processes(params: dict[int, dict[str, object]], per_process: int,
                    alone: set[int], params_dir: Path) -> list[RobotProcess]:
-    """The processes for robots ``{id: parameters}``: groups of up to ``per_process``
-    consecutive ids in a ``robot_container`` (parameters written to ``params_dir``), and a
-    ``robot_node`` of its own for each robot in ``alone`` and for a group of one."""
+    """The processes for robots ``{id: parameters}``: groups of up to ``per_process`` ids in a
+    ``robot_container`` (parameters written to ``params_dir``), and a ``robot_node`` of its
+    own for each robot in ``alone`` and for a group of one.
+
+    The ids are dealt to the groups in turn (0, G, 2G, ... in the first of G groups): the
+    launcher's start cluster fills ring by ring in id order, and the robots of the outer ring,
+    whose cells are largest and whose updates cost most, would otherwise all share one
+    process and its one update at a time (64 robots in groups of 16 consecutive ids: the 16
+    outer robots in one process, robots there waiting 8 s for their turn)."""
     out = [RobotProcess(f"robot_{rid}", robot_node_command(rid, params[rid]), (rid,))
            for rid in sorted(alone)]
     shared = [rid for rid in sorted(params) if rid not in alone]
-    for k in range(0, len(shared), per_process):
-        ids = shared[k:k + per_process]
+    count = math.ceil(len(shared) / per_process)
+    for g in range(count):
+        ids = shared[g::count]
         if len(ids) == 1:
             out.append(RobotProcess(f"robot_{ids[0]}",
                                     robot_node_command(ids[0], params[ids[0]]), (ids[0],)))
             continue
-        name = f"robots_{ids[0]}-{ids[-1]}"
+        name = group_name(ids)
         params_dir.mkdir(parents=True, exist_ok=True)
         path = params_dir / f"{name}.yaml"
         path.write_text(yaml.safe_dump(

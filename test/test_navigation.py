@@ -10,7 +10,6 @@ import pytest
 from conftest import WORLDS
 
 from coverage_ros.core.control.controller import ControllerConfig, RobotController
-from coverage_ros.core.control.creep import LEAST, REACH, CreepFollower
 from coverage_ros.core.control.neighbours import NeighbourTable
 from coverage_ros.core.control.planning import plan_path, segment_free
 from coverage_ros.core.control.safety import MEMORY_RADIUS, SafetyConfig, SafetyFilter, ScanMemory
@@ -338,41 +337,3 @@ def test_a_self_steering_command_is_re_steered_towards_its_heading_between_updat
     assert v == 0.0 and w == pytest.approx(-2.84)
     c.heading = None  # no heading: the command is held as it is
     assert c.command(0.3, 0.1) == pytest.approx((0.2, 2.84))
-
-
-def test_a_goal_creeping_within_the_tolerance_is_followed_by_steps_and_an_overshoot_ends_it():
-    tol = 0.05
-    f = CreepFollower(tol)
-    p = np.array([1.0, 1.0])
-    for _ in range(3):  # a Lloyd goal 3 cm ahead, update after update: steps of 1.2 tol
-        q = f.step(p, p + [0.03, 0.0])
-        assert q == pytest.approx(p + [REACH * tol, 0.0])
-        p = q
-    assert f.step(p, p + [LEAST * tol * 0.9, 0.0]) is None  # the equilibrium: keep still
-    assert f.step(p, p + [tol, 0.0]) is None  # beyond the tolerance: an ordinary goal
-    assert f.step(p, p + [-0.02, 0.01]) is None and f.frozen  # back against the last step
-    assert f.step(p, p + [0.03, 0.0]) is None  # no more steps: no dithering about the goal
-    f.reset()  # the robot followed an ordinary goal
-    assert f.step(p, p + [0.0, 0.04]) == pytest.approx(p + [0.0, REACH * tol])
-
-
-def test_an_arrived_robot_steps_once_past_its_goal_and_then_keeps_still():
-    """A lone robot's goal is the room's centroid; arrived 4 cm short of it, the robot steps
-    1.2 tolerances that way (the tracker would not move it for 4 cm), lands 2 cm past it, and
-    stays there: the goal now lies behind that step."""
-    d = room(wall=False)
-    c = RobotController(d, ControllerConfig(robot_id=0))
-    c.set_pose((1.0, 1.0, 0.0))
-    centroid = np.asarray(c.update(0.0).decision.goal)
-    c.set_pose((centroid[0] - 0.04, centroid[1], 0.0))
-    pose = c.pose[:2].copy()
-    c.update(0.5)  # (arrived at the centroid: now 4 cm away)
-    stepped = c.goal.copy()
-    assert np.hypot(*(stepped - pose)) == pytest.approx(REACH * 0.05)
-    assert stepped == pytest.approx(centroid + [0.02, 0.0], abs=2e-3)
-    assert c.path is not None and c.command(0.6, 0.1)[0] > 0  # the tracker takes the step
-    c.set_pose((*stepped, 0.0))
-    for t in (1.0, 1.5, 2.0):
-        c.update(t)
-        assert np.array_equal(c.goal, stepped)
-    assert c.creep.frozen and c.creep.steps == 1

@@ -36,7 +36,6 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy.sparse.csgraph import dijkstra
 
-from coverage_ros.core.control.creep import CreepFollower
 from coverage_ros.core.control.neighbours import NeighbourTable
 from coverage_ros.core.control.planning import plan_path
 from coverage_ros.core.control.recovery import ESCAPE_LOOK, StuckRecovery
@@ -130,7 +129,6 @@ class RobotController:
         self.neighbours = NeighbourTable(domain.geometry.extent(), config.neighbour_timeout)
         self.tracker = PathTracker(TrackerConfig.for_robot(config.robot,
                                                            goal_tolerance=config.goal_tolerance))
-        self.creep = CreepFollower(config.goal_tolerance)
         self.safety = SafetyFilter(domain, SafetyConfig(radius=config.robot.radius,
                                                         a_max=config.robot.a_max))
         steer = self.tracker.config
@@ -212,21 +210,15 @@ class RobotController:
             # An exploring robot's map grows: a path planned on an older map may cross a wall
             # found since.
             stale = snapshot is not None and snapshot.version != self._planned_version
-            # A robot at its goal follows a new goal beyond the arrival tolerance even if it
-            # moved less than REPLAN_DISTANCE, and one within it by a step (.creep): else a
-            # goal creeping a few cm per update (near equilibrium) never moved it again.
+            # A robot at its goal follows a new goal beyond the arrival tolerance even when it
+            # moved less than REPLAN_DISTANCE: else a goal that creeps a few cm per update (a
+            # bvc centroid near equilibrium) never moved the robot again.
             tol = self.tracker.config.goal_tolerance
             arrived = goal is not None and float(np.hypot(*(goal - pose[:2]))) < tol
-            near = float(np.hypot(*(new_goal - pose[:2]))) < tol
-            if arrived and near and path is not None and not (stale or replan):
-                step = self.creep.step(pose[:2], new_goal)
-                if step is not None and (planned := plan_path(nav, pose[:2], step)) is not None:
-                    goal, path = step, planned
-            elif goal is None or path is None or stale or replan or \
+            if goal is None or path is None or stale or replan or \
                     float(np.hypot(*(new_goal - goal))) > REPLAN_DISTANCE or \
-                    (arrived and not near):
+                    (arrived and float(np.hypot(*(new_goal - pose[:2]))) >= tol):
                 goal, path = new_goal, plan_path(nav, pose[:2], new_goal)
-                self.creep.reset()
                 if snapshot is not None:
                     self._planned_version = snapshot.version
         shared = decision.shared

@@ -186,6 +186,27 @@ def test_plain_partition_matches_the_obvious_one(rng):
     assert np.array_equal(fast, np.argmin(d2, axis=1))
 
 
+def test_partition_over_reaches_matches_the_running_minimum(rng):
+    """The vectorized labels of agents of mixed reach (Eq. 17) equal a running minimum of
+    :meth:`MassCells.distance` agent by agent, ties (coincident agents of one reach) to the
+    lowest index; with and without visibility."""
+    cells = MassCells(arena(60, radius=0.0))
+    for trial in range(12):
+        k = int(rng.integers(2, 16))
+        P = rng.uniform(0.0, 6.0, (k, 2))
+        R = rng.choice([0.22, 0.4, 0.8], k)
+        if trial % 3 == 0:
+            P[1], R[1] = P[0], R[0]
+        best, slow = np.full(len(cells.nodes), np.inf), np.zeros(len(cells.nodes), np.int64)
+        for i, p in enumerate(P):
+            d = cells.distance(p, R[i], CellSpec())
+            slow[d < best] = i
+            best = np.minimum(best, d)
+        assert np.array_equal(cells.labels(P, R), slow)
+        assert np.array_equal(cells.labels(P, R, CellSpec(visibility=True)),
+                              cells.restrict_to_visible(slow, P))
+
+
 def test_heterogeneous_cells_eq17_are_apollonius_regions():
     """With reaches 1 and 2 the boundary on the line between agents 3 m apart is 1 m from the
     slow agent (|s - p1| / 1 = |s - p2| / 2), not 1.5 m."""

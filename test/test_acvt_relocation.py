@@ -21,6 +21,7 @@ from coverage_ros.core.strategies import (
 )
 from coverage_ros.core.strategies.acvt.cells import CellSpec, MassCells
 from coverage_ros.core.strategies.acvt.dropout import AcvtConfig, AlphaCvt, DropoutConfig
+from coverage_ros.core.strategies.acvt.exchange import agent_regions, exchanges, swaps
 from coverage_ros.core.strategies.acvt.relocation import (
     RelocationConfig,
     best_relocation,
@@ -32,6 +33,7 @@ from coverage_ros.core.strategies.acvt.relocation import (
 from coverage_ros.errors import ConfigError
 
 PAPER_FIG3_I = 0.046  # Lee & Lee, Fig. 3: alpha-CVT's I on two disjoint targets
+PAPER_FIG14_IH = 0.0367  # Lee & Lee, Fig. 14: alpha-CVT's I^H, 5 + 5 agents at 0.4 / 0.8 m/s
 
 
 def _in(poly: np.ndarray, pts: np.ndarray) -> int:
@@ -66,13 +68,16 @@ def test_a_light_agent_goes_where_it_is_missing(domain, wrong_split):
     move = best_relocation(cells, CellSpec(), wrong_split, None, RelocationConfig())
     assert move is not None
     light = movers(masses, None, RelocationConfig().movers)
-    assert move.agent in light and _in(scenes.BIG, wrong_split[move.agent])
-    assert _in(scenes.SMALL, move.point[None]) == 1  # into a cell of the small target
+    assert len(move.agents) == 1  # one reach: no exchange or swap
+    (agent,), (into,), point = move.agents, move.into, move.points[0]
+    assert agent in light and _in(scenes.BIG, wrong_split[agent])
+    assert _in(scenes.SMALL, point[None]) == 1  # into a cell of the small target
     assert move.metric_after < 0.3 < move.metric_before == pytest.approx(before)  # 8 + 2
     # The insertion point is the owner's mass cell farthest from it.
-    own = labels == move.into
-    far = np.hypot(*(cells.xy[own] - wrong_split[move.into]).T).max()
-    assert np.hypot(*(move.point - wrong_split[move.into])) == pytest.approx(far)
+    own = labels == into
+    far = np.hypot(*(cells.xy[own] - wrong_split[into]).T).max()
+    assert np.hypot(*(point - wrong_split[into])) == pytest.approx(far)
+    assert np.array_equal(move.point_of(agent), point) and move.point_of(99) is None
     assert insertion_point(cells, labels, wrong_split, 99) is None  # no cell, no point
 
 
@@ -82,7 +87,7 @@ def test_a_balanced_team_is_not_disturbed(domain, wrong_split):
     for _ in range(2):  # 9 + 1 -> 8 + 2 -> 7 + 3
         move = best_relocation(cells, CellSpec(), P, None, RelocationConfig())
         P = P.copy()
-        P[move.agent] = move.point
+        P[list(move.agents)] = move.points
         P = settle(cells, CellSpec(), P, None, 200, 1e-4)
     assert (_in(scenes.BIG, P), _in(scenes.SMALL, P)) == (7, 3)
     assert team_metric(cells, CellSpec(), P, None)[2] < 0.046
@@ -108,6 +113,55 @@ def test_the_centralized_run_relocates_only_when_settled_and_only_as_alpha_cvt(d
         RelocationConfig(margin=0.0)
 
 
+def test_an_exchange_mends_a_balanced_composition_whose_cells_stay_unequal(domain):
+    """Fig. 14's setting: four slow agents and one fast one in the small target give it its
+    share of R^2 (4 x 0.16 + 0.64 = 2 x 0.64, 32 % of the team's) but Lloyd's cells of mixed
+    reach there stay unequal (I^H 0.066); every single move raises I^H. The exchange that
+    sends the four slow agents to the large target and brings a second fast one (the other
+    composition with the small target's share) is the one made - predicted with the swap that
+    best follows it - and a swap of a slow and a fast agent in the large target then ends below
+    the paper's value."""
+    cells = MassCells(domain)
+    R = np.r_[np.full(5, scenes.SLOW), np.full(5, scenes.FAST)]
+    small = np.array([1, 1, 1, 1, 0, 1, 0, 0, 0, 0], dtype=bool)
+    rng = np.random.default_rng(0)
+    P = np.where(small[:, None], rng.uniform(SMALL_LO, SMALL_HI, (10, 2)),
+                 rng.uniform(BIG_LO, BIG_HI, (10, 2)))
+    P = settle(cells, CellSpec(), P, R, 200, 1e-4)
+    labels, masses, before = team_metric(cells, CellSpec(), P, R)
+    assert before > 1.5 * PAPER_FIG14_IH
+    assert agent_regions(cells, labels, 10).tolist() == small.astype(int).tolist()  # 0: BIG
+    first = exchanges(cells, labels, masses, P, R, 4)[0]
+    assert sorted(first.agents[:4]) == [0, 1, 2, 3] and R[first.agents[4]] == scenes.FAST
+    assert _in(scenes.BIG, first.points[:4]) == 4 and _in(scenes.SMALL, first.points[4]) == 1
+    # One agent at a time gets nowhere near the paper's value.
+    single = best_relocation(cells, CellSpec(), P, R, RelocationConfig(exchanges=0))
+    assert single is None or single.metric_after > 1.2 * PAPER_FIG14_IH
+    move = best_relocation(cells, CellSpec(), P, R, RelocationConfig())
+    assert move.agents == first.agents and move.metric_after < PAPER_FIG14_IH
+    P[list(move.agents)] = move.points
+    P = settle(cells, CellSpec(), P, R, 200, 1e-4)
+    labels, masses, _ = team_metric(cells, CellSpec(), P, R)
+    in_small = agent_regions(cells, labels, 10) == 1
+    assert R[in_small].tolist() == [scenes.FAST, scenes.FAST]
+    swap = best_relocation(cells, CellSpec(), P, R, RelocationConfig())
+    i, j = swap.agents
+    assert R[i] != R[j] and np.array_equal(swap.points, P[[j, i]])
+    P[list(swap.agents)] = swap.points
+    P = settle(cells, CellSpec(), P, R, 200, 1e-4)
+    assert team_metric(cells, CellSpec(), P, R)[2] < PAPER_FIG14_IH
+    # Swaps pair agents of different reach in one target; one reach has neither.
+    regions = agent_regions(cells, *team_metric(cells, CellSpec(), P, R)[:1], 10)
+    for e in swaps(cells, labels, masses, P, R, 12):
+        a, b = e.agents
+        assert R[a] != R[b] and regions[a] == regions[b]
+    same = np.full(10, scenes.SLOW)
+    assert exchanges(cells, labels, masses, P, same, 4) == []
+    assert swaps(cells, labels, masses, P, same, 4) == []
+    with pytest.raises(ConfigError, match=r"relocation\.exchanges"):
+        RelocationConfig(exchanges=-1)
+
+
 def _state(p, mass, settled=1.0, dropout=0.0, relocating=0.0):
     return SharedState(np.asarray(p, float), mass=mass,
                        extra={"reach": 0.22, "dropout": dropout, "greedy": 0.0,
@@ -117,7 +171,7 @@ def _state(p, mass, settled=1.0, dropout=0.0, relocating=0.0):
 def test_the_decentralized_robot_relocates_when_its_settled_team_lets_it(domain, wrong_split):
     cells = MassCells(domain)
     _, masses, _ = team_metric(cells, CellSpec(), wrong_split, None)
-    j = best_relocation(cells, CellSpec(), wrong_split, None, RelocationConfig()).agent
+    (j,) = best_relocation(cells, CellSpec(), wrong_split, None, RelocationConfig()).agents
     light = movers(masses, None, RelocationConfig().movers)
 
     def decide(robot_id, **neighbour_state):

@@ -54,10 +54,10 @@ def test_fig3_alpha_cvt_meets_the_paper_from_every_corner_start():
 def test_fig14_heterogeneous_agents_by_speed():
     """Paper: I^H = 0.0437 (iCVT + projection) and 0.0367 (alpha-CVT), 5 + 5 agents at 0.4 and
     0.8 m/s on the two targets. Our spread starts (re-drawn) leave iCVT + projection far worse
-    (0.09-0.46), and the relocation of a light agent one at a time reaches the paper's value from
-    two starts of five but stops at the next best split (I^H 0.05-0.06, 4 fast + 1 slow in the
-    larger target; the best, 3 fast + 5 slow, is 0.021) from the others: the median is held to
-    1.5 x the paper's, the best to the paper's."""
+    (0.09-0.46). Moving one light agent at a time stopped at a balanced but unequal
+    composition (four slow agents and a fast one in the small target, I^H 0.05-0.06) from three
+    starts of five; the exchanges and swaps of agents of different reach (exchange.py) reach
+    0.015-0.027 from all five: the median is held to the paper's value, the worst to twice it."""
     solver = AlphaCvt(scenes.two_targets())
     baseline = AlphaCvt(scenes.two_targets(), AcvtConfig(dropout=DropoutConfig(enabled=False)))
     speeds = np.r_[np.full(5, scenes.SLOW), np.full(5, scenes.FAST)]
@@ -66,7 +66,7 @@ def test_fig14_heterogeneous_agents_by_speed():
     icvt = [baseline.run(p, speeds).metric[-1] for p in starts]
     print(f"\nFig. 14 I^H: alpha-CVT {np.round(ours, 3).tolist()}, iCVT+P "
           f"{np.round(icvt, 3).tolist()}")
-    assert statistics.median(ours) <= 1.5 * 0.0367 and min(ours) <= 0.0367
+    assert statistics.median(ours) <= 0.0367 and max(ours) <= 2 * 0.0367
     assert statistics.median(ours) < statistics.median(icvt)
     fast = solver.run(starts[0], speeds)
     assert fast.masses[5:].mean() > 2.0 * fast.masses[:5].mean()  # fast agents: larger cells

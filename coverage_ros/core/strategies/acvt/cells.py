@@ -102,11 +102,26 @@ class MassCells:
     def regions(self) -> int:
         """Disjoint parts of the support of rho (rho > 0 on free space, 8-connected) that hold
         at least :data:`REGION_SHARE` of the total mass: Lee & Lee's separate targets."""
+        return len(self.region_masses)
+
+    @functools.cached_property
+    def region_of_cells(self) -> np.ndarray:
+        """``(N,) int64``: the target (index into :attr:`region_masses`, largest part first) of
+        every mass cell; -1 in a part below :data:`REGION_SHARE` of the mass."""
         parts, count = ndimage.label(self.feasible, structure=np.ones((3, 3), dtype=bool))
-        if count < 2:
-            return count
-        mass = np.bincount(parts.ravel()[self.nodes], weights=self.wdA, minlength=count + 1)
-        return int((mass[1:] >= REGION_SHARE * self.total).sum())
+        part = parts.ravel()[self.nodes] - 1
+        mass = np.bincount(part, weights=self.wdA, minlength=count)
+        kept = np.flatnonzero(mass >= REGION_SHARE * self.total)
+        kept = kept[np.argsort(-mass[kept], kind="stable")]
+        index = np.full(count, -1, dtype=np.int64)
+        index[kept] = np.arange(len(kept))
+        return index[part]
+
+    @functools.cached_property
+    def region_masses(self) -> np.ndarray:
+        """``(R,)``: the mass of every target, largest first."""
+        ok = self.region_of_cells >= 0
+        return np.bincount(self.region_of_cells[ok], weights=self.wdA[ok])
 
     # ------------------------------------------------------------------ Eq. 8
     def project(self, points: np.ndarray) -> np.ndarray:
@@ -165,6 +180,18 @@ class MassCells:
                 d = self._xy_centred[s:s + step] @ (-2.0 * Pc.T)
                 d += sq
                 out[s:s + step] = np.argmin(d, axis=1)
+        elif spec.plain:
+            # Plain distances over reaches (Eq. 17): the same arithmetic as :meth:`distance`,
+            # a chunk of cells x all agents at a time; argmin keeps the lowest index on ties,
+            # as the running minimum below does.
+            R = np.asarray(reach, dtype=np.float64)
+            out = np.empty(len(self.nodes), dtype=np.int64)
+            step = max(1, CHUNK_ENTRIES // max(len(P), 1))
+            for s in range(0, len(self.nodes), step):
+                xy = self.xy[s:s + step]
+                dx = xy[:, 0, None] - P[None, :, 0]
+                dy = xy[:, 1, None] - P[None, :, 1]
+                out[s:s + step] = np.argmin(np.sqrt(dx * dx + dy * dy) / R, axis=1)
         else:
             best = np.full(len(self.nodes), np.inf)
             out = np.zeros(len(self.nodes), dtype=np.int64)

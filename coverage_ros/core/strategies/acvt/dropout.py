@@ -215,7 +215,7 @@ class AlphaCvt:
                     break
                 relocations += 1
                 P = P.copy()
-                P[move.agent] = move.point
+                P[list(move.agents)] = move.points
                 labels, masses, metric = self.evaluate(P, reach)
                 history.append(P.copy())
                 metrics.append(metric)

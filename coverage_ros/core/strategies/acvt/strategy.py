@@ -263,7 +263,7 @@ class AcvtStrategy(Strategy):
             heard = [states[src] for src in order if states[src] is not None]
             move = self._relocation_move(P, reach_arg, own, heard)
             if move is not None:
-                self._relocating, predicted = move.point.copy(), move.metric_after
+                self._relocating, predicted = move.point_of(own), move.metric_after
                 self._relocations += 1
         if self._relocating is not None:
             goal, converged, settled, mode = self._relocating.copy(), False, False, "relocate"
@@ -286,9 +286,10 @@ class AcvtStrategy(Strategy):
         """The relocation this robot makes now, if any (:mod:`.relocation`): only with its
         dropout over, every neighbour settled, out of the dropout and not relocating, and its
         own (normalised) mass among the ``movers`` least of the team at ``P (k, 2)`` (row
-        ``own``); those robots all predict the same relocation, and only the robot it names
-        moves - so that in a team that hears everyone one robot at a time relocates. A team
-        configuration that was predicted already is not predicted again."""
+        ``own``) - or any robot of a team of mixed reaches, where an exchange or a swap can
+        name several; those robots all predict the same relocation, and only the robots it
+        names move - so that in a team that hears everyone one relocation at a time is made.
+        A team configuration that was predicted already is not predicted again."""
         cfg = self.relocation
         if not cfg.enabled or self.switch.active or self._relocations >= cfg.max_moves \
                 or len(P) < 2:
@@ -301,8 +302,10 @@ class AcvtStrategy(Strategy):
                 and float(np.hypot(*(self._checked - P).T).max()) < still):
             return None
         _, masses, _ = team_metric(self.cells, self.spec, P, reach)
-        if own not in movers(masses, reach, cfg.movers):
+        # Exchanges and swaps (mixed reaches) can name any robot, so then every robot predicts.
+        mixed = reach is not None and len(np.unique(reach)) > 1 and cfg.exchanges > 0
+        if not mixed and own not in movers(masses, reach, cfg.movers):
             return None
         self._checked = P.copy()
         move = best_relocation(self.cells, self.spec, P, reach, cfg)
-        return move if move is not None and move.agent == own else None
+        return move if move is not None and own in move.agents else None

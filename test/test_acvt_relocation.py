@@ -22,6 +22,7 @@ from coverage_ros.core.strategies import (
 from coverage_ros.core.strategies.acvt.cells import CellSpec, MassCells
 from coverage_ros.core.strategies.acvt.dropout import AcvtConfig, AlphaCvt, DropoutConfig
 from coverage_ros.core.strategies.acvt.exchange import agent_regions, exchanges, swaps
+from coverage_ros.core.strategies.acvt.plans import heard_plan, plan_extras
 from coverage_ros.core.strategies.acvt.relocation import (
     RelocationConfig,
     best_relocation,
@@ -30,6 +31,7 @@ from coverage_ros.core.strategies.acvt.relocation import (
     settle,
     team_metric,
 )
+from coverage_ros.core.world.robot import RobotSpec
 from coverage_ros.errors import ConfigError
 
 PAPER_FIG3_I = 0.046  # Lee & Lee, Fig. 3: alpha-CVT's I on two disjoint targets
@@ -113,6 +115,18 @@ def test_the_centralized_run_relocates_only_when_settled_and_only_as_alpha_cvt(d
         RelocationConfig(margin=0.0)
 
 
+MIXED = np.r_[np.full(5, scenes.SLOW), np.full(5, scenes.FAST)]
+
+
+def _unequal_composition(cells: MassCells) -> np.ndarray:
+    """Fig. 14's agents settled with four slow and one fast agent in the small target."""
+    small = np.array([1, 1, 1, 1, 0, 1, 0, 0, 0, 0], dtype=bool)
+    rng = np.random.default_rng(0)
+    P = np.where(small[:, None], rng.uniform(SMALL_LO, SMALL_HI, (10, 2)),
+                 rng.uniform(BIG_LO, BIG_HI, (10, 2)))
+    return settle(cells, CellSpec(), P, MIXED, 200, 1e-4)
+
+
 def test_an_exchange_mends_a_balanced_composition_whose_cells_stay_unequal(domain):
     """Fig. 14's setting: four slow agents and one fast one in the small target give it its
     share of R^2 (4 x 0.16 + 0.64 = 2 x 0.64, 32 % of the team's) but Lloyd's cells of mixed
@@ -122,12 +136,9 @@ def test_an_exchange_mends_a_balanced_composition_whose_cells_stay_unequal(domai
     best follows it - and a swap of a slow and a fast agent in the large target then ends below
     the paper's value."""
     cells = MassCells(domain)
-    R = np.r_[np.full(5, scenes.SLOW), np.full(5, scenes.FAST)]
+    R = MIXED
     small = np.array([1, 1, 1, 1, 0, 1, 0, 0, 0, 0], dtype=bool)
-    rng = np.random.default_rng(0)
-    P = np.where(small[:, None], rng.uniform(SMALL_LO, SMALL_HI, (10, 2)),
-                 rng.uniform(BIG_LO, BIG_HI, (10, 2)))
-    P = settle(cells, CellSpec(), P, R, 200, 1e-4)
+    P = _unequal_composition(cells)
     labels, masses, before = team_metric(cells, CellSpec(), P, R)
     assert before > 1.5 * PAPER_FIG14_IH
     assert agent_regions(cells, labels, 10).tolist() == small.astype(int).tolist()  # 0: BIG
@@ -160,6 +171,52 @@ def test_an_exchange_mends_a_balanced_composition_whose_cells_stay_unequal(domai
     assert swaps(cells, labels, masses, P, same, 4) == []
     with pytest.raises(ConfigError, match=r"relocation\.exchanges"):
         RelocationConfig(exchanges=-1)
+
+
+def test_a_mixed_team_moves_by_the_plan_its_lowest_id_robot_publishes(domain):
+    """With mixed reaches only the robot of lowest id heard predicts; it publishes the exchange
+    as a plan among its state's extras, and every robot the plan names drives to its point once
+    (positions that differ by centimetres between robots cannot split the move)."""
+    cells = MassCells(domain)
+    P = _unequal_composition(cells)
+    _, masses, _ = team_metric(cells, CellSpec(), P, MIXED)
+    move = best_relocation(cells, CellSpec(), P, MIXED, RelocationConfig())
+    assert len(move.agents) > 2
+
+    def robot(rid):
+        r = make_strategy("acvt", StrategyContext(domain=domain, robot_id=rid,
+                                                  robot=RobotSpec(v_max=float(MIXED[rid]))))
+        r.switch.stop()
+        return r
+
+    def state(i, extra=()):
+        return SharedState(P[i].copy(), mass=masses[i],
+                           extra={"reach": float(MIXED[i]), "dropout": 0.0, "greedy": 0.0,
+                                  "settled": 1.0, "relocating": 0.0, **dict(extra)})
+
+    def decide(r, rid, at, extra_of=()):
+        nbrs = [Neighbour(i, state(i, extra_of if i == 0 else ())) for i in range(10)
+                if i != rid]
+        return r.update(Observation(rid, np.array([*at, 0.0]), 1.0), nbrs)
+
+    other = next(a for a in move.agents if a != 0)
+    assert decide(robot(other), other, P[other]).mode == "cvt"  # not the lowest id: waits
+    planner = decide(robot(0), 0, P[0])
+    extra = planner.shared.extra
+    assert (extra["plan_from"], extra["plan_seq"]) == (0.0, 1.0)
+    named = {a: pt for a, pt in zip(move.agents, move.points, strict=True)}
+    for a, pt in named.items():
+        assert (extra[f"plan_{a}_x"], extra[f"plan_{a}_y"]) == (pt[0], pt[1])
+    assert planner.mode == ("relocate" if 0 in named else "cvt")
+    assert not any(f"plan_{i}_x" in extra for i in range(10) if i not in named)
+    follower = robot(other)
+    first = decide(follower, other, P[other], extra)
+    assert first.mode == "relocate" and np.allclose(first.goal, named[other])
+    arrived = decide(follower, other, named[other], extra)  # at its point, the plan still heard
+    assert arrived.mode != "relocate"  # a plan is carried out once
+    assert heard_plan(5, [None, SharedState(P[0], extra=plan_extras(2, 3, {5: P[1]}))]) == \
+        ((2, 3), pytest.approx(P[1]))
+    assert heard_plan(5, [SharedState(P[0], extra=plan_extras(2, 3, {4: P[1]}))]) is None
 
 
 def _state(p, mass, settled=1.0, dropout=0.0, relocating=0.0):

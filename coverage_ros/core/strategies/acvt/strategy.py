@@ -55,6 +55,7 @@ from coverage_ros.core.strategies.acvt.dropout import (
     DropoutSwitch,
     greedy_mask,
 )
+from coverage_ros.core.strategies.acvt.plans import heard_plan, plan_extras
 from coverage_ros.core.strategies.acvt.relocation import (
     RelocationConfig,
     best_relocation,
@@ -78,6 +79,8 @@ REACH_TIME = 1.0
 #: A robot within this many convergence tolerances of its goal counts as settled for the
 #: relocation (live robots hover 5-9 cm from goals that move with their neighbours' jitter).
 SETTLED_FACTOR = 3.0
+#: Plans (relocations of a team of mixed reaches, :mod:`.plans`) one robot may make.
+MAX_PLANS = 4
 
 
 @dataclass(frozen=True)
@@ -163,6 +166,9 @@ class AcvtStrategy(Strategy):
         self._relocating: np.ndarray | None = None  # (2,) [m] target of a relocation under way
         self._relocations = 0
         self._checked: np.ndarray | None = None  # team positions of the last prediction
+        self._plan: dict[str, float] = {}  # the extras of the plan this robot publishes
+        self._plans = 0  # plans made (mixed reaches: this robot predicts for its neighbourhood)
+        self._carried: set[tuple[int, int]] = set()  # (planner, seq) of the plans carried out
 
     def shared_state(self, obs: Observation) -> SharedState:
         return SharedState(position=obs.position.copy(), weight=self.context.weight,
@@ -171,7 +177,7 @@ class AcvtStrategy(Strategy):
     def _extra(self, greedy: bool, settled: bool = False) -> dict[str, float]:
         return {"reach": self.reach, "dropout": float(self.switch.active),
                 "greedy": float(greedy), "settled": float(settled),
-                "relocating": float(self._relocating is not None)}
+                "relocating": float(self._relocating is not None), **self._plan}
 
     # ------------------------------------------------------------------ cells
     def _own_cell(self, P: np.ndarray, reach: np.ndarray | None,
@@ -259,9 +265,14 @@ class AcvtStrategy(Strategy):
         if self._relocating is not None and float(np.hypot(*(self._relocating - p))) < tol:
             self._relocating = None  # arrived: back to iCVT + projection
         predicted = math.nan
+        heard = [states[src] for src in order if states[src] is not None]
+        plan = heard_plan(obs.robot_id, heard)
+        if self._relocating is None and plan is not None and plan[0] not in self._carried:
+            self._carried.add(plan[0])  # a neighbour's plan names this robot: it goes
+            self._relocating = plan[1]
+            self._relocations += 1
         if self._relocating is None and settled:
-            heard = [states[src] for src in order if states[src] is not None]
-            move = self._relocation_move(P, reach_arg, own, heard)
+            move = self._relocation_move(P, reach_arg, own, heard, ids[order])
             if move is not None:
                 self._relocating, predicted = move.point_of(own), move.metric_after
                 self._relocations += 1
@@ -282,17 +293,20 @@ class AcvtStrategy(Strategy):
                                 else self._relocating.copy(), predicted=predicted))
 
     def _relocation_move(self, P: np.ndarray, reach: np.ndarray | None, own: int,
-                         neighbours: list[SharedState]):
+                         neighbours: list[SharedState], row_ids: np.ndarray):
         """The relocation this robot makes now, if any (:mod:`.relocation`): only with its
         dropout over, every neighbour settled, out of the dropout and not relocating, and its
         own (normalised) mass among the ``movers`` least of the team at ``P (k, 2)`` (row
-        ``own``) - or any robot of a team of mixed reaches, where an exchange or a swap can
-        name several; those robots all predict the same relocation, and only the robots it
-        names move - so that in a team that hears everyone one relocation at a time is made.
-        A team configuration that was predicted already is not predicted again."""
+        ``own``); those robots all predict the same relocation, and only the robot it names
+        moves - so that in a team that hears everyone one robot at a time relocates. In a team
+        of mixed reaches, where an exchange or a swap names several robots, the robot of lowest
+        id among those heard (``row_ids``: the robot id of every row of ``P``) predicts alone
+        and publishes the plan (:mod:`.plans`). A team configuration that was predicted already
+        is not predicted again."""
         cfg = self.relocation
-        if not cfg.enabled or self.switch.active or self._relocations >= cfg.max_moves \
-                or len(P) < 2:
+        mixed = reach is not None and len(np.unique(reach)) > 1 and cfg.exchanges > 0
+        spent = self._plans >= MAX_PLANS if mixed else self._relocations >= cfg.max_moves
+        if not cfg.enabled or self.switch.active or spent or len(P) < 2:
             return None
         if not all(st.extra.get("settled", 0.0) == 1.0 and st.extra.get("dropout", 1.0) == 0.0
                    and st.extra.get("relocating", 0.0) == 0.0 for st in neighbours):
@@ -301,11 +315,19 @@ class AcvtStrategy(Strategy):
         if (self._checked is not None and self._checked.shape == P.shape
                 and float(np.hypot(*(self._checked - P).T).max()) < still):
             return None
-        _, masses, _ = team_metric(self.cells, self.spec, P, reach)
-        # Exchanges and swaps (mixed reaches) can name any robot, so then every robot predicts.
-        mixed = reach is not None and len(np.unique(reach)) > 1 and cfg.exchanges > 0
-        if not mixed and own not in movers(masses, reach, cfg.movers):
-            return None
+        if mixed:
+            if row_ids[own] != row_ids.min():
+                return None
+        else:
+            _, masses, _ = team_metric(self.cells, self.spec, P, reach)
+            if own not in movers(masses, reach, cfg.movers):
+                return None
         self._checked = P.copy()
         move = best_relocation(self.cells, self.spec, P, reach, cfg)
+        if move is not None and mixed:
+            self._plans += 1
+            self._plan = plan_extras(int(row_ids[own]), self._plans,
+                                     {int(row_ids[a]): pt for a, pt in zip(
+                                         move.agents, move.points, strict=True)})
+            self._carried.add((int(row_ids[own]), self._plans))
         return move if move is not None and own in move.agents else None

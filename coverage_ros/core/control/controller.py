@@ -395,10 +395,11 @@ class RobotController:
 
     def describe(self) -> list[str]:
         """Lines for the log at the end: the last decision, and the poses' ages."""
-        n = self.recovery.escapes
+        n, g = self.recovery.escapes, self.recovery.give_ways
         escapes = f"backed off {n} time(s) after being held still (recovery)" if n else ""
-        return [text for text in (self.describe_last(), self.describe_pose_age(), escapes)
-                if text]
+        gave = f"gave way to a robot ahead {g} time(s)" if g else ""
+        return [text for text in (self.describe_last(), self.describe_pose_age(), escapes,
+                                  gave) if text]
 
     def describe_last(self) -> str:
         """One line on the last decision (mode, target, path, safety), '' before the first."""

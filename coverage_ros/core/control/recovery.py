@@ -10,8 +10,12 @@ obstacle points around the robot (forward or backward, whichever needs less turn
 safety filter still checks every command, and lets a robot move away from what it is near),
 and asks for a new path from there.
 
-Only a blocked wanted motion counts: a robot waiting for a neighbour to pass ("robot ahead"),
-standing at its goal, paused or driven by a person never escapes.
+Only a blocked wanted motion counts: a robot standing at its goal, paused or driven by a person
+never escapes. A robot held by a neighbour ("robot ahead") waits longer, ``GIVE_WAY_TIME``, for
+it to pass, then *gives way*: it drives ``GIVE_WAY_DISTANCE`` to the right of its way and plans
+again. Two robots that meet head-on on one line (robots relocating between targets, a team
+crossing itself) otherwise wait for each other for ever - each holds the other's arc blocked;
+stepping to their own right, both clear the line, as people passing in a corridor do.
 """
 
 from __future__ import annotations
@@ -35,6 +39,13 @@ ESCAPE_SPEED = 0.5
 ESCAPE_LOOK = 0.4
 #: Safety notes that count as blocked by the world (not by a neighbour robot).
 BLOCKED_BY = ("wall ahead", "obstacle in scan")
+#: The safety note of a neighbour in the way.
+ROBOT_AHEAD = "robot ahead"
+#: [s] held still by a neighbour this long while wanting to drive: give way to the right.
+GIVE_WAY_TIME = 5.0
+#: [m] how far giving way drives to the right (two TurtleBot3 bodies and their margin apart:
+#: 2 x 0.105 + 0.06 m = 0.27 m of the 0.4 m two robots open up between them).
+GIVE_WAY_DISTANCE = 0.2
 
 
 def away_from(position: np.ndarray, points: np.ndarray) -> float | None:
@@ -60,9 +71,12 @@ class StuckRecovery:
         self.heading_gain = heading_gain
         self.turn_in_place = turn_in_place
         self.blocked_since: float | None = None
-        #: (start xy, direction [rad], give-up time [s], why) of the running escape.
-        self.escape: tuple[np.ndarray, float, float, str] | None = None
+        self.blocked_by = ""  # "world" or "robot": what holds the robot since blocked_since
+        #: (start xy, direction [rad], give-up time [s], why, distance [m]) of the running
+        #: escape (or giving way).
+        self.escape: tuple[np.ndarray, float, float, str, float] | None = None
         self.escapes = 0
+        self.give_ways = 0
         #: Set when an escape ended: the caller replans (and clears the flag).
         self.ended = False
 
@@ -73,21 +87,29 @@ class StuckRecovery:
         frame), asked for only when an escape begins."""
         if self.escape is not None:
             return
-        held = abs(wanted_v) > 1e-3 and abs(v) < 1e-9 and any(b in note for b in BLOCKED_BY)
-        if not held:
+        held = abs(wanted_v) > 1e-3 and abs(v) < 1e-9
+        by = "world" if held and any(b in note for b in BLOCKED_BY) else \
+            "robot" if held and ROBOT_AHEAD in note else ""
+        if not by:
             self.blocked_since = None
             return
-        if self.blocked_since is None or now < self.blocked_since:
-            self.blocked_since = now
+        if self.blocked_since is None or now < self.blocked_since or by != self.blocked_by:
+            self.blocked_since, self.blocked_by = now, by
             return
-        if now - self.blocked_since < STUCK_TIME:
+        if now - self.blocked_since < (STUCK_TIME if by == "world" else GIVE_WAY_TIME):
+            return
+        self.blocked_since = None
+        start = np.array(pose[:2], dtype=np.float64)
+        if by == "robot":  # to the right of the way it wants to go
+            way = pose[2] if wanted_v > 0 else pose[2] + math.pi
+            self.escape = (start, float(wrap_angle(way - 0.5 * math.pi)), now + ESCAPE_TIME,
+                           ROBOT_AHEAD, GIVE_WAY_DISTANCE)
+            self.give_ways += 1
             return
         direction = away_from(pose, obstacles())
-        self.blocked_since = None
         if direction is not None:
             why = note.split(": ", 1)[-1]
-            self.escape = (np.array(pose[:2], dtype=np.float64), direction,
-                           now + ESCAPE_TIME, why)
+            self.escape = (start, direction, now + ESCAPE_TIME, why, ESCAPE_DISTANCE)
             self.escapes += 1
 
     def command(self, pose: np.ndarray, now: float) -> tuple[float, float] | None:
@@ -95,8 +117,8 @@ class StuckRecovery:
         when not escaping (the escape that just ended sets ``ended``)."""
         if self.escape is None:
             return None
-        start, direction, until, _ = self.escape
-        if float(np.hypot(*(pose[:2] - start))) >= ESCAPE_DISTANCE or not now < until:
+        start, direction, until, _, distance = self.escape
+        if float(np.hypot(*(pose[:2] - start))) >= distance or not now < until:
             self.escape = None
             self.ended = True
             return None
@@ -113,4 +135,6 @@ class StuckRecovery:
         """The running escape, '' when none."""
         if self.escape is None:
             return ""
+        if self.escape[3] == ROBOT_AHEAD:
+            return f"giving way: held still {GIVE_WAY_TIME:g} s by a {ROBOT_AHEAD}"
         return f"escaping: held still {STUCK_TIME:g} s by {self.escape[3]}"

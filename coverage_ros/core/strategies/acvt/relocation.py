@@ -14,14 +14,27 @@ few agents of least (normalised) mass j tries moving to the point of each of the
 h farthest from that cell's agent (the part of the cell its owner covers worst), and the team's
 iCVT + projection is run forward to convergence from there (:func:`settle`). The best of these
 predictions is taken if it lowers the scenario's metric (I, I^L or I^H) by at least ``margin``;
-otherwise nothing moves. Each relocation lowers the predicted metric by ``margin`` or more, so
-there are finitely many. It is the dropout idea one step further: instead of the greedy agents
+otherwise nothing moves. It is the dropout idea one step further: instead of the greedy agents
 stepping aside, an idle one is reinserted where it is missing.
 
+In a team of mixed reaches one agent at a time is not enough: the compositions of the targets
+that give each its share of sum R^2 can be several single moves apart, each of which raises
+the metric (:mod:`.exchange`). There the relocation also predicts *exchanges* (several agents
+change targets at once) and *swaps* (two agents of different reach in one target trade
+places); their guard is the reach-weighted coverage cost, which they may raise by
+``exchange_slack``.
+
+Every move taken lowers the predicted metric by ``margin`` or more, and a run makes at most
+``max_moves`` of them (a decentralized team of mixed reaches, at most
+:data:`~coverage_ros.core.strategies.acvt.strategy.MAX_PLANS` plans): a team never relocates
+for ever, even where a prediction and the live team part ways.
+
 Both forms use it: the centralized :class:`~coverage_ros.core.strategies.acvt.dropout.AlphaCvt`
-relocates between its iterations; in the decentralized strategy the few lightest robots of a
-settled neighbourhood predict with their neighbours' published positions (and reaches) - all
-finding the same relocation - and the one it names drives to its point.
+relocates between its iterations. In the decentralized strategy the few lightest robots of a
+settled neighbourhood of one reach predict with their neighbours' published positions - all
+finding the same relocation - and the one it names drives to its point; in a team of mixed
+reaches only the robot of lowest id heard predicts, and publishes the move as a plan that the
+robots it names carry out (:mod:`.plans`).
 """
 
 from __future__ import annotations

@@ -103,11 +103,22 @@ def navigation_domain(snapshot: BeliefSnapshot, robot_radius: float,
 
 
 def entropy_domain(snapshot: BeliefSnapshot, robot_radius: float, metric: EntropyMetric,
-                   connectivity: int = 8) -> tuple[CoverageDomain, np.ndarray]:
+                   connectivity: int = 8, blocked: np.ndarray | None = None
+                   ) -> tuple[CoverageDomain, np.ndarray]:
     """Eq. 9's coverage domain of the belief, and the ``(H, W)`` entropy it came from;
-    memoized in the snapshot."""
+    memoized in the snapshot. ``blocked`` ``(H, W) bool``: cells taken as occupied whatever
+    the belief says (a robot's given-up pockets); such a domain is not memoized."""
     key = ("entropy", float(robot_radius), metric, connectivity)
     e = _entropy(snapshot)
+    if blocked is not None:
+        grid = belief_grid(snapshot)
+        occ = grid.occupancy.copy()
+        occ[blocked] = 100
+        w, zeta = metric.weights(e)
+        domain = CoverageDomain.from_grid(grid.with_occupancy(occ), robot_radius,
+                                          connectivity=connectivity, unknown_is_free=True,
+                                          zeta=zeta)
+        return domain.with_density(w), e
     if key not in snapshot.derived:
         w, zeta = metric.weights(e)
         domain = CoverageDomain.from_grid(belief_grid(snapshot), robot_radius,

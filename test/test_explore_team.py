@@ -12,6 +12,7 @@ import pytest
 from conftest import REPO, WORLDS, shared_map
 from rosutil import domain_id
 from rrdutil import read_rrd
+from teamdiag import team_diagnosis
 
 from coverage_ros.core.world import load_world
 from coverage_ros.core.world.map_server import load_map_yaml
@@ -28,21 +29,6 @@ def explore(tmp_path, world, *args: str, offset: int) -> tuple[dict, object]:
                           capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stderr[-3000:]
     return json.loads((out / "summary.json").read_text()), out
-
-
-def diagnosis(summary: dict, out) -> str:
-    """What each robot did at the end (for a failing assertion's message): where it stood,
-    whether it was lost, and its log's last decision and recovery lines."""
-    m = summary["metrics"]
-    lines = [f"metrics {json.dumps({k: v for k, v in m.items() if k != 'H_series'})}",
-             f"H series {m['H_series']}"]
-    for r in summary["robots"]:
-        log = out / "logs" / f"robot_{r['id']}.log"
-        tail = [ln.split("]: ", 1)[-1] for ln in log.read_text().splitlines()
-                if "last decision" in ln or "backed off" in ln or "gave way" in ln
-                or "Traceback" in ln or "Error" in ln][-4:] if log.exists() else ["no log"]
-        lines.append(f"robot {r['id']} final {r['final']} lost_at {r.get('lost_at')}: {tail}")
-    return "\n".join(lines)
 
 
 def check_explored(summary: dict, out, world_path) -> None:
@@ -75,9 +61,10 @@ def test_four_robots_explore_the_office_and_settle_into_coverage(tmp_path):
     # (H is sampled every 10 s of wall time), far below the start cluster's.
     # (A CI run once "settled" at 166 s with H at half the start's: a robot stood at a door
     # jamb whose way on began with a sideways step; core/geodesic/descent.py's ball_descent.)
-    assert not any("lost_at" in r for r in summary["robots"]), diagnosis(summary, out)
-    assert m["converged_at"] is not None and m["converged_at"] <= 285.0, diagnosis(summary, out)
-    assert m["H"] <= 0.25 * m["H_start"], diagnosis(summary, out)
+    why = team_diagnosis(summary, out)
+    assert not any("lost_at" in r for r in summary["robots"]), why
+    assert m["converged_at"] is not None and m["converged_at"] <= 285.0, why
+    assert m["H"] <= 0.25 * m["H_start"], why
     # The recording shows the belief's entropy under the cells and the explored fraction.
     rows = read_rrd(out / "recording.rrd")
     assert len(rows["/world/entropy"]) >= 20

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 from conftest import REPO
 from rosutil import NodeProcess, domain_id
+from teamdiag import team_diagnosis
 
 from coverage_ros.core.control.goal_relay import GoalRelay
 from coverage_ros.errors import ConfigError
@@ -79,7 +80,7 @@ def test_a_team_with_its_own_navigation_and_localization_converges(tmp_path):
     got = json.loads(result.read_text())
     summary = json.loads((out / "summary.json").read_text())
     m = summary["metrics"]
-    assert m["H"] <= 0.5 * m["H_start"], m
+    assert m["H"] <= 0.5 * m["H_start"], team_diagnosis(summary, out)
     for rid in ("0", "1", "2"):
         assert got["cmd_vel_publishers"][rid] == [], got["cmd_vel_publishers"]
         goals = np.array([g[1:4] for g in got["goals"][rid]])

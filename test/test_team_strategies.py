@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from conftest import REPO, shared_map
 from rosutil import domain_id
+from teamdiag import team_diagnosis
 
 from coverage_ros.cli.plan import main as plan_main
 from coverage_ros.core.geodesic.domain import CoverageDomain
@@ -63,7 +64,7 @@ def test_every_strategy_spreads_a_cluster_on_the_live_team(tmp_path, sandbox, be
                        "--strategy", strategy, *extra, offset=offset)
     m = summary["metrics"]
     print(f"{strategy}: H {m['H']:.2f} (start {m['H_start']:.2f}, best plan {best_plan:.2f})")
-    assert m["H"] <= 0.6 * m["H_start"], m
+    assert m["H"] <= 0.6 * m["H_start"], team_diagnosis(summary, tmp_path / "team")
     # Held to the 1.3x (tangentbug ended at 1.36x-2.29x in seven of eight runs until its
     # virtual generators stopped collapsing onto one point; bvc at 1.26-1.42x in half its runs
     # until its guide counted what its scans had seen, not only the current scan, and a robot at
@@ -73,7 +74,7 @@ def test_every_strategy_spreads_a_cluster_on_the_live_team(tmp_path, sandbox, be
     # their whole team, and 1.31x in a CI run after it, against 1.03-1.08x in six runs here; the
     # 1.3x target is not met in every run (README).
     limit = 1.5 if strategy == "bvc" else 1.3
-    assert m["H"] <= limit * best_plan, (m["H"], best_plan)
+    assert m["H"] <= limit * best_plan, (best_plan, team_diagnosis(summary, tmp_path / "team"))
     assert all(r["collisions"] == 0 for r in summary["robots"]), summary["robots"]
     logs = tmp_path / "team" / "logs"
     if "--map-free" in extra:

@@ -8,7 +8,7 @@ import json
 from pathlib import Path
 
 #: Robot log lines worth quoting (the end-of-run lines of the controller, and errors).
-KEYS = ("last decision", "backed off", "gave way", "Traceback", "Error")
+KEYS = ("last decision", "backed off", "gave way", "gave up", "Traceback", "Error")
 
 
 def team_diagnosis(summary: dict, out: Path) -> str:

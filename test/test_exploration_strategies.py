@@ -274,6 +274,8 @@ def test_a_given_up_pocket_inside_furniture_is_banned_whole_and_stops_pulling():
     assert robot.banned is not None and robot.banned[inside].all()
     assert not robot.banned[~table].any()
     assert gone.mode == "lloyd"
+    said = robot.describe()  # the robot log's end-of-run line
+    assert len(said) == 1 and f"{int(robot.banned.sum())} vertices (its pocket)" in said[0]
     # From the next update the table is an obstacle for this robot: its Lloyd goal, pulled
     # toward the table's inside before, is back on the room's side away from the table.
     then = robot.update(Observation(0, pose, robot.params.give_up_after + 1.5, None,
@@ -288,7 +290,7 @@ def test_a_given_up_pocket_inside_furniture_is_banned_whole_and_stops_pulling():
     at = np.array([5.5, 0.5, 0.0])
     t0 = far.update(Observation(0, at, 0.0, None, big.snapshot()), [])
     far.update(Observation(0, at, far.params.give_up_after + 1.0, None, big.snapshot()), [])
-    assert len(far.given_up) == 1
+    assert len(far.given_up) == 1 and "pocket" not in far.describe()[0]
     assert 0 < far.banned.sum() * RES ** 2 < math.pi * far.params.ban_radius ** 2 * 2.5
     assert far.target is not None and far.target[0] < 5.0  # still the same unknown
     assert np.hypot(*(far.target - t0.goal)) > far.params.ban_radius

@@ -399,7 +399,7 @@ class RobotController:
         escapes = f"backed off {n} time(s) after being held still (recovery)" if n else ""
         gave = f"gave way to a robot ahead {g} time(s)" if g else ""
         return [text for text in (self.describe_last(), self.describe_pose_age(), escapes,
-                                  gave) if text]
+                                  gave, *self.strategy.describe()) if text]
 
     def describe_last(self) -> str:
         """One line on the last decision (mode, target, path, safety), '' before the first."""

@@ -248,6 +248,10 @@ class Strategy(ABC):
         """What to publish before the first update (default: the own position)."""
         return SharedState(position=obs.position.copy(), weight=self.context.weight)
 
+    def describe(self) -> list[str]:
+        """Lines for the robot's log at the end of a run (default: none)."""
+        return []
+
     def cost_about(self, decision: Decision, point: np.ndarray) -> float | None:
         """Coverage cost of ``decision``'s own cell about another position ``point`` (2,) [m],
         or None when the strategy has no such cost. The offline runner's monotone step rule

@@ -119,6 +119,7 @@ class ExploreStrategy(Strategy):
         self.target: np.ndarray | None = None  # greedy target (2,) [m], None in Lloyd mode
         self.banned: np.ndarray | None = None  # (H, W) bool: given-up vertices (see docstring)
         self.given_up: list[np.ndarray] = []  # the given-up targets (2,) [m]
+        self.given_up_cells: list[tuple[int, bool]] = []  # (vertices banned, a whole pocket)
         self._near: tuple[np.ndarray, float] | None = None  # (target, since [s]) when near it
         self._pocket: np.ndarray | None = None  # (H, W) bool: the near target's small pocket
         #: (entropy domain, bans, that domain with the banned unexplored vertices occupied)
@@ -205,6 +206,7 @@ class ExploreStrategy(Strategy):
             return False
         if self.banned is None:
             self.banned = np.zeros(domain.shape, bool)
+        before = int(self.banned.sum())
         pocket = self.pocket(domain, e, t)
         if pocket is not None:
             self.banned |= pocket
@@ -214,8 +216,20 @@ class ExploreStrategy(Strategy):
                 close = np.hypot(*(centres - point).T) <= self.params.ban_radius
                 self.banned |= close.reshape(domain.shape)
         self.given_up.append(t.copy())
+        self.given_up_cells.append((int(self.banned.sum()) - before, pocket is not None))
         self.target, self._near, self._pocket = None, None, None
         return True
+
+    def describe(self) -> list[str]:
+        if not self.given_up:
+            return []
+        what = ", ".join(f"({t[0]:.2f}, {t[1]:.2f}): {n} vertices" + (" (its pocket)" if whole
+                                                                       else "")
+                         for t, (n, whole) in zip(self.given_up, self.given_up_cells,
+                                                  strict=True))
+        return [f"gave up {len(self.given_up)} exploration target(s) that stayed unexplored "
+                f"{self.params.give_up_after:g} s within {self.params.give_up_radius:g} m: "
+                f"{what}"]
 
     def pocket(self, domain: CoverageDomain, e: np.ndarray, point: np.ndarray
                ) -> np.ndarray | None:

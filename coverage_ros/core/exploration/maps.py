@@ -110,19 +110,16 @@ def entropy_domain(snapshot: BeliefSnapshot, robot_radius: float, metric: Entrop
     the belief says (a robot's given-up pockets); such a domain is not memoized."""
     key = ("entropy", float(robot_radius), metric, connectivity)
     e = _entropy(snapshot)
+    if blocked is None and key in snapshot.derived:
+        return snapshot.derived[key], e
+    grid = belief_grid(snapshot)
     if blocked is not None:
-        grid = belief_grid(snapshot)
         occ = grid.occupancy.copy()
         occ[blocked] = 100
-        w, zeta = metric.weights(e)
-        domain = CoverageDomain.from_grid(grid.with_occupancy(occ), robot_radius,
-                                          connectivity=connectivity, unknown_is_free=True,
-                                          zeta=zeta)
-        return domain.with_density(w), e
-    if key not in snapshot.derived:
-        w, zeta = metric.weights(e)
-        domain = CoverageDomain.from_grid(belief_grid(snapshot), robot_radius,
-                                          connectivity=connectivity, unknown_is_free=True,
-                                          zeta=zeta)
-        snapshot.derived[key] = domain.with_density(w)
-    return snapshot.derived[key], e
+        grid = grid.with_occupancy(occ)
+    w, zeta = metric.weights(e)
+    domain = CoverageDomain.from_grid(grid, robot_radius, connectivity=connectivity,
+                                      unknown_is_free=True, zeta=zeta).with_density(w)
+    if blocked is None:
+        snapshot.derived[key] = domain
+    return domain, e

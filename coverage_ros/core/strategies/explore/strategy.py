@@ -240,17 +240,11 @@ class ExploreStrategy(Strategy):
         cell = self._cell(domain, point)
         if not unexplored[cell]:
             return None
-        # Only the window a pocket of the largest area can span is labelled.
-        reach = int(math.ceil(self.params.ban_pocket_area / domain.resolution ** 2))
-        r0, c0 = max(cell[0] - reach, 0), max(cell[1] - reach, 0)
-        window = unexplored[r0:cell[0] + reach + 1, c0:cell[1] + reach + 1]
-        labels, _ = ndimage.label(window, structure=np.ones((3, 3), bool))
-        mine = labels == labels[cell[0] - r0, cell[1] - c0]
+        labels, _ = ndimage.label(unexplored, structure=np.ones((3, 3), bool))
+        mine = labels == labels[cell]
         if mine.sum() * domain.resolution ** 2 > self.params.ban_pocket_area:
             return None
-        out = np.zeros(domain.shape, bool)
-        out[r0:r0 + mine.shape[0], c0:c0 + mine.shape[1]] = mine
-        return out
+        return mine
 
     @staticmethod
     def _cell(domain: CoverageDomain, point: np.ndarray) -> tuple[int, int]:

@@ -93,3 +93,26 @@ def test_own_two_target_shapes_end_balanced_from_every_start(shape):
     values = [solver.run(scenes.corner_cluster(s, 10)).metric[-1] for s in SEEDS]
     print(f"\n{shape}: I {np.round(values, 3).tolist()}")
     assert statistics.median(values) <= 0.046 and max(values) <= 2 * 0.046
+
+
+def test_live_room_starts_are_ones_the_launcher_accepts(tmp_path):
+    """The live Figs. 17d-f / 18d-f draw their start clusters near the room's first wall: every
+    seed's starts keep the robots' bodies clear of the walls and of each other (a seed of the
+    first bench run put one inside the wall, and the launcher refused the run)."""
+    import yaml
+
+    from coverage_ros.bench.papers import lee2024_live
+    from coverage_ros.core.world import load_world
+    from coverage_ros.core.world.placement import validate_starts
+    from coverage_ros.errors import ConfigError
+
+    path = tmp_path / "room.yaml"
+    path.write_text(yaml.safe_dump(lee2024_live._room_world()))
+    world = load_world(path)
+    for seed in range(10):
+        starts = scenes.corner_cluster(seed, 10, scenes.LOWER_LEFT, arena=lee2024_live.ROOM_SIDE,
+                                       keep=lee2024_live._clear_of_walls)
+        validate_starts(world, starts, [scenes.TB3_RADIUS] * 10, f"seed {seed}")
+    unchecked = scenes.corner_cluster(1, 10, scenes.LOWER_LEFT, arena=lee2024_live.ROOM_SIDE)
+    with pytest.raises(ConfigError, match="inside an obstacle or wall"):
+        validate_starts(world, unchecked, [scenes.TB3_RADIUS] * 10, "seed 1")

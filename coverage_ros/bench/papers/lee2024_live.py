@@ -13,6 +13,7 @@ the same grid as offline: I (Eq. 9) on the two targets, I^L (Eq. 13) in the wall
 from __future__ import annotations
 
 import json
+import math
 import tempfile
 from pathlib import Path
 
@@ -34,6 +35,18 @@ WORLD_RESOLUTION = 0.1  # [m] as the offline domains
 ROOM_SIDE = 10.0  # [m]
 ROOM_WALLS = ({"type": "box", "center": [3.25, 3.5], "size": [6.5, 0.2]},
               {"type": "box", "center": [6.75, 6.5], "size": [6.5, 0.2]})
+START_CLEARANCE = 0.05  # [m] between a start's body and a wall
+
+
+def _clear_of_walls(p: np.ndarray) -> bool:
+    """Whether a robot body at ``p`` keeps clear of the room's walls (a start cluster drawn near
+    the first wall may otherwise put a robot inside it, which the launcher refuses)."""
+    for wall in ROOM_WALLS:
+        half = np.asarray(wall["size"]) / 2.0
+        gap = np.maximum(np.abs(p - np.asarray(wall["center"])) - half, 0.0)
+        if math.hypot(*gap) < scenes.TB3_RADIUS + START_CLEARANCE:
+            return False
+    return True
 
 
 def _targets_world() -> dict:
@@ -115,7 +128,8 @@ def fig17_targets(seed: int) -> dict[str, float]:
 
 
 def fig17_room(seed: int) -> dict[str, float]:
-    starts = scenes.corner_cluster(seed, 10, scenes.LOWER_LEFT, arena=ROOM_SIDE)
+    starts = scenes.corner_cluster(seed, 10, scenes.LOWER_LEFT, arena=ROOM_SIDE,
+                                   keep=_clear_of_walls)
     return _fig(_room_world(), starts, np.full(10, FAST), True, "I^L", seed)
 
 
@@ -126,5 +140,6 @@ def fig18_targets(seed: int) -> dict[str, float]:
 
 def fig18_room(seed: int) -> dict[str, float]:
     speeds = np.r_[np.full(4, SLOW), np.full(6, FAST)]
-    starts = scenes.corner_cluster(seed, 10, scenes.LOWER_LEFT, arena=ROOM_SIDE)
+    starts = scenes.corner_cluster(seed, 10, scenes.LOWER_LEFT, arena=ROOM_SIDE,
+                                   keep=_clear_of_walls)
     return _fig(_room_world(), starts, speeds, True, "I^H", seed)

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Callable
 
 import numpy as np
 
@@ -60,9 +61,11 @@ BIG = _disc(BIG_CENTRE, BIG_RADIUS)
 
 
 def corner_cluster(seed: int, k: int, box: tuple[float, float, float, float] = UPPER_LEFT,
-                   arena: float = ARENA) -> np.ndarray:
+                   arena: float = ARENA,
+                   keep: Callable[[np.ndarray], bool] | None = None) -> np.ndarray:
     """``(k, 2)`` [m]: ``k`` agents about a centre drawn in ``box`` (wider for larger teams);
-    the same for a seed whatever the method, so methods compare on equal starts."""
+    the same for a seed whatever the method, so methods compare on equal starts. ``keep``
+    rejects draws a body cannot stand on (e.g. in a wall), for robots with a size."""
     rng = np.random.default_rng(seed)
     x0, y0, x1, y1 = box
     centre = rng.uniform([x0, y0], [x1, y1])
@@ -72,6 +75,8 @@ def corner_cluster(seed: int, k: int, box: tuple[float, float, float, float] = U
     while len(pts) < k:
         p = centre + rng.normal(0.0, spread, 2)
         if not (margin <= p[0] <= arena - margin and margin <= p[1] <= arena - margin):
+            continue
+        if keep is not None and not keep(p):
             continue
         if all(math.hypot(*(p - q)) >= CLUSTER_SEPARATION for q in pts):
             pts.append(p)

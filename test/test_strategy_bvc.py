@@ -285,7 +285,8 @@ def test_registered_and_validated():
     for bad, where in (({"gama": 1.0}, "unknown parameters"), ({"gamma": -1.0}, "bvc.gamma"),
                        ({"guided": "yes"}, "bvc.guided"), ({"u_max": 0.0}, "bvc.u_max"),
                        ({"grid_resolution": math.nan}, "bvc.grid_resolution"),
-                       ({"nf_radius": 1.0}, "bvc.nf_radius")):
+                       ({"nf_radius": 1.0}, "bvc.nf_radius"),
+                       ({"bridge_width": -0.1}, "bvc.bridge_width")):
         with pytest.raises(ConfigError, match=where):
             make_strategy(strategy_choice("bvc", bad), ctx)
 
@@ -523,3 +524,4 @@ def test_a_receding_centroid_is_followed_past_the_arrival_tolerance():
     assert np.allclose(back, p - [0.02, 0.0])
     far = robot._navigation_goal(p, p - [0.3, 0.0], np.array([-0.3, 0.0]), 0.3, cell)
     assert np.allclose(far, p - [0.3, 0.0])
+

@@ -66,15 +66,12 @@ def test_every_strategy_spreads_a_cluster_on_the_live_team(tmp_path, sandbox, be
     print(f"{strategy}: H {m['H']:.2f} (start {m['H_start']:.2f}, best plan {best_plan:.2f})")
     assert m["H"] <= 0.6 * m["H_start"], team_diagnosis(summary, tmp_path / "team")
     # Held to the issue's 1.3x (tangentbug ended at 1.36x-2.29x in seven of eight runs until its
-    # virtual generators stopped collapsing onto one point; bvc at 1.26-1.42x in half its runs
-    # until its guide counted what its scans had seen, not only the current scan, and a robot at
-    # its goal followed goals that creep a few cm per update - README "Every strategy on the
-    # live team"). bvc, map-free, is held to 1.5x: it still ends in a worse local optimum (two
-    # robots on one side of the map) in some runs - 1.28x and 1.44x before robots listened for
-    # their whole team, and 1.31x in a CI run after it, against 1.03-1.08x in six runs here; the
-    # 1.3x target is not met in every run (README).
-    limit = 1.5 if strategy == "bvc" else 1.3
-    assert m["H"] <= limit * best_plan, (best_plan, team_diagnosis(summary, tmp_path / "team"))
+    # virtual generators stopped collapsing onto one point; bvc, map-free, at 1.26-1.42x in some
+    # runs until its guide counted what its scans had seen, a robot at its goal followed goals
+    # that creep a few cm per update, and its scans were placed from the pose they were taken
+    # at - its memory had filled with arcs of phantom walls; 1.004-1.015x in 15 runs since -
+    # README "Every strategy on the live team").
+    assert m["H"] <= 1.3 * best_plan, (best_plan, team_diagnosis(summary, tmp_path / "team"))
     assert all(r["collisions"] == 0 for r in summary["robots"]), summary["robots"]
     logs = tmp_path / "team" / "logs"
     if "--map-free" in extra:

@@ -138,6 +138,7 @@ class RobotController:
         self.pose_stamp: float | None = None  # [s] when the pose was true (None: now)
         self.pose_ages: deque[float] = deque(maxlen=POSE_AGES_KEPT)  # [s] at each command
         self.scan: Scan | None = None
+        self.scan_pose: np.ndarray | None = None  # where the robot took self.scan
         self.scan_points: np.ndarray | None = None
         self.scan_memory = ScanMemory()
         self.goal: np.ndarray | None = None
@@ -170,6 +171,7 @@ class RobotController:
         the current pose); the safety filter checks the points kept near the robot."""
         self.scan = scan
         at = self.pose if pose is None else np.asarray(pose, dtype=np.float64)
+        self.scan_pose = None if at is None else at.copy()
         self.scan_points = self.scan_memory.update(scan, at, points_map)
 
     def integrate_scan(self, scan: Scan, pose: np.ndarray, now: float) -> int:
@@ -193,6 +195,7 @@ class RobotController:
             if self.pose is None:
                 return None
             pose, scan, goal, path = self.pose.copy(), self.scan, self.goal, self.path
+            scan_pose = self.scan_pose
             replan = self._replan
         nbrs = self.neighbours.current(now, pose[:2], self.config.comm_range)
         t0 = time.perf_counter()
@@ -202,7 +205,7 @@ class RobotController:
             nav = navigation_domain(snapshot, self.config.robot.radius,
                                     len(self.domain.graph.offsets))
             _ = nav.clearance  # computed here, not under the lock (see _commit)
-        obs = Observation(self.config.robot_id, pose, now, scan, snapshot)
+        obs = Observation(self.config.robot_id, pose, now, scan, snapshot, scan_pose)
         decision = self._seek_region(self.strategy.update(obs, nbrs), pose)
         update_ms = (time.perf_counter() - t0) * 1e3
         if decision.velocity is None and decision.goal is not None:

@@ -68,20 +68,33 @@ class Scan:
         beams = len(self.ranges)
         k = np.rint((np.arctan2(rel[:, 1], rel[:, 0]) - pose[2] - self.angle_min)
                     / self.angle_increment).astype(np.int64)
-        if abs(beams * self.angle_increment - 2.0 * np.pi) < 1e-6:
+        if self.full_circle:
             k %= beams  # a full circle wraps
         inside = (k >= 0) & (k < beams)
         return dist, np.where(inside, k, 0), inside
 
-    def sees(self, points: np.ndarray, pose: np.ndarray) -> np.ndarray:
+    @property
+    def full_circle(self) -> bool:
+        """Whether the beams go all the way round (the last beam's neighbour is the first)."""
+        return abs(len(self.ranges) * self.angle_increment - 2.0 * np.pi) < 1e-6
+
+    def depths(self) -> np.ndarray:
+        """``(B,)`` [m] how far each beam saw free space: its return, ``range_max`` for no
+        return within it (REP 117 ``+inf``), 0 for an invalid return (NaN, closer than
+        ``range_min``)."""
+        r = np.asarray(self.ranges, dtype=np.float64)
+        return np.where(np.isnan(r) | (r < self.range_min), 0.0,
+                        np.where(np.isinf(r) & (r > 0), self.range_max,
+                                 np.minimum(r, self.range_max)))
+
+    def sees(self, points: np.ndarray, pose: np.ndarray,
+             depths: np.ndarray | None = None) -> np.ndarray:
         """``(N,) bool``: which map-frame ``points (N, 2)`` the scan taken at ``pose`` saw as
         free - no nearer than its nearest beam's return (no return: free up to
-        ``range_max``, REP 117; an invalid return shows nothing)."""
+        ``range_max``, REP 117; an invalid return shows nothing). ``depths`` replaces
+        :meth:`depths` (e.g. with shadows bridged)."""
         dist, k, inside = self._beams(points, pose)
-        r = np.asarray(self.ranges, dtype=np.float64)
-        depth = np.where(np.isnan(r) | (r < self.range_min), 0.0,
-                         np.where(np.isinf(r) & (r > 0), self.range_max,
-                                  np.minimum(r, self.range_max)))
+        depth = self.depths() if depths is None else np.asarray(depths, dtype=np.float64)
         return inside & (dist <= depth[k])
 
     def measures(self, points: np.ndarray, pose: np.ndarray) -> np.ndarray:
@@ -103,10 +116,20 @@ class Observation:
     scan: Scan | None = None
     #: What the robot believes of the map, when it explores an unknown one (else None).
     belief: BeliefSnapshot | None = None
+    #: (3,) where the robot stood when it took ``scan`` (None: at ``pose``). A scan is older
+    #: than the pose (a lidar turns at 5 Hz, odometry comes at 10 Hz or more); placed from the
+    #: newer pose, a scan taken while turning lands rotated by as much as the robot turned since.
+    scan_pose: np.ndarray | None = None
 
     @property
     def position(self) -> np.ndarray:
         return np.asarray(self.pose[:2], dtype=np.float64)
+
+    @property
+    def scan_origin(self) -> np.ndarray:
+        """(3,) the pose the scan is placed from: :attr:`scan_pose`, else :attr:`pose`."""
+        return np.asarray(self.pose if self.scan_pose is None else self.scan_pose,
+                          dtype=np.float64)
 
 
 @dataclass(frozen=True)

@@ -10,6 +10,10 @@ cost-to-go to ``p_g`` over the remembered free space inflated by the robot radiu
 (Lemma 2), so the density ``phi = exp(-gamma M_go)`` (Eq. 8) pulls the centroid of the robot's
 buffered cell along the shortest known path, around the walls it has seen instead of into them.
 
+Under a flat density (no peak to be guided to; this project's extension) the memory also keeps
+the cells its scans saw free, with the shadows of narrow obstacles bridged
+(:func:`bridge_shadows`), and the goal is the middle of what it saw of its own region.
+
 Coordinates: points ``(N, 2) float64`` [m] map frame; memory cells ``(row, col)`` with row 0 at
 the lowest y, cell ``(r, c)`` covering ``origin + res * ([c, c + 1] x [r, r + 1])``.
 """
@@ -113,6 +117,39 @@ class ObstacleMemory:
         if self.seen is not None:
             out[ok] = self.seen[rc[ok, 0], rc[ok, 1]]
         return out
+
+
+def bridge_shadows(depths: np.ndarray, angle_increment: float, width: float,
+                   full_circle: bool) -> np.ndarray:
+    """Per-beam free depths ``(B,)`` [m] of a scan with the shadows of narrow obstacles filled
+    in: a beam that stopped on an obstacle narrower than ``width`` [m] - one with a farther
+    return within that width's angle on *both* sides (``atan(width / depth)`` at the beam's
+    own depth, at most a quarter turn) - counts as free as far as the nearer of the two
+    sides' farthest returns. A pillar or a teammate in front of open space then hides none of
+    it, while a wall (no far return on one side) or an opening beside a wall stays as it is.
+    Depths never get smaller; invalid beams (depth 0) stay 0; with ``full_circle`` the beams
+    wrap round, otherwise the scan's edges have no far side."""
+    depth = np.asarray(depths, dtype=np.float64)
+    B = len(depth)
+    if width <= 0 or B < 3 or not np.any(depth > 0):
+        return depth.copy()
+    window = np.ceil(np.arctan2(width, np.maximum(depth, 1e-9)) / angle_increment)
+    K = max(min(int(window.max()), B // 4), 1)
+    window = np.minimum(window, K).astype(np.int64)
+    left, right = np.full(B, -np.inf), np.full(B, -np.inf)  # farthest within j beams
+    left_far, right_far = np.zeros(B), np.zeros(B)  # ... within each beam's own window
+    never = np.full(K, -np.inf)
+    for j in range(1, K + 1):
+        if full_circle:
+            np.maximum(left, np.roll(depth, j), out=left)
+            np.maximum(right, np.roll(depth, -j), out=right)
+        else:
+            np.maximum(left, np.concatenate([never[:j], depth[:-j]]), out=left)
+            np.maximum(right, np.concatenate([depth[j:], never[:j]]), out=right)
+        at = window == j
+        left_far[at], right_far[at] = left[at], right[at]
+    bridged = np.maximum(depth, np.minimum(left_far, right_far))
+    return np.where(depth > 0, bridged, depth)
 
 
 @dataclass(frozen=True)

@@ -196,7 +196,7 @@ class TangentBugStrategy(Strategy):
         velocity, heading = (0.0, 0.0), None
         stuck = self._stuck(x, obs.time)
         if obs.scan is not None and not self.bug.done:
-            pts, hidden = obs.scan.points(obs.pose), None
+            pts, hidden = obs.scan.points(obs.scan_origin), None
             if not stuck:
                 keep = _off_neighbours(pts, neighbours, ctx.robot.radius)
                 pts, hidden = pts[keep], pts[~keep]

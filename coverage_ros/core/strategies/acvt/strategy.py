@@ -55,6 +55,7 @@ from coverage_ros.core.strategies.acvt.dropout import (
     DropoutSwitch,
     greedy_mask,
 )
+from coverage_ros.core.strategies.acvt.iterations import ITERATION_KEY, MoveIterations, peer_counts
 from coverage_ros.core.strategies.acvt.plans import heard_plan, plan_extras
 from coverage_ros.core.strategies.acvt.relocation import (
     RelocationConfig,
@@ -162,6 +163,8 @@ class AcvtStrategy(Strategy):
         self.reach = context.robot.v_max * REACH_TIME
         self.cells = MassCells(context.domain)
         self.switch = DropoutSwitch(self.dropout)
+        self.iterations = MoveIterations(context.robot.v_max,
+                                         SETTLED_FACTOR * context.convergence_tolerance)
         self.relocation = self.params.relocation_config(self.cells.regions)
         self._relocating: np.ndarray | None = None  # (2,) [m] target of a relocation under way
         self._relocations = 0
@@ -176,6 +179,7 @@ class AcvtStrategy(Strategy):
 
     def _extra(self, greedy: bool, settled: bool = False) -> dict[str, float]:
         return {"reach": self.reach, "dropout": float(self.switch.active),
+                ITERATION_KEY: float(self.iterations.count),
                 "greedy": float(greedy), "settled": float(settled),
                 "relocating": float(self._relocating is not None), **self._plan}
 
@@ -226,18 +230,23 @@ class AcvtStrategy(Strategy):
                 published[row] = float(st.mass)
         published[own] = mass
         idx = np.flatnonzero(np.isfinite(published))
+        heard = [states[src] for src in order if states[src] is not None]
+        sampled = False
         if self.switch.active and len(idx) > 1:
             m = published[idx]
             weighed = m if reach_arg is None else normalized_masses(m, reach[idx])
             local_i = mass_deviation(weighed)
-            self.switch.update(local_i)
             mask = greedy_mask(weighed, self.dropout.drop_factor)
             k = len(weighed)
             factor = k / (k - 1) if self.dropout.drop_factor is None else self.dropout.drop_factor
             tau = factor * float(weighed.mean())
-            if not mask.any():
-                self.switch.stop()
-            elif self.switch.active:
+            # Alg. 2's end tests, once per iteration (:mod:`.iterations`).
+            if self.iterations.due(p, obs.time, peer_counts(heard)):
+                sampled = True
+                self.switch.update(local_i)
+                if not mask.any():
+                    self.switch.stop()
+            if self.switch.active and mask.any():
                 greedy = bool(mask[idx == own][0])
                 dropped = idx[mask & (idx != own)]
 
@@ -251,6 +260,8 @@ class AcvtStrategy(Strategy):
             goal = self._goal(P_jump, reach_arg, own)
         else:
             goal = self.cells.project(p if centroid is None else centroid)[0]
+        if sampled:
+            self.iterations.sampled(p, goal, obs.time)
 
         tol = self.context.convergence_tolerance
         # Converged once the goal is reached with no dropout under way (a robot that hears
@@ -265,7 +276,6 @@ class AcvtStrategy(Strategy):
         if self._relocating is not None and float(np.hypot(*(self._relocating - p))) < tol:
             self._relocating = None  # arrived: back to iCVT + projection
         predicted = math.nan
-        heard = [states[src] for src in order if states[src] is not None]
         plan = heard_plan(obs.robot_id, heard)
         if self._relocating is None and plan is not None and plan[0] not in self._carried:
             self._carried.add(plan[0])  # a neighbour's plan names this robot: it goes

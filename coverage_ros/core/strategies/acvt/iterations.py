@@ -1,0 +1,80 @@
+"""When a moving robot has finished an iteration of Alg. 2 - the pace of the dropout's end test.
+
+Alg. 2 tests Delta I = I_{t-1} - I_t once per *iteration*: every agent has jumped to its goal.
+The paper's epsilon (0.002) is a per-iteration figure. A live robot updates every 0.5 s and
+drives at most v_max * 0.5 s in that time, so I sampled per update changes by a fraction of an
+iteration's worth - and a robot crossing a doorway can raise I for a moment. Fed per update, the
+filtered Delta I falls below epsilon within seconds of the start and the dropout ends before
+it has moved anyone (the live Lee room: the switch was off for every robot 13 s into the run,
+with the team still split 6 + 2 + 2). The paper's real-time form (Alg. 3) tests Delta I between
+whole iterations too.
+
+So the decentralized switch is fed once per iteration, and an iteration of a robot ends when
+
+* its own move is done: it is within ``arrive`` of the goal it took at its last sample, or has
+  had the time to drive there (straight-line distance / v_max, times ``slack``, plus
+  ``margin``), and
+* every neighbour still in its dropout has done at least as many iterations (each publishes
+  its count) - a barrier, so that a robot that arrives early, or had no move to make, samples
+  I once the others have moved too.
+
+A robot that jumps to its goal at once (the offline runner) has done its move at the next
+update, and its neighbours' counts, one update old, equal its own: it samples every update,
+exactly as before. A neighbour that left its dropout stops counting and is not waited for; the
+own move's time limit keeps a robot that never reaches its goal from holding the team.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable
+
+import numpy as np
+
+#: Shared-state key of the iteration count a robot publishes while its dropout is on.
+ITERATION_KEY = "iteration"
+
+
+class MoveIterations:
+    """Counts a robot's iterations of Alg. 2 and says when the next one is done."""
+
+    def __init__(self, speed: float, arrive: float, slack: float = 2.0,
+                 margin: float = 1.0) -> None:
+        self.speed = max(float(speed), 1e-9)  # [m/s] v_max
+        self.arrive = float(arrive)  # [m] within this of the goal, the move is done
+        self.slack = float(slack)  # travel-time factor over the straight line at v_max
+        self.margin = float(margin)  # [s] added to the travel time (turning, starting)
+        self.count = 0  # iterations done (samples of I taken)
+        self._goal: np.ndarray | None = None  # goal taken at the last sample [m]
+        self._stamp = -math.inf  # [s] time of the last sample
+        self._limit = 0.0  # [s] time allowed for the move from the last sample
+
+    def due(self, position: np.ndarray, stamp: float, peers: Iterable[float]) -> bool:
+        """Whether the iteration begun at the last sample is over at ``position`` and
+        ``stamp`` [s], given the counts ``peers`` published by neighbours still in dropout."""
+        if self._goal is not None:
+            arrived = float(np.hypot(*(np.asarray(position, float) - self._goal))) <= self.arrive
+            elapsed = stamp - self._stamp
+            if not (arrived or elapsed >= self._limit or elapsed < 0.0):
+                return False
+        return all(c >= self.count for c in peers)
+
+    def sampled(self, position: np.ndarray, goal: np.ndarray, stamp: float) -> None:
+        """A sample was taken at ``stamp``; the robot now heads from ``position`` to
+        ``goal``."""
+        self.count += 1
+        self._goal = np.asarray(goal, dtype=np.float64).copy()
+        self._stamp = float(stamp)
+        distance = float(np.hypot(*(self._goal - np.asarray(position, float))))
+        self._limit = self.slack * distance / self.speed + self.margin
+
+
+def peer_counts(states: Iterable) -> list[float]:
+    """Iteration counts published by the neighbours (``SharedState``) still in their dropout;
+    a neighbour that publishes no count (another strategy, an older node) is not waited for."""
+    counts = []
+    for st in states:
+        extra = st.extra
+        if extra.get("dropout", 0.0) == 1.0 and ITERATION_KEY in extra:
+            counts.append(float(extra[ITERATION_KEY]))
+    return counts

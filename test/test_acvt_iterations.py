@@ -3,13 +3,19 @@ move a little per update (:mod:`coverage_ros.core.strategies.acvt.iterations`)."
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
 from coverage_ros.core.geodesic.domain import CoverageDomain
 from coverage_ros.core.strategies import make_strategy, strategy_choice
 from coverage_ros.core.strategies.acvt.cells import CellSpec, MassCells
-from coverage_ros.core.strategies.acvt.iterations import MoveIterations, peer_counts
+from coverage_ros.core.strategies.acvt.iterations import (
+    MoveIterations,
+    awaiting_mass,
+    peer_counts,
+)
 from coverage_ros.core.strategies.acvt.relocation import team_metric
 from coverage_ros.core.strategies.base import (
     Neighbour,
@@ -47,6 +53,49 @@ def test_only_neighbours_still_in_their_dropout_are_waited_for():
     assert peer_counts(states) == [4.0]
 
 
+def test_the_dropout_is_not_tested_before_every_acvt_neighbour_has_published_a_mass(room):
+    """Live robots make their first updates a few tenths of a second apart: a robot that tested
+    the masses of the first two up (M and M / 2: nobody reaches tau_drop = 2 mean M) ended its
+    dropout for good. A neighbour's first state carries the strategy's extras but no mass."""
+    ctx = StrategyContext(domain=room, robot_id=0)
+    here = np.array([1.0, 1.0, 0.0])
+    first = make_strategy("acvt", StrategyContext(domain=room, robot_id=2)).shared_state(
+        Observation(2, np.array([2.0, 1.2, 0.0]), 0.0))
+    assert first.mass is None and first.extra["dropout"] == 1.0
+    assert first.extra["iteration"] == 0.0
+
+    def team(mass_1: float, mass_2: float | None) -> list[Neighbour]:
+        extra = {**first.extra}
+        return [Neighbour(1, SharedState(np.array([1.5, 1.0]), mass=mass_1, extra=extra)),
+                Neighbour(2, SharedState(np.array([2.0, 1.2]), mass=mass_2, extra=extra))]
+
+    # Its own mass here (a robot that hears nobody's mass makes no test).
+    probe = make_strategy("acvt", ctx).update(Observation(0, here, 0.5), team(math.nan, None))
+    own = probe.mass
+    robot = make_strategy("acvt", ctx)
+    d = robot.update(Observation(0, here, 0.5), team(0.5 * own, None))
+    assert awaiting_mass([n.state for n in team(0.5 * own, None)])
+    assert d.details.dropout and robot.iterations.count == 0  # waits for robot 2's mass
+    # M, M / 2, M / 10: tau_drop = 1.5 * 0.53 M = 0.8 M, this robot is greedy.
+    d = robot.update(Observation(0, here, 1.0), team(0.5 * own, 0.1 * own))
+    assert d.details.dropout and d.details.greedy and robot.iterations.count == 1
+    # Without robot 2 (another strategy, or not there) the same two masses end it at once.
+    alone = make_strategy("acvt", ctx)
+    d = alone.update(Observation(0, here, 0.5), team(0.5 * own, None)[:1])
+    assert not d.details.dropout
+
+
+def test_a_robot_announces_its_dropout_before_its_first_update(room):
+    from coverage_ros.core.control.controller import ControllerConfig, RobotController
+
+    controller = RobotController(room, ControllerConfig(robot_id=3,
+                                                        strategy=strategy_choice("acvt")))
+    controller.set_pose((1.0, 1.0, 0.0))
+    state = controller.presence_state()
+    assert state["dropout"] == 1.0 and state["iteration"] == 0.0
+    assert state["x"] == 1.0 and "mass" not in state
+
+
 ROOM = 10.0  # [m] the paper's Fig. 7 room, two offset walls (as in the live Figs. 17d-f)
 
 
@@ -61,8 +110,8 @@ def room() -> CoverageDomain:
 def _gradual_team(domain: CoverageDomain, starts: np.ndarray, speed: float, period: float,
                   duration: float, params: dict) -> tuple[np.ndarray, list]:
     """Robots that update every ``period`` [s] and then drive at most ``speed * period``
-    along a shortest path towards their goals, hearing each other's states one update old -
-    the pace of a live team, without its physics."""
+    along a shortest path towards their goals (not onto each other), hearing each other's
+    states one update old - the pace of a live team, without its physics."""
     from scipy.sparse.csgraph import dijkstra
 
     n = len(starts)
@@ -105,7 +154,13 @@ def _gradual_team(domain: CoverageDomain, starts: np.ndarray, speed: float, peri
                     p = p + (q - p) * budget / length
                     break
                 p, budget = q, budget - length
-            pos[i] = p
+            # Bodies do not pass through each other: a move that ends on another robot (or
+            # closer to it than before, when already touching) is not made.
+            others = np.delete(pos, i, axis=0)
+            gap_now = np.hypot(*(others - pos[i]).T)
+            gap_new = np.hypot(*(others - p).T)
+            if np.all((gap_new >= 2 * spec.radius) | (gap_new > gap_now)):
+                pos[i] = p
     return pos, ends
 
 

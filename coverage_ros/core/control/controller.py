@@ -265,12 +265,15 @@ class RobotController:
         return replace(decision, goal=target, target=target, mode="seek", converged=False)
 
     def presence_state(self) -> dict[str, float]:
-        """What to publish before the first update: who and where this robot is, without a
-        cell (no mass or cost yet)."""
+        """What to publish before the first update: who and where this robot is and its
+        strategy's first extras (acvt's ``dropout``: neighbours wait for its mass), without
+        a cell (no mass or cost yet)."""
         x, y = (float(v) for v in self.pose[:2])
+        first = self.strategy.shared_state(Observation(self.config.robot_id, self.pose, 0.0))
         return {"x": x, "y": y, "weight": float(self.config.robot.power_weight),
                 "radius": float(self.config.robot.radius),
-                "v_max": float(self.config.robot.v_max)}
+                "v_max": float(self.config.robot.v_max),
+                **{k: float(v) for k, v in first.extra.items()}}
 
     def set_manual(self, manual: bool) -> None:
         """Hand the robot to a person (True) or back to its strategy (False: it replans from

@@ -55,7 +55,12 @@ from coverage_ros.core.strategies.acvt.dropout import (
     DropoutSwitch,
     greedy_mask,
 )
-from coverage_ros.core.strategies.acvt.iterations import ITERATION_KEY, MoveIterations, peer_counts
+from coverage_ros.core.strategies.acvt.iterations import (
+    ITERATION_KEY,
+    MoveIterations,
+    awaiting_mass,
+    peer_counts,
+)
 from coverage_ros.core.strategies.acvt.plans import heard_plan, plan_extras
 from coverage_ros.core.strategies.acvt.relocation import (
     RelocationConfig,
@@ -240,8 +245,11 @@ class AcvtStrategy(Strategy):
             k = len(weighed)
             factor = k / (k - 1) if self.dropout.drop_factor is None else self.dropout.drop_factor
             tau = factor * float(weighed.mean())
-            # Alg. 2's end tests, once per iteration (:mod:`.iterations`).
-            if self.iterations.due(p, obs.time, peer_counts(heard)):
+            # Alg. 2's end tests, once per iteration (:mod:`.iterations`), on the masses of
+            # every acvt robot heard (a robot yet to make its first update has none: a test
+            # on the masses of the first few robots up could end the dropout at once).
+            if not awaiting_mass(heard) and self.iterations.due(p, obs.time,
+                                                                  peer_counts(heard)):
                 sampled = True
                 self.switch.update(local_i)
                 if not mask.any():

@@ -45,6 +45,59 @@ def test_an_iteration_ends_when_the_move_is_done_and_the_neighbours_have_caught_
     assert it.due(np.array([6.0, 1.0]), 5.4, [2.0, 3.0])
 
 
+def test_a_neighbour_out_of_step_is_not_waited_for():
+    """The barrier keeps neighbours within one iteration; one that is two or more behind joined
+    late, restarted, or comes from a part of the team that was out of range."""
+    it = MoveIterations(speed=0.8, arrive=0.15)
+    for t in range(5):
+        it.sampled(np.zeros(2), np.zeros(2), float(t))
+    assert it.count == 5
+    assert not it.due(np.zeros(2), 6.0, [5.0, 4.0])  # one behind: still moving
+    assert it.due(np.zeros(2), 6.0, [5.0, 3.0])
+    assert it.due(np.zeros(2), 6.0, [0.0, 9.0])  # restarted; ahead
+
+
+def test_a_robot_behind_its_neighbours_takes_up_their_count():
+    it = MoveIterations(speed=0.8, arrive=0.15)
+    it.sampled(np.zeros(2), np.zeros(2), 0.0, [7.0, 12.0])
+    assert it.count == 12
+    it.sampled(np.zeros(2), np.zeros(2), 1.0, [12.0, 13.0])
+    assert it.count == 13  # in step: one more, as without peers
+    it.sampled(np.zeros(2), np.zeros(2), 2.0)
+    assert it.count == 14
+
+
+def test_changing_neighbourhoods_keep_the_counts_in_step_and_nobody_waits_for_a_late_joiner():
+    """Robots on a line, neighbours within two places (``comm_range``), each sampling once per
+    round when its barrier lets it (its move is done at once, as offline). Robot 5 starts 30
+    rounds late, out of range, and then appears in the middle of the line."""
+    n, late = 6, 30
+    its = [MoveIterations(speed=1.0, arrive=0.1) for _ in range(n)]
+    places = [0.0, 1.0, 2.0, 3.0, 4.0, 100.0]
+    published = [0] * n  # counts as heard (one round old)
+    stalled = 0
+    for t in range(60):
+        if t == late:
+            places[5] = 2.5
+        awake = [i for i in range(n) if i < 5 or t >= late]
+        before = [it.count for it in its]
+        for i in awake:
+            peers = [float(published[j]) for j in awake
+                     if j != i and abs(places[j] - places[i]) <= 2]
+            if its[i].due(np.zeros(2), float(t), peers):
+                its[i].sampled(np.zeros(2), np.zeros(2), float(t), peers)
+        if t >= late and all(its[i].count == before[i] for i in range(5)):
+            stalled += 1
+        published = [it.count for it in its]
+        for i in awake:  # neighbours in range stay within one iteration of each other
+            for j in awake:
+                if abs(places[j] - places[i]) <= 2 and (t < late or t > late):
+                    assert abs(its[i].count - its[j].count) <= 1, (t, i, j)
+    assert stalled == 0  # the team kept sampling when robot 5 appeared ...
+    assert its[5].count >= 59  # ... and robot 5 was in step at its first sample
+    assert max(it.count for it in its) - min(it.count for it in its) <= 1
+
+
 def test_only_neighbours_still_in_their_dropout_are_waited_for():
     states = [SharedState(np.zeros(2), extra={"dropout": 1.0, "iteration": 4.0}),
               SharedState(np.zeros(2), extra={"dropout": 0.0, "iteration": 1.0}),

@@ -16,7 +16,13 @@ So the decentralized switch is fed once per iteration, and an iteration of a rob
   ``margin``), and
 * every neighbour still in its dropout has done at least as many iterations (each publishes
   its count) - a barrier, so that a robot that arrives early, or had no move to make, samples
-  I once the others have moved too.
+  I once the others have moved too. The barrier keeps neighbours within one iteration of each
+  other, so a neighbour two or more behind is out of step - it started or restarted late, or
+  comes from a part of the team that was out of range (``comm_range``) - and is not waited for
+  (it would catch up one iteration per update at best, and the neighbourhood's test would
+  stand still until it had). Instead it takes up the count of the neighbours ahead of it at its
+  next sample (a Lamport clock: the count is the team's iteration, not the robot's own tally),
+  and is in step from then on.
 
 A robot that jumps to its goal at once (the offline runner) has done its move at the next
 update, and its neighbours' counts, one update old, equal its own: it samples every update,
@@ -62,12 +68,15 @@ class MoveIterations:
             elapsed = stamp - self._stamp
             if not (arrived or elapsed >= self._limit or elapsed < 0.0):
                 return False
-        return all(c >= self.count for c in peers)
+        # (c = count - 1: one behind, still moving; less: out of step, see module docstring)
+        return all(c >= self.count or c < self.count - 1 for c in peers)
 
-    def sampled(self, position: np.ndarray, goal: np.ndarray, stamp: float) -> None:
+    def sampled(self, position: np.ndarray, goal: np.ndarray, stamp: float,
+                peers: Iterable[float] = ()) -> None:
         """A sample was taken at ``stamp``; the robot now heads from ``position`` to
-        ``goal``."""
-        self.count += 1
+        ``goal``. ``peers``: the counts that :meth:`due` was given; a robot behind them takes
+        up the largest (module docstring)."""
+        self.count = max(self.count + 1, int(max(peers, default=0)))
         self._goal = np.asarray(goal, dtype=np.float64).copy()
         self._stamp = float(stamp)
         distance = float(np.hypot(*(self._goal - np.asarray(position, float))))

@@ -248,8 +248,8 @@ class AcvtStrategy(Strategy):
             # Alg. 2's end tests, once per iteration (:mod:`.iterations`), on the masses of
             # every acvt robot heard (a robot yet to make its first update has none: a test
             # on the masses of the first few robots up could end the dropout at once).
-            if not awaiting_mass(heard) and self.iterations.due(p, obs.time,
-                                                                  peer_counts(heard)):
+            peers = peer_counts(heard)
+            if not awaiting_mass(heard) and self.iterations.due(p, obs.time, peers):
                 sampled = True
                 self.switch.update(local_i)
                 if not mask.any():
@@ -269,7 +269,7 @@ class AcvtStrategy(Strategy):
         else:
             goal = self.cells.project(p if centroid is None else centroid)[0]
         if sampled:
-            self.iterations.sampled(p, goal, obs.time)
+            self.iterations.sampled(p, goal, obs.time, peers)
 
         tol = self.context.convergence_tolerance
         # Converged once the goal is reached with no dropout under way (a robot that hears

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import signal
 import subprocess
 import sys
 
@@ -250,8 +251,10 @@ def test_coverage_teleop_takes_the_robot_over_and_hands_it_back(team):
 def test_a_robot_on_either_executor_covers_and_stops_cleanly(kind):
     """Without COVERAGE_ROS_EXECUTOR a robot runs on rclpy's EventsExecutor, with ``single``
     (coverage-team --executor single) on the SingleThreadedExecutor; on either it updates,
-    drives and ends on SIGINT with code 0 and its exit log."""
+    drives and ends on SIGINT with code 0 and its exit log - its last command a zero velocity,
+    sent before ROS shuts down (it leaves the robot standing), and its summary on /rosout."""
     from geometry_msgs.msg import Twist
+    from rcl_interfaces.msg import Log
     from sensor_msgs.msg import JointState
 
     from coverage_ros.nodes import conversions as conv
@@ -266,14 +269,23 @@ def test_a_robot_on_either_executor_covers_and_stops_cleanly(kind):
         try:
             client.wait_for("/robot_0/coverage_state", JointState,
                             lambda m: "mass" in conv.coverage_state_values(m), timeout=40.0)
-            client.wait_for("/robot_0/cmd_vel", Twist, lambda m: abs(m.linear.x) > 0.01,
-                            timeout=20.0)
+            commands = client.subscribe("/robot_0/cmd_vel", Twist)
+            logs = client.subscribe("/rosout", Log, 100)
+            client.spin_until(lambda: any(abs(m.linear.x) > 0.01 for m in commands), 20.0,
+                              "the robot driving")
+            assert world.alive() and robot.alive()
+            robot.signal(signal.SIGINT)
+            client.spin_until(lambda: not robot.alive(), 10.0, "the robot's exit")
+            client.spin_for(0.5)
         finally:
             client.close()
-        assert world.alive() and robot.alive()
         assert robot.stop(timeout=10.0) == 0, robot.output()
         assert f"executor: {kind or 'events'} " in robot.output()
         assert "coverage updates, one every" in robot.output()
+        assert "Failed to publish" not in robot.output()
+        last = commands[-1]
+        assert (last.linear.x, last.angular.z) == (0.0, 0.0), last
+        assert any("coverage updates, one every" in m.msg for m in logs)
 
 
 def test_an_unknown_executor_is_refused_with_one_line():

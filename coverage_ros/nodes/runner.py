@@ -3,7 +3,13 @@
 Start-up errors (bad parameters, world files, maps) end the process with one line
 ``<name>: error: ...`` on stderr and exit code 2; so does a :class:`FatalConfigError` raised
 later from a callback (e.g. a map that arrives and does not fit the configuration). SIGINT and
-SIGTERM end it cleanly with code 0, also when they interrupt a callback mid-way.
+SIGTERM end it cleanly with code 0, also during start-up.
+
+The signals do not shut ROS down at once (rclpy's own handlers would: a callback publishing at
+that moment failed, and every node's last words - a robot's zero velocity command that leaves
+it standing, its summary on ``/rosout`` - went nowhere). They ask the spin loop to stop between
+callbacks; the nodes' clean-up then runs with ROS still up, and ROS shuts down after it. A
+second signal shuts ROS down at once, as rclpy's handler would.
 
 The executor is rclpy's ``EventsExecutor`` (``rclpy.experimental``, its dispatch loop in C++:
 0.24-0.30x the CPU per message received in ``scripts/bench_executor``; a process of 16 robots
@@ -17,6 +23,7 @@ Every node process logs which one it runs on.
 from __future__ import annotations
 
 import os
+import signal
 import sys
 from collections.abc import Callable
 
@@ -25,6 +32,7 @@ from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
+from rclpy.signals import SignalHandlerOptions
 
 from coverage_ros.errors import CoverageError
 
@@ -50,12 +58,31 @@ def _executor(kind: str):
     return SingleThreadedExecutor()
 
 
-def _spin(executor, kind: str, context) -> None:
-    if kind == "events":
-        while context.ok():
-            executor.spin_once(timeout_sec=0.2)
-    else:
-        executor.spin()
+class StopRequest:
+    """SIGINT / SIGTERM handlers for the life of a node process (module docstring): the first
+    signal asks the spin loop to stop, the next one shuts ROS down."""
+
+    SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+    def __init__(self) -> None:
+        self.asked = False
+        self._before = {sig: signal.signal(sig, self._on_signal) for sig in self.SIGNALS}
+
+    def _on_signal(self, signum, frame) -> None:
+        if self.asked:
+            rclpy.try_shutdown()
+        self.asked = True
+
+    def restore(self) -> None:
+        for sig, handler in self._before.items():
+            signal.signal(sig, handler)
+
+
+def _spin(executor, context, stop: StopRequest) -> None:
+    # (spin_once with a timeout: Python runs the signal handler when the call returns; the
+    # EventsExecutor's spin() did not return on SIGINT here)
+    while context.ok() and not stop.asked:
+        executor.spin_once(timeout_sec=0.2)
 
 
 class FatalConfigError(CoverageError):
@@ -88,12 +115,14 @@ def run_nodes(name: str, make_nodes: Callable[[], list[Node]], args=None,
     except CoverageError as exc:
         print(f"{name}: error: {exc}", file=sys.stderr)
         return 2
-    rclpy.init(args=args)
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    stop = StopRequest()
     try:
         nodes = make_nodes()
     except STARTUP_ERRORS as exc:
         print(f"{name}: error: {exc}", file=sys.stderr)
         rclpy.try_shutdown()
+        stop.restore()
         return 2
     executor = _executor(kind)
     nodes[0].get_logger().info(f"executor: {kind} ({EXECUTOR_ENV}; default {EXECUTORS[0]})")
@@ -101,15 +130,15 @@ def run_nodes(name: str, make_nodes: Callable[[], list[Node]], args=None,
         executor.add_node(node)
     code = 0
     try:
-        _spin(executor, kind, nodes[0].context)
+        _spin(executor, nodes[0].context, stop)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except FatalConfigError as exc:
         print(f"{name}: error: {exc}", file=sys.stderr)
         code = 2
     except Exception:
-        # SIGINT/SIGTERM invalidate the context, possibly while a callback is publishing:
-        # that is a shutdown, not a crash.
+        # A second SIGINT/SIGTERM shuts ROS down at once, possibly while a callback is
+        # publishing: that is a shutdown, not a crash.
         if nodes[0].context.ok():
             raise
     finally:
@@ -123,4 +152,5 @@ def run_nodes(name: str, make_nodes: Callable[[], list[Node]], args=None,
             node.destroy_node()
         executor.shutdown(timeout_sec=0)
         rclpy.try_shutdown()
+        stop.restore()
     return code

@@ -10,12 +10,12 @@ import pytest
 from conftest import WORLDS
 
 from coverage_ros.core.control.controller import ControllerConfig, RobotController
-from coverage_ros.core.control.neighbours import NeighbourTable
+from coverage_ros.core.control.neighbours import NeighbourTable, safety_discs
 from coverage_ros.core.control.planning import plan_path, segment_free
 from coverage_ros.core.control.safety import MEMORY_RADIUS, SafetyConfig, SafetyFilter, ScanMemory
 from coverage_ros.core.control.tracking import PathTracker, TrackerConfig
 from coverage_ros.core.geodesic.domain import CoverageDomain
-from coverage_ros.core.strategies import Scan
+from coverage_ros.core.strategies import Neighbour, Scan, SharedState
 from coverage_ros.core.world import RobotSpec, load_world
 from coverage_ros.core.world.grid import OCCUPIED, GridMap
 
@@ -109,6 +109,44 @@ def test_safety_filter_keeps_robots_apart():
     assert np.hypot(*(a[:2] - b[:2])) >= 2 * RADIUS + 0.02
     # Sideways past a neighbour is fine.
     assert f.filter(np.array([1.0, 1.0, 0.0]), 0.22, 0.0, np.array([[1.0, 1.4]]))[0] == 0.22
+
+
+def _side_by_side(publish_velocity: bool) -> float:
+    """Two robots 0.3 m apart at 0.4 m/s on headings 4 degrees apart, closing at 3 cm/s (the
+    live Lee & Lee Fig. 17a-c contact): each filters its command every 0.1 s against the
+    other's state as safety_discs makes of it - published every 0.4 s with a pose a tick old
+    (odometry comes at 10 Hz). The least distance between them."""
+    occ = np.zeros((80, 240), np.int8)
+    occ[0, :] = occ[-1, :] = OCCUPIED
+    occ[:, 0] = occ[:, -1] = OCCUPIED
+    f = SafetyFilter(CoverageDomain.from_grid(GridMap(occ, RES), RADIUS),
+                     SafetyConfig(radius=RADIUS))
+    spec = RobotSpec(radius=RADIUS, v_max=0.4)
+    poses = [np.array([1.1, 2.21, math.radians(-20.7)]),
+             np.array([1.0, 1.92, math.radians(-16.6)])]
+    last, sent, heard = [p.copy() for p in poses], [0.0, 0.0], [None, None]
+    least = math.inf
+    for k in range(150):
+        now = 0.1 * k
+        if k % 4 == 0:  # states at 2.5 Hz
+            for i in range(2):
+                v = sent[i] * np.array([math.cos(last[i][2]), math.sin(last[i][2])])
+                extra = {"vx": v[0], "vy": v[1]} if publish_velocity else {}
+                heard[1 - i] = Neighbour(i, SharedState(last[i][:2].copy(), extra=extra), now)
+        for i in range(2):
+            pos, radii, vel = safety_discs([heard[i]], now, spec)
+            sent[i] = f.filter(poses[i], 0.4, 0.0, pos, radii, None, vel)[0]
+        last = poses
+        poses = [drive(poses[i], sent[i], 0.0, 0.1) for i in range(2)]
+        least = min(least, float(np.hypot(*(poses[0][:2] - poses[1][:2]))))
+    return least
+
+
+def test_safety_filter_keeps_robots_on_converging_headings_apart():
+    """Checked only where a neighbour is (where it last published, grown by v_max x the age),
+    each sees the other fall behind its own arc: they touch (least distance below 0.21 m).
+    With the published velocities each also checks where the other will be."""
+    assert _side_by_side(publish_velocity=True) >= 2 * RADIUS + 0.03
 
 
 def test_safety_filter_uses_scan_points():

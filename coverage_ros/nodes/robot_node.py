@@ -375,12 +375,12 @@ class RobotNode(RobotRequests, Node):
             v, w = c.command(now, dt)
             self._publish_cmd(v, w, now)
         if now - self._last_state >= 0.999 / self.config.state_rate:
-            # The state with the current position between updates: neighbours' safety filters
-            # need fresh positions (the coverage period is too slow for that). Before the first
+            # The state with the current position and velocity between updates: neighbours'
+            # safety filters need them fresh (the coverage period is too slow). Before the first
             # update it has no mass or cost yet, but lets the neighbours see this robot.
             self._last_state = now
             state = dict(c.last.state) if c.last is not None else c.presence_state()
-            state["x"], state["y"] = float(c.pose[0]), float(c.pose[1])
+            state.update(x=float(c.pose[0]), y=float(c.pose[1]), **c.motion_state())
             self.state_pub.publish(conv.coverage_state_msg(conv.to_time_msg(now), state))
 
     def _publish_cmd(self, v: float, w: float, now: float) -> None:

@@ -36,7 +36,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy.sparse.csgraph import dijkstra
 
-from coverage_ros.core.control.neighbours import NeighbourTable
+from coverage_ros.core.control.neighbours import NeighbourTable, safety_discs
 from coverage_ros.core.control.planning import plan_path
 from coverage_ros.core.control.recovery import ESCAPE_LOOK, StuckRecovery
 from coverage_ros.core.control.safety import SafetyConfig, SafetyFilter, ScanMemory, unicycle
@@ -62,9 +62,6 @@ from coverage_ros.errors import ConfigError
 
 #: A cell with less than this share of the domain's mass is empty (see _seek_region).
 EMPTY_CELL = 1e-6
-#: [s] neighbours' positions are grown by v_max x their age, up to this age (older ones
-#: are stale and dropped by the neighbour timeout anyway; the lidar sees them meanwhile).
-MAX_NEIGHBOUR_AGE = 0.5
 #: [m] goal changes smaller than this keep the current path (no replanning jitter).
 REPLAN_DISTANCE = 0.05
 #: [s] a pose is carried forward under the last command by at most this much of its age.
@@ -154,6 +151,7 @@ class RobotController:
         self.paused = False
         self._teleop = (0.0, 0.0, -math.inf)  # (v, w, receive time [s])
         self._replan = False  # an escape ended: the next update plans a new path
+        self.sent: tuple[float, float] | None = None  # the last (v, w) returned by command()
         self._lock = threading.Lock()
 
     @property
@@ -357,17 +355,11 @@ class RobotController:
             w = float(np.clip(w, -limits.w_max, limits.w_max))
         else:
             v, w, _ = self.tracker.command(pose, self.path, dt)
-        nbrs = self.neighbours.current(now)
-        positions = np.array([n.position for n in nbrs]).reshape(-1, 2)
-        # A neighbour may have moved since it published: grow it by how far it can have gone.
-        own = self.config.robot
-        radii = np.array([n.state.extra.get("radius", own.radius)
-                          + n.state.extra.get("v_max", own.v_max)
-                          * min(max(now - n.stamp, 0.0), MAX_NEIGHBOUR_AGE)
-                          for n in nbrs])
+        positions, radii, velocities = safety_discs(self.neighbours.current(now), now,
+                                                    self.config.robot)
         wanted = v
         v, w, self.safety_note = self.safety.filter(pose, v, w, positions, radii,
-                                                    self.scan_points)
+                                                    self.scan_points, velocities)
         if escape is not None:
             self.safety_note = self.recovery.describe() + \
                 (f"; {self.safety_note}" if self.safety_note else "")
@@ -376,7 +368,16 @@ class RobotController:
                                   lambda: self.safety.obstacles_near(pose, ESCAPE_LOOK,
                                                                      self.scan_points))
         self.tracker.override(v, w)
+        self.sent = (v, w)
         return v, w
+
+    def motion_state(self) -> dict[str, float]:
+        """``vx``, ``vy`` [m/s] (map frame): the velocity of the last command sent, for the
+        neighbours' safety filters; empty before the first command."""
+        if self.sent is None or self.pose is None:
+            return {}
+        v, yaw = self.sent[0], float(self.pose[2])
+        return {"vx": v * math.cos(yaw), "vy": v * math.sin(yaw)}
 
     def _pose_now(self, now: float) -> np.ndarray:
         """The pose carried forward from its stamp to ``now`` under the last command (the

@@ -15,9 +15,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from coverage_ros.core.strategies import Neighbour, SharedState
+from coverage_ros.core.world.robot import RobotSpec
 
 #: [m] a neighbour may be reported this far outside the map's extent (localisation noise).
 MAP_MARGIN = 0.5
+#: [s] for the safety filter, a neighbour's position is carried forward by its published
+#: velocity (``vx``, ``vy``) over its age, or grown by v_max x its age when it publishes none,
+#: up to this age (older ones are stale and dropped by the neighbour timeout anyway; the lidar
+#: sees them meanwhile).
+MAX_NEIGHBOUR_AGE = 0.5
 #: The values every coverage_state carries (from the first pose on, before the first update:
 #: only the first three; see README "robot_node").
 STATE_KEYS = ("x", "y", "weight", "mass", "cost", "update_ms")
@@ -101,3 +107,27 @@ def parse_state(values: dict[str, float], extent: tuple[float, float, float, flo
     return SharedState(position=position, weight=weight,
                        mass=mass if mass is not None and math.isfinite(mass) else None,
                        virtual=virtual, extra=extra)
+
+
+def safety_discs(neighbours: list[Neighbour], now: float,
+                 own: RobotSpec) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The neighbours for the safety filter: ``(N, 2)`` positions now, ``(N,)`` radii and
+    ``(N, 2)`` velocities [m/s] (NaN where unpublished). A neighbour may have moved since it
+    published: carried forward by its velocity and grown by what a change of speed at ``own``
+    a_max can have made of it, else grown by how far it can have gone. Radius and v_max are its
+    own when it publishes them, ``own``'s otherwise."""
+    positions = np.array([n.position for n in neighbours], dtype=np.float64).reshape(-1, 2)
+    radii = np.empty(len(neighbours))
+    velocities = np.full((len(neighbours), 2), np.nan)
+    for i, n in enumerate(neighbours):
+        extra = n.state.extra
+        age = min(max(now - n.stamp, 0.0), MAX_NEIGHBOUR_AGE)
+        radius, v_max = extra.get("radius", own.radius), extra.get("v_max", own.v_max)
+        vel = np.array([extra.get("vx", np.nan), extra.get("vy", np.nan)], dtype=np.float64)
+        if np.isfinite(vel).all():
+            positions[i] += vel * age
+            velocities[i] = vel
+            radii[i] = radius + min(v_max * age, 0.5 * own.a_max * age * age)
+        else:
+            radii[i] = radius + v_max * age
+    return positions, radii, velocities

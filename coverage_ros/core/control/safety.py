@@ -5,6 +5,12 @@ space (walls), the neighbours' discs and the lidar points, and v is cut (to zero
 turning in place is always allowed for a disc robot) until the arc is clear. No command ever
 drives into a wall.
 
+A neighbour is checked where it is, and - when it publishes its velocity - also where it will
+be along the arc's times if it keeps that velocity; either check can cut v. Checked only where
+it is, two robots driving side by side on slowly converging headings each saw the other fall
+behind their own arc, and touched (the live Lee & Lee Fig. 17a-c: 0.3 m apart at 0.4 m/s, 4
+degrees apart, closing at 3 cm/s).
+
 Poses are ``(x, y, yaw)`` in the map frame [m, rad].
 """
 
@@ -106,23 +112,28 @@ class SafetyFilter:
 
     def filter(self, pose: np.ndarray, v: float, w: float,
                neighbours: np.ndarray | None = None, neighbour_radii: np.ndarray | None = None,
-               scan_points: np.ndarray | None = None) -> tuple[float, float, str]:
-        """``(v, w, reason)``; reason is "" when the command passed unchanged."""
+               scan_points: np.ndarray | None = None,
+               neighbour_velocities: np.ndarray | None = None) -> tuple[float, float, str]:
+        """``(v, w, reason)``; reason is "" when the command passed unchanged.
+        ``neighbour_velocities``: ``(N, 2)`` [m/s] map frame, NaN rows where unknown."""
         why = ""
         for scale in SAFE_SCALES:
             vs = v * scale
-            blocked = self._blocked(pose, vs, w, neighbours, neighbour_radii, scan_points)
+            blocked = self._blocked(pose, vs, w, neighbours, neighbour_radii, scan_points,
+                                    neighbour_velocities)
             if not blocked:
                 return vs, w, "" if scale == 1.0 else f"slowed: {why}"
             why = blocked
         return 0.0, w, f"stopped: {why}"
 
-    def _arc(self, pose: np.ndarray, v: float, w: float) -> np.ndarray:
+    def _arc(self, pose: np.ndarray, v: float, w: float) -> tuple[np.ndarray, np.ndarray]:
+        """The arc's points ``(n, 2)`` and their times ``(n,)`` [s]."""
         c = self.config
         T = c.horizon + abs(v) / c.a_max
         length = abs(v) * T
         n = max(2, int(math.ceil(length / (CHECK_STEP_CELLS * self.domain.resolution))) + 1)
-        return unicycle(pose, v, w, np.linspace(0.0, T, n))[:, :2]
+        t = np.linspace(0.0, T, n)
+        return unicycle(pose, v, w, t)[:, :2], t
 
     def obstacles_near(self, position: np.ndarray, reach: float,
                        scan_points: np.ndarray | None = None) -> np.ndarray:
@@ -146,11 +157,11 @@ class SafetyFilter:
         out[inside] = self.clearance[cells[inside, 0], cells[inside, 1]]
         return out
 
-    def _blocked(self, pose, v, w, neighbours, radii, scan_points) -> str:
+    def _blocked(self, pose, v, w, neighbours, radii, scan_points, velocities=None) -> str:
         if abs(v) < 1e-9:
             return ""
         c = self.config
-        arc = self._arc(np.asarray(pose, dtype=np.float64), v, w)
+        arc, times = self._arc(np.asarray(pose, dtype=np.float64), v, w)
         clear = self._clearance_at(arc)
         # Into the inflated zone, and closer to the obstacle than now: a robot already too
         # close (pushed, or started there) may still move away.
@@ -167,6 +178,19 @@ class SafetyFilter:
                              arc[1:, None, 1] - nb[None, :, 1]).min(axis=0)
             if np.any((d_arc < need) & (d_arc < d_now - 1e-6)):
                 return "robot ahead"
+            if velocities is not None:
+                vel = np.asarray(velocities, dtype=np.float64).reshape(-1, 2)
+                known = np.isfinite(vel).all(axis=1)
+                if known.any():  # where the moving ones will be at the arc's times
+                    ahead = nb[known][None] + times[1:, None, None] * vel[known][None]
+                    d_then = np.hypot(arc[1:, None, 0] - ahead[..., 0],
+                                      arc[1:, None, 1] - ahead[..., 1])
+                    # (closer than standing still would leave it: a neighbour that drives at
+                    # this robot is its own filter's business, and stopping would not help)
+                    d_stand = np.hypot(p0[0] - ahead[..., 0], p0[1] - ahead[..., 1])
+                    if np.any((d_then < need[known]) & (d_then < d_now[known] - 1e-6)
+                              & (d_then < d_stand - 1e-6)):
+                        return "robot closing in"
         if scan_points is not None and len(scan_points):
             sp = np.asarray(scan_points, dtype=np.float64).reshape(-1, 2)
             reach = float(np.hypot(*(arc[-1] - p0))) + c.radius + 0.2

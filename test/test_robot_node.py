@@ -273,6 +273,10 @@ def test_a_robot_on_either_executor_covers_and_stops_cleanly(kind):
             logs = client.subscribe("/rosout", Log, 100)
             client.spin_until(lambda: any(abs(m.linear.x) > 0.01 for m in commands), 20.0,
                               "the robot driving")
+            # Its state carries the velocity it drives at (neighbours' safety filters).
+            client.wait_for("/robot_0/coverage_state", JointState, lambda m: math.hypot(
+                conv.coverage_state_values(m).get("vx", 0.0),
+                conv.coverage_state_values(m).get("vy", 0.0)) > 0.01, timeout=10.0)
             assert world.alive() and robot.alive()
             robot.signal(signal.SIGINT)
             client.spin_until(lambda: not robot.alive(), 10.0, "the robot's exit")

@@ -13,11 +13,11 @@ second signal shuts ROS down at once, as rclpy's handler would.
 
 The executor is rclpy's ``EventsExecutor`` (``rclpy.experimental``, its dispatch loop in C++:
 0.24-0.30x the CPU per message received in ``scripts/bench_executor``; a process of 16 robots
-spent 0.21 ms per callback on it against 1.39 ms on the single-threaded one), spun by
-``spin_once`` in a loop - its ``spin()`` did not return on SIGINT here - unless the
+spent 0.21 ms per callback on it against 1.39 ms on the single-threaded one), unless the
 environment variable ``COVERAGE_ROS_EXECUTOR`` is ``single``: then rclpy's
 ``SingleThreadedExecutor``. ``coverage-team --executor`` sets it for every process of a team.
-Every node process logs which one it runs on.
+Either is spun by ``spin_once`` in a loop that checks for a stop request (the EventsExecutor's
+``spin()`` did not return on SIGINT here). Every node process logs which one it runs on.
 """
 
 from __future__ import annotations

@@ -210,9 +210,12 @@ def test_update_worker_keeps_within_its_cpu_budget():
         worker.close()
 
 
-def test_coverage_teleop_takes_the_robot_over_and_hands_it_back(team):
+@pytest.mark.parametrize("end", ["q", signal.SIGINT, signal.SIGTERM],
+                         ids=["q", "SIGINT", "SIGTERM"])
+def test_coverage_teleop_takes_the_robot_over_and_hands_it_back(team, end):
     """The terminal teleop in a real terminal (a pty): two presses of the left arrow turn the
-    robot in place at 2/5 of its turn rate; 'q' stops it and gives it back to its strategy."""
+    robot in place at 2/5 of its turn rate; 'q' - or Ctrl-C's SIGINT, or SIGTERM - stops it and
+    gives it back to its strategy."""
     import os
     import pty
     import time
@@ -221,6 +224,7 @@ def test_coverage_teleop_takes_the_robot_over_and_hands_it_back(team):
 
     _world, robot, client = team
     cmds = client.subscribe("/robot_0/cmd_vel", Twist)
+    start = len(robot.output())
     master, slave = pty.openpty()
     teleop = subprocess.Popen([str(REPO / ".venv" / "bin" / "coverage-teleop"), "--robot", "0",
                                "--domain-id", str(domain_id(10))],
@@ -228,23 +232,27 @@ def test_coverage_teleop_takes_the_robot_over_and_hands_it_back(team):
                               env=ros_env(domain_id(10)))
     os.close(slave)
     try:
-        client.spin_until(lambda: "manual: driven by teleop/cmd_vel" in robot.output(), 30,
-                          "the robot to be taken over")
+        client.spin_until(lambda: "manual: driven by teleop/cmd_vel" in robot.output()[start:],
+                          30, "the robot to be taken over")
         os.write(master, b"\x1b[D\x1b[D")
         cmds.clear()
         client.spin_for(2.0)
         turning = [(m.linear.x, m.angular.z) for m in cmds[-5:]]
         assert all(v == 0.0 and w == pytest.approx(2 * 2.84 / 5) for v, w in turning), turning
-        os.write(master, b"q")
+        mark = len(robot.output())
+        if end == "q":
+            os.write(master, b"q")
+        else:
+            os.killpg(teleop.pid, end)
         assert teleop.wait(timeout=20) == 0
     finally:
         if teleop.poll() is None:
             teleop.kill()
         os.close(master)
     deadline = time.monotonic() + 10
-    while "robot 0: autonomous" not in robot.output() and time.monotonic() < deadline:
+    while "robot 0: autonomous" not in robot.output()[mark:] and time.monotonic() < deadline:
         client.spin_for(0.2)
-    assert "robot 0: autonomous" in robot.output()
+    assert "robot 0: autonomous" in robot.output()[mark:]
 
 
 @pytest.mark.parametrize("kind", ["", "single"])

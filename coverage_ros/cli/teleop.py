@@ -20,6 +20,7 @@ import argparse
 import contextlib
 import os
 import select
+import signal
 import sys
 import time
 from dataclasses import dataclass
@@ -112,7 +113,9 @@ class Teleop:
         from std_srvs.srv import SetBool
 
         self.rclpy, self.Twist, self.SetBool = rclpy, Twist, SetBool
-        rclpy.init()
+        # Not rclpy's signal handlers: they shut ROS down at once, and the robot, never told,
+        # stayed manual. Ctrl-C, SIGTERM and a closed terminal end the loop instead (below).
+        rclpy.init(signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
         ns = f"/{args.prefix}{args.robot}"
         self.ns = ns
         self.node = Node("coverage_teleop")
@@ -160,6 +163,8 @@ class Teleop:
 
     def run(self) -> int:
         raw = _RawTerminal()
+        for sig in (signal.SIGTERM, signal.SIGHUP):
+            signal.signal(sig, signal.default_int_handler)  # as Ctrl-C: KeyboardInterrupt
         try:
             with raw:
                 deadline = time.monotonic() + 5.0

@@ -190,7 +190,7 @@ class SafetyFilter:
                     d_stand = np.hypot(p0[0] - ahead[..., 0], p0[1] - ahead[..., 1])
                     if np.any((d_then < need[known]) & (d_then < d_now[known] - 1e-6)
                               & (d_then < d_stand - 1e-6)):
-                        return "robot closing in"
+                        return "robot ahead, closing in"
         if scan_points is not None and len(scan_points):
             sp = np.asarray(scan_points, dtype=np.float64).reshape(-1, 2)
             reach = float(np.hypot(*(arc[-1] - p0))) + c.radius + 0.2

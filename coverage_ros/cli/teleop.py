@@ -163,8 +163,10 @@ class Teleop:
 
     def run(self) -> int:
         raw = _RawTerminal()
-        for sig in (signal.SIGTERM, signal.SIGHUP):
-            signal.signal(sig, signal.default_int_handler)  # as Ctrl-C: KeyboardInterrupt
+        # All three raise KeyboardInterrupt - SIGINT too: a process started in the background
+        # of a script inherits SIGINT ignored, and Python then leaves it so.
+        for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+            signal.signal(sig, signal.default_int_handler)
         try:
             with raw:
                 deadline = time.monotonic() + 5.0

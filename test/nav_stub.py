@@ -5,9 +5,10 @@
 For each robot id it listens to ``/robot_<id>/goal_pose`` (geometry_msgs/PoseStamped) and
 ``/robot_<id>/ground_truth`` (nav_msgs/Odometry) and drives ``/robot_<id>/cmd_vel`` to the last
 goal: turn towards it, then go straight at 0.18 m/s (an open world, no obstacles between), stop
-within 5 cm. Every second it notes which other nodes publish on ``cmd_vel``. On SIGINT or
-SIGTERM it writes ``{"goals": {id: [[t, x, y, yaw, frame], ...]}, "cmd_vel_publishers": {id:
-[node, ...]}}`` to OUT.json.
+within 5 cm. Every second it notes which other nodes publish on ``cmd_vel``; it keeps the
+fastest ``vx``, ``vy`` each robot's ``coverage_state`` carried. On SIGINT or SIGTERM it writes
+``{"goals": {id: [[t, x, y, yaw, frame], ...]}, "cmd_vel_publishers": {id: [node, ...]},
+"state_speed": {id: m/s}}`` to OUT.json.
 """
 
 from __future__ import annotations
@@ -25,6 +26,7 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data
 from rclpy.signals import SignalHandlerOptions
+from sensor_msgs.msg import JointState
 
 
 def yaw_of(q) -> float:
@@ -38,6 +40,7 @@ class NavStub(Node):
         self.goals: dict[int, list] = {i: [] for i in ids}
         self.pose: dict[int, tuple[float, float, float]] = {}
         self.others: dict[int, set[str]] = {i: set() for i in ids}
+        self.state_speed: dict[int, float] = {i: 0.0 for i in ids}
         self.cmd = {i: self.create_publisher(Twist, f"/robot_{i}/cmd_vel", 10) for i in ids}
         for i in ids:
             # Best effort: compatible with any publisher's reliability.
@@ -45,6 +48,8 @@ class NavStub(Node):
                                      lambda m, i=i: self._on_goal(i, m), qos_profile_sensor_data)
             self.create_subscription(Odometry, f"/robot_{i}/ground_truth",
                                      lambda m, i=i: self._on_odom(i, m), qos_profile_sensor_data)
+            self.create_subscription(JointState, f"/robot_{i}/coverage_state",
+                                     lambda m, i=i: self._on_state(i, m), qos_profile_sensor_data)
         self.create_timer(0.1, self._drive)
         self.create_timer(1.0, self._graph)
 
@@ -56,6 +61,11 @@ class NavStub(Node):
     def _on_odom(self, i: int, m: Odometry) -> None:
         p = m.pose.pose
         self.pose[i] = (p.position.x, p.position.y, yaw_of(p.orientation))
+
+    def _on_state(self, i: int, m: JointState) -> None:
+        values = dict(zip(m.name, m.position, strict=True))
+        speed = math.hypot(values.get("vx", 0.0), values.get("vy", 0.0))
+        self.state_speed[i] = max(self.state_speed[i], speed)
 
     def _drive(self) -> None:
         for i in self.ids:
@@ -93,7 +103,8 @@ def main() -> int:
         pass
     with open(out, "w") as f:
         json.dump({"goals": node.goals,
-                   "cmd_vel_publishers": {i: sorted(s) for i, s in node.others.items()}}, f)
+                   "cmd_vel_publishers": {i: sorted(s) for i, s in node.others.items()},
+                   "state_speed": node.state_speed}, f)
     node.destroy_node()
     rclpy.try_shutdown()
     return 0

@@ -88,6 +88,9 @@ def test_a_team_with_its_own_navigation_and_localization_converges(tmp_path):
         assert all(g[4] == "map" for g in got["goals"][rid])
         steps = np.hypot(*np.diff(goals[:, :2], axis=0).T)
         assert (steps > 0.25).all(), steps
+        # Its coverage_state carries the velocity its navigator drives it at (from its
+        # poses): the stub drives at 0.18 m/s at most.
+        assert 0.05 < got["state_speed"][rid] < 0.3, got["state_speed"]
     for r in summary["robots"]:
         assert r["path_length"] > 0.3, r
         log = (out / "logs" / f"robot_{r['id']}.log").read_text()

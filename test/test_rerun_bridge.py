@@ -98,6 +98,29 @@ def test_pose_history_interpolates_along_the_short_way():
     assert h.at(1.5)[0] == pytest.approx(0.5)
 
 
+def test_pose_history_velocity_is_the_mean_over_its_window():
+    h = PoseHistory()
+    assert h.velocity() == {}
+    h.add(0.0, (1.0, 1.0, 0.0))
+    h.add(0.01, (1.003, 1.004, 0.0))
+    assert h.velocity() == {}  # two samples 10 ms apart: too short a span
+    h = PoseHistory()
+    for k in range(21):  # 1 s at 20 Hz, 0.5 m/s along (0.6, 0.8), then 0.5 s standing
+        t = 0.05 * k
+        h.add(t, (1.0 + 0.3 * t, 1.0 + 0.4 * t, 0.9))
+    v = h.velocity()
+    assert (v["vx"], v["vy"]) == pytest.approx((0.3, 0.4))
+    for k in range(1, 11):
+        h.add(1.0 + 0.05 * k, (1.3, 1.4, 0.9))
+    assert (h.velocity()["vx"], h.velocity()["vy"]) == pytest.approx((0.0, 0.0))
+    # 0.1 s into the stop, the mean over the last 0.3 s: 0.2 s of motion in it
+    h = PoseHistory()
+    for k in range(21):
+        h.add(0.05 * k, (0.3 * 0.05 * k, 0.0, 0.0))
+    h.add(1.1, (0.3, 0.0, 0.0))
+    assert h.velocity()["vx"] == pytest.approx(0.3 * (1.0 - 0.8) / 0.3)
+
+
 def test_trajectory_pieces_join_without_gaps_and_stay_small():
     traj = Trajectory(segment_points=5)
     pts = np.column_stack([np.arange(14) * 0.1, np.zeros(14)])

@@ -375,12 +375,12 @@ class RobotNode(RobotRequests, Node):
             v, w = c.command(now, dt)
             self._publish_cmd(v, w, now)
         if now - self._last_state >= 0.999 / self.config.state_rate:
-            # The state with the current position and velocity between updates: neighbours'
-            # safety filters need them fresh (the coverage period is too slow). Before the first
-            # update it has no mass or cost yet, but lets the neighbours see this robot.
+            # The position and velocity fresh for neighbours' safety filters between updates
+            # (drive: false: the velocity from the poses); before the first update, presence.
             self._last_state = now
             state = dict(c.last.state) if c.last is not None else c.presence_state()
-            state.update(x=float(c.pose[0]), y=float(c.pose[1]), **c.motion_state())
+            motion = c.motion_state() if self.config.drive else self._poses.velocity()
+            state.update(x=float(c.pose[0]), y=float(c.pose[1]), **motion)
             self.state_pub.publish(conv.coverage_state_msg(conv.to_time_msg(now), state))
 
     def _publish_cmd(self, v: float, w: float, now: float) -> None:

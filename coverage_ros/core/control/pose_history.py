@@ -19,6 +19,10 @@ POSE_HISTORY = 2.0
 POSE_TOLERANCE = 0.5
 #: [s] a stamp further back than this before the newest is a restarted simulation.
 TIME_JUMP_BACK = 1.0
+#: [s] a velocity from poses is the mean over this long (odometry at 10-20 Hz: a few samples).
+VELOCITY_WINDOW = 0.3
+#: [s] samples closer in time than this give no velocity (their noise would dominate).
+MIN_VELOCITY_SPAN = 0.05
 
 
 class PoseHistory:
@@ -63,3 +67,18 @@ class PoseHistory:
         da = math.remainder(a1 - a0, 2.0 * math.pi)
         return (x0 + f * (x1 - x0), y0 + f * (y1 - y0),
                 math.remainder(a0 + f * da, 2.0 * math.pi))
+
+    def velocity(self, window: float = VELOCITY_WINDOW) -> dict[str, float]:
+        """``vx``, ``vy`` [m/s] (the poses' frame): the mean velocity over the last ``window``
+        seconds of samples (from the newest one back to the last one at least ``window`` older,
+        or the oldest kept); empty when fewer than two samples span MIN_VELOCITY_SPAN. For a
+        robot whose commands this stack does not send (``drive: false``: its own navigator
+        drives it), what its neighbours' safety filters get instead of the command's velocity."""
+        if len(self._samples) < 2:
+            return {}
+        t1, x1, y1, _ = self._samples[-1]
+        older = [s for s in self._samples if s[0] <= t1 - window]
+        t0, x0, y0, _ = older[-1] if older else self._samples[0]
+        if t1 - t0 < MIN_VELOCITY_SPAN:
+            return {}
+        return {"vx": (x1 - x0) / (t1 - t0), "vy": (y1 - y0) / (t1 - t0)}

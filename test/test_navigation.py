@@ -296,6 +296,65 @@ def test_controller_update_and_command():
 
 
 
+def _drive_until_still(c: RobotController, pose: np.ndarray, t: float, seconds: float
+                       ) -> tuple[np.ndarray, float]:
+    """Drive ``c``'s robot by its own commands (a perfect unicycle at 10 Hz) for ``seconds``."""
+    from coverage_ros.core.control.safety import unicycle
+
+    for _ in range(int(seconds * 10)):
+        v, w = c.command(t, 0.1)
+        pose = unicycle(pose, v, w, np.array([0.1]))[0]
+        t += 0.1
+        c.set_pose(tuple(pose))
+    return pose, t
+
+
+class _Shifted:
+    """A strategy whose goals are another's, shifted by ``offset``."""
+
+    def __init__(self, strategy, offset: np.ndarray) -> None:
+        self._strategy, self._offset = strategy, offset
+
+    def update(self, obs, nbrs):
+        import dataclasses
+
+        d = self._strategy.update(obs, nbrs)
+        return dataclasses.replace(d, goal=np.asarray(d.goal) + self._offset)
+
+    def __getattr__(self, name):
+        return getattr(self._strategy, name)
+
+
+@pytest.mark.parametrize("arrival", [0.02, 0.05])
+def test_a_robot_stops_within_its_arrival_tolerance_and_follows_a_goal_that_creeps(arrival):
+    """The tracker stops ``arrival_tolerance`` short of the goal at most; a robot standing at
+    its goal follows a new goal ``arrival_tolerance`` away or more (a Lloyd goal creeps a few
+    cm per update near the end) and keeps still for a nearer one: with the old 5 cm a live
+    team stopped short of Lloyd's last steps (Lee & Lee's Fig. 17a-c)."""
+    from coverage_ros.core.strategies import strategy_choice
+
+    c = RobotController(room(wall=False), ControllerConfig(
+        robot_id=0, strategy=strategy_choice("lloyd"), arrival_tolerance=arrival))
+    pose = np.array([1.0, 1.0, 0.0])
+    c.set_pose(tuple(pose))
+    goal = c.update(0.0).decision.goal
+    pose, t = _drive_until_still(c, pose, 0.0, 20.0)
+    gap = float(np.hypot(*(goal - pose[:2])))
+    assert gap < arrival and c.command(t, 0.1)[0] == 0.0
+    # The goal creeps to 3.5 cm from the robot, off to its side (as a neighbour moving a
+    # little would make it): followed with the default 2 cm, not with 5 cm.
+    side = np.array([-(goal - pose[:2])[1], (goal - pose[:2])[0]]) / gap
+    c.strategy = _Shifted(c.strategy, pose[:2] + 0.035 * side - goal)
+    new = c.update(t).decision.goal
+    assert float(np.hypot(*(new - pose[:2]))) == pytest.approx(0.035)
+    moved_to, t = _drive_until_still(c, pose, t, 10.0)
+    step = float(np.hypot(*(moved_to[:2] - pose[:2])))
+    if arrival < 0.035:
+        assert float(np.hypot(*(new - moved_to[:2]))) < arrival and step > 0.01
+    else:
+        assert step == 0.0  # within the tolerance: it keeps still
+
+
 def test_a_region_of_interest_moves_the_goal_into_it_and_clearing_it_moves_it_back():
     """A lone robot's goal is its cell's centroid: the room's middle, then the middle of the
     region once the density is kept inside it, then the room's middle again."""

@@ -76,7 +76,10 @@ PARAMETERS: dict[str, tuple[Any, str]] = {  # name: (default, description)
     "scan_topic": ("scan", "sensor_msgs/LaserScan of the robot's lidar"),
     "use_scan": (True, "use the lidar in the safety filter (always on for sensor strategies)"),
     "use_stamped_cmd_vel": (False, "publish geometry_msgs/TwistStamped instead of Twist"),
-    "goal_tolerance": (0.05, "[m] goal closer than this = arrived / converged"),
+    "goal_tolerance": (0.05, "[m] a strategy whose goal moves less than this has converged"),
+    "arrival_tolerance": (0.02, "[m] the robot stops this near its goal, and a robot at its "
+                          "goal follows a new one this far away (Lloyd-type goals creep a "
+                          "few cm per update near the end)"),
     "robot_prefix": ("robot_", "namespace prefix of the team's robots (neighbour discovery)"),
     "connectivity": (8, "grid graph neighbourhood: 8 (Bhattacharya et al. 2014) or 16"),
     "explore": (False, "explore an unknown map: no /map; the belief starts unknown on the "
@@ -279,7 +282,8 @@ def load_robot_inputs(values: dict[str, Any], namespace: str,
     controller = ControllerConfig(
         robot_id=rid, strategy=choice, robot=robot_spec(base, values),
         comm_range=values["comm_range"], neighbour_timeout=values["neighbour_timeout"],
-        goal_tolerance=values["goal_tolerance"], teleop_timeout=values["teleop_timeout"])
+        goal_tolerance=values["goal_tolerance"], arrival_tolerance=values["arrival_tolerance"],
+        teleop_timeout=values["teleop_timeout"])
     config = RobotNodeConfig(
         controller=controller, world=values["world"], map_topic=values["map_topic"],
         control_rate=values["control_rate"], update_load=values["update_load"],

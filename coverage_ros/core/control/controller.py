@@ -77,7 +77,8 @@ class ControllerConfig:
     robot: RobotSpec = field(default_factory=RobotSpec)  # body, limits, sensing, power weight
     comm_range: float = 0.0  # [m] 0 = unlimited
     neighbour_timeout: float = 2.0  # [s]
-    goal_tolerance: float = 0.05  # [m]
+    goal_tolerance: float = 0.05  # [m] a goal step shorter than this: converged
+    arrival_tolerance: float = 0.02  # [m] the tracker stops this near its goal
     teleop_timeout: float = 0.5  # [s] a manual robot stops when its person sends nothing
 
     def __post_init__(self) -> None:
@@ -88,7 +89,8 @@ class ControllerConfig:
                                  self.strategy)
         if not (math.isfinite(self.comm_range) and self.comm_range >= 0):
             raise ConfigError.at("comm_range", "must be a finite number >= 0", self.comm_range)
-        for name in ("neighbour_timeout", "goal_tolerance", "teleop_timeout"):
+        for name in ("neighbour_timeout", "goal_tolerance", "arrival_tolerance",
+                     "teleop_timeout"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
                 raise ConfigError.at(name, "must be a finite number > 0", v)
@@ -124,8 +126,8 @@ class RobotController:
                               seed=config.robot_id)
         self.strategy = make_strategy(config.strategy, ctx)
         self.neighbours = NeighbourTable(domain.geometry.extent(), config.neighbour_timeout)
-        self.tracker = PathTracker(TrackerConfig.for_robot(config.robot,
-                                                           goal_tolerance=config.goal_tolerance))
+        self.tracker = PathTracker(TrackerConfig.for_robot(
+            config.robot, goal_tolerance=config.arrival_tolerance))
         self.safety = SafetyFilter(domain, SafetyConfig(radius=config.robot.radius,
                                                         a_max=config.robot.a_max))
         steer = self.tracker.config
@@ -208,8 +210,7 @@ class RobotController:
         update_ms = (time.perf_counter() - t0) * 1e3
         if decision.velocity is None and decision.goal is not None:
             new_goal = np.asarray(decision.goal, dtype=np.float64)
-            # An exploring robot's map grows: a path planned on an older map may cross a wall
-            # found since.
+            # Exploring, the map grows: a path planned on an older map may cross a wall since.
             stale = snapshot is not None and snapshot.version != self._planned_version
             # A robot at its goal follows a new goal beyond the arrival tolerance even when it
             # moved less than REPLAN_DISTANCE: else a goal that creeps a few cm per update (a

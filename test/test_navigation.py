@@ -342,7 +342,7 @@ def test_a_robot_stops_within_its_arrival_tolerance_and_follows_a_goal_that_cree
     gap = float(np.hypot(*(goal - pose[:2])))
     assert gap < arrival and c.command(t, 0.1)[0] == 0.0
     # The goal creeps to 3.5 cm from the robot, off to its side (as a neighbour moving a
-    # little would make it): followed with the default 2 cm, not with 5 cm.
+    # little would make it): followed with 2 cm, not with 5 cm.
     side = np.array([-(goal - pose[:2])[1], (goal - pose[:2])[0]]) / gap
     c.strategy = _Shifted(c.strategy, pose[:2] + 0.035 * side - goal)
     new = c.update(t).decision.goal

@@ -77,7 +77,7 @@ PARAMETERS: dict[str, tuple[Any, str]] = {  # name: (default, description)
     "use_scan": (True, "use the lidar in the safety filter (always on for sensor strategies)"),
     "use_stamped_cmd_vel": (False, "publish geometry_msgs/TwistStamped instead of Twist"),
     "goal_tolerance": (0.05, "[m] a strategy whose goal moves less than this has converged"),
-    "arrival_tolerance": (0.02, "[m] the robot stops this near its goal, and a robot at its "
+    "arrival_tolerance": (0.05, "[m] the robot stops this near its goal, and a robot at its "
                           "goal follows a new one this far away (Lloyd-type goals creep a "
                           "few cm per update near the end)"),
     "robot_prefix": ("robot_", "namespace prefix of the team's robots (neighbour discovery)"),

@@ -78,7 +78,7 @@ class ControllerConfig:
     comm_range: float = 0.0  # [m] 0 = unlimited
     neighbour_timeout: float = 2.0  # [s]
     goal_tolerance: float = 0.05  # [m] a goal step shorter than this: converged
-    arrival_tolerance: float = 0.02  # [m] the tracker stops this near its goal
+    arrival_tolerance: float = 0.05  # [m] the tracker stops this near its goal
     teleop_timeout: float = 0.5  # [s] a manual robot stops when its person sends nothing
 
     def __post_init__(self) -> None:

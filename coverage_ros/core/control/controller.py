@@ -210,7 +210,7 @@ class RobotController:
         update_ms = (time.perf_counter() - t0) * 1e3
         if decision.velocity is None and decision.goal is not None:
             new_goal = np.asarray(decision.goal, dtype=np.float64)
-            # Exploring, the map grows: a path planned on an older map may cross a wall since.
+            # Exploring, the map grows: a path on an older map may cross a wall found since.
             stale = snapshot is not None and snapshot.version != self._planned_version
             # A robot at its goal follows a new goal beyond the arrival tolerance even when it
             # moved less than REPLAN_DISTANCE: else a goal that creeps a few cm per update (a

@@ -26,7 +26,7 @@ from coverage_ros.cli.team_robots import (
     robot_params,
 )
 from coverage_ros.core.world.grid import GridMap
-from coverage_ros.nodes.plumbing import UpdateWorker
+from coverage_ros.nodes.plumbing import LastWords, UpdateWorker
 from coverage_ros.nodes.robot_shared import SharedInputs, grid_digest, state_topics
 
 
@@ -165,6 +165,37 @@ def test_container_start_up_errors_name_the_value(args, message):
     assert out.returncode == 2
     err = out.stderr.strip().splitlines()  # the last line says it (argparse: after usage)
     assert err[-1].startswith("robot_container: error: ") and message in err[-1], out.stderr
+
+
+class _Publisher:
+    """A publisher whose subscriber acknowledges after ``ack_s`` (None: never - it died)."""
+
+    def __init__(self, ack_s: float | None) -> None:
+        self.ack_s, self.sent, self.waits = ack_s, [], []
+
+    def publish(self, msg) -> None:
+        self.sent.append(msg)
+
+    def wait_for_all_acked(self, timeout) -> bool:
+        wait = timeout.nanoseconds * 1e-9
+        self.waits.append(wait)
+        acked = self.ack_s is not None and self.ack_s <= wait
+        time.sleep(self.ack_s if acked else wait)
+        return acked
+
+
+def test_the_robots_of_a_process_share_one_budget_for_their_last_commands():
+    """Each last command is sent and waited on until acknowledged; a subscriber that never
+    acknowledges costs the process its budget once, not once per robot."""
+    words = LastWords(budget=0.3)
+    live = _Publisher(ack_s=0.01)
+    assert words.publish(live, "stop 0") and live.sent == ["stop 0"]
+    start = time.monotonic()
+    dead = [_Publisher(ack_s=None) for _ in range(4)]
+    assert not any(words.publish(p, f"stop {k}") for k, p in enumerate(dead, 1))
+    assert all(p.sent for p in dead)
+    assert 0.2 < dead[0].waits[0] <= 0.3 and [p.waits[0] for p in dead[1:]] == [0.0] * 3
+    assert time.monotonic() - start < 0.4
 
 
 def test_bench_team_reads_every_robots_update_periods_from_the_logs(tmp_path):

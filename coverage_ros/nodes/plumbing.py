@@ -46,6 +46,7 @@ from collections import deque
 from collections.abc import Callable
 
 import numpy as np
+from rclpy.duration import Duration
 from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 
@@ -76,6 +77,30 @@ def quiet_subscription() -> SubscriptionEventCallbacks:
     """``event_callbacks`` for a subscription without the default QoS event handlers (see
     :func:`quiet_publisher`); for topics of the team's own nodes, whose QoS match by design."""
     return SubscriptionEventCallbacks(use_default_callbacks=False)
+
+
+class LastWords:
+    """A process's last messages (a robot's zero velocity): each is published, then waited on
+    until every reliable subscriber has acknowledged it - the process ends next, and a sample
+    lost on the way cannot be sent again once its writer is gone. All the nodes of a process
+    (a robot container) share one ``budget`` [s] for that wait, counted from the first one: a
+    subscriber that died without a word (still matched until its lease ends) never acknowledges."""
+
+    def __init__(self, budget: float = 1.0) -> None:
+        self.budget = budget
+        self._deadline: float | None = None
+
+    def publish(self, publisher, msg) -> bool:
+        """Publish ``msg``; whether every subscriber acknowledged it within the budget."""
+        publisher.publish(msg)
+        if self._deadline is None:
+            self._deadline = time.monotonic() + self.budget
+        left = max(0.0, self._deadline - time.monotonic())
+        return publisher.wait_for_all_acked(Duration(seconds=left))
+
+
+#: This process's (see :class:`LastWords`).
+LAST_WORDS = LastWords()
 
 
 class WarnThrottle:

@@ -7,8 +7,7 @@ join or vanish at any time. Every coverage period it computes its own cell with 
 strategy, publishes ``goal_pose``, ``plan``, ``cell`` and ``coverage_state``; every tracking
 period it sends a safe ``cmd_vel``. With ``drive: false`` it sends no ``cmd_vel``: the goal goes
 to the robot's own navigator (Nav2's ``goal_pose``), only when it moved
-(:mod:`~coverage_ros.core.control.goal_relay`). See README "Robot node" for parameters and
-topics.
+(:mod:`~coverage_ros.core.control.goal_relay`). README "Robot node": parameters, topics.
 
 Coverage updates run on a worker thread, so that tracking, the safety filter and incoming
 messages never wait for them; an update costs in proportion to the robot's own cell, which is
@@ -44,6 +43,7 @@ from coverage_ros.nodes import conversions as conv
 from coverage_ros.nodes.belief_exchange import OBSERVATIONS, OBSERVATIONS_TYPE, BeliefExchange
 from coverage_ros.nodes.goal_output import GoalOutput
 from coverage_ros.nodes.plumbing import (
+    LAST_WORDS,
     MAP_QOS,
     SCAN_QOS,
     TEAM_QOS,
@@ -383,18 +383,18 @@ class RobotNode(RobotRequests, Node):
             state.update(x=float(c.pose[0]), y=float(c.pose[1]), **motion)
             self.state_pub.publish(conv.coverage_state_msg(conv.to_time_msg(now), state))
 
-    def _publish_cmd(self, v: float, w: float, now: float) -> None:
+    def _publish_cmd(self, v: float, w: float, now: float, last: bool = False) -> None:
         if self.cmd_pub is None:
             return
-        twist = conv.command_to_twist(v, w)
+        msg = conv.command_to_twist(v, w)
         if self.config.use_stamped_cmd_vel:
-            msg = TwistStamped()
+            msg = TwistStamped(twist=msg)
             msg.header.stamp = conv.to_time_msg(now)
             msg.header.frame_id = self.frames.base_link
-            msg.twist = twist
-            self.cmd_pub.publish(msg)
+        if last:  # the process ends next: the command must arrive (plumbing.LastWords)
+            LAST_WORDS.publish(self.cmd_pub, msg)
         else:
-            self.cmd_pub.publish(twist)
+            self.cmd_pub.publish(msg)
 
     def stop(self) -> None:
         """Best effort: finish the running update, leave the robot standing."""
@@ -406,7 +406,7 @@ class RobotNode(RobotRequests, Node):
             self.get_logger().info(f"sent the evidence of {self.exchange.sent_cells} cells, "
                                    f"heard {len(self.exchange.heard)} robots")
         if self.context.ok():
-            self._publish_cmd(0.0, 0.0, self._now())
+            self._publish_cmd(0.0, 0.0, self._now(), last=True)
 
     def _warn(self, key: str, text: str) -> None:
         self._throttle.warn(key, text)

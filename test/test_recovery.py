@@ -5,13 +5,14 @@ or at its goal does not move."""
 from __future__ import annotations
 
 import math
+from itertools import pairwise
 
 import numpy as np
 import pytest
 from test_navigation import RADIUS, drive, room
 
 from coverage_ros.core.control.controller import ControllerConfig, RobotController
-from coverage_ros.core.control.planning import plan_path
+from coverage_ros.core.control.planning import DETOUR_MARGIN, detour, plan_path, segment_free
 from coverage_ros.core.control.recovery import (
     ESCAPE_DISTANCE,
     GIVE_WAY_DISTANCE,
@@ -19,6 +20,8 @@ from coverage_ros.core.control.recovery import (
     STUCK_TIME,
     away_from,
 )
+from coverage_ros.core.geodesic.domain import CoverageDomain
+from coverage_ros.core.world.grid import OCCUPIED, GridMap
 
 FACE = np.array([[1.30, y] for y in np.linspace(0.7, 1.3, 25)])  # a box not on the map
 
@@ -64,7 +67,7 @@ def test_a_robot_held_by_an_obstacle_backs_off_and_asks_for_a_new_path():
     assert x_blocked - xs[[t > t0 for t, *_ in log]].min() >= ESCAPE_DISTANCE - 0.01  # backed off
     assert c.recovery.escapes >= 1
     # The escape ended: the path is dropped and the next update plans a new one.
-    assert c.path is None or c._replan is False
+    assert c.path is None or not c._replan
     res = c.update(7.0)
     assert res is not None and c.path is not None and not c._replan
 
@@ -91,6 +94,77 @@ def test_a_robot_held_by_a_standing_neighbour_waits_then_gives_way_to_the_right(
     assert all(np.hypot(p[0] - 1.25, p[1] - 1.0) >= 2 * RADIUS for _, p, _ in log)
     assert c.goal is None and c._replan  # and it plans again from there
     assert any("gave way to a robot ahead 1 time(s)" in line for line in c.describe())
+
+
+def test_a_detour_bends_the_first_leg_around_the_robot_in_its_way_on_the_free_side():
+    d = room(wall=False)
+    path = np.array([[1.0, 1.5], [3.0, 1.5]])
+    need = np.array([2 * RADIUS + 0.06])
+
+    def clearance(bent: np.ndarray, centre: np.ndarray) -> float:
+        pts = np.vstack([a + t * (b - a) for a, b in pairwise(bent)
+                         for t in np.linspace(0.0, 1.0, 50)])
+        return float(np.hypot(*(pts - centre).T).min())
+
+    centre = np.array([1.5, 1.5])
+    bent = detour(d, path, centre[None], need)
+    assert np.array_equal(bent[0], path[0]) and np.array_equal(bent[-1], path[-1])
+    assert (bent[1:-1, 1] < 1.5).all()  # on the right of the way (east: south)
+    assert need[0] < clearance(bent, centre) <= need[0] + DETOUR_MARGIN + 1e-9
+    assert all(segment_free(d, a, b) for a, b in pairwise(bent))
+    # Near the south wall the right side is not free: the left one is taken.
+    low = np.array([[1.0, 0.4], [3.0, 0.4]])
+    bent = detour(d, low, np.array([[1.5, 0.4]]), need)
+    assert (bent[1:-1, 1] > 0.4).all()
+    # Nobody in the way (a neighbour beside it, or past the goal): the path as it was.
+    for other in ([1.5, 1.9], [3.5, 1.5], [0.5, 1.5]):
+        assert detour(d, path, np.array([other]), need) is path
+    # In a corridor 0.6 m wide neither side is free: the path as it was.
+    occ = np.zeros((60, 80), np.int8)
+    occ[:24, :] = occ[36:, :] = OCCUPIED
+    corridor = CoverageDomain.from_grid(GridMap(occ, 0.05), RADIUS)
+    straight = np.array([[1.0, 1.5], [3.0, 1.5]])
+    assert segment_free(corridor, *straight)
+    assert detour(corridor, straight, centre[None], need) is straight
+
+
+class _GoalAt:
+    """A strategy whose goal is always ``goal`` (its cells and states another's)."""
+
+    def __init__(self, strategy, goal: np.ndarray) -> None:
+        self._strategy, self._goal = strategy, goal
+
+    def update(self, obs, nbrs):
+        import dataclasses
+
+        return dataclasses.replace(self._strategy.update(obs, nbrs), goal=self._goal.copy())
+
+    def __getattr__(self, name):
+        return getattr(self._strategy, name)
+
+
+def test_a_robot_that_gave_way_to_a_standing_neighbour_plans_around_it():
+    """Its goal lies straight beyond a neighbour that does not move (a settled robot on a
+    relocating one's way): after giving way once it goes round it, never nearer than the
+    safety filter allows, instead of planning the same straight line into it again."""
+    d = room(wall=False)
+    c = RobotController(d, ControllerConfig(robot_id=0))
+    goal, other = np.array([3.2, 1.5]), np.array([1.6, 1.5])
+    c.strategy = _GoalAt(c.strategy, goal)
+    pose, t, closest = np.array([1.0, 1.5, 0.0]), 0.0, np.inf
+    while t < 40.0 and float(np.hypot(*(pose[:2] - goal))) > 0.1:
+        c.neighbours.receive(1, {"x": other[0], "y": other[1], "vx": 0.0, "vy": 0.0}, now=t)
+        c.set_pose(tuple(pose))
+        if round(t * 10) % 5 == 0:
+            c.update(t)
+        v, w = c.command(t, 0.1)
+        pose = drive(pose, v, w, 0.1)
+        closest = min(closest, float(np.hypot(*(pose[:2] - other))))
+        t += 0.1
+    assert float(np.hypot(*(pose[:2] - goal))) <= 0.1, (pose, c.describe())
+    assert c.recovery.give_ways == 1  # once: the next path went round (planned straight
+    # again, it gave way twice and arrived at 30 s instead of 21 s)
+    assert closest >= 2 * RADIUS + 0.05
 
 
 def test_two_robots_head_on_on_one_line_pass_each_other():

@@ -19,10 +19,9 @@ gives at that moment (:func:`~coverage_ros.core.exploration.maps.navigation_doma
 space traversable at a cost, walls seen so far inflated by the radius), and the safety filter
 checks commands against that map and the lidar points.
 
-The two loops may run in different threads (the robot node computes updates off its executor
-thread so that tracking never waits for a large cell): :meth:`update` works on a snapshot of
-the inputs and commits its result under a lock that :meth:`command` also takes; updates must
-not run concurrently with each other.
+The loops may run in different threads (the robot node computes updates off its executor
+thread): :meth:`update` works on a snapshot of the inputs and commits its result under a lock
+that :meth:`command` also takes; updates must not run concurrently with each other.
 """
 
 from __future__ import annotations
@@ -37,8 +36,8 @@ import numpy as np
 from scipy.sparse.csgraph import dijkstra
 
 from coverage_ros.core.control.neighbours import NeighbourTable, safety_discs
-from coverage_ros.core.control.planning import plan_path
-from coverage_ros.core.control.recovery import ESCAPE_LOOK, StuckRecovery
+from coverage_ros.core.control.planning import detour, plan_path
+from coverage_ros.core.control.recovery import ESCAPE_LOOK, ROBOT_AHEAD, StuckRecovery
 from coverage_ros.core.control.safety import SafetyConfig, SafetyFilter, ScanMemory, unicycle
 from coverage_ros.core.control.tracking import PathTracker, TrackerConfig
 from coverage_ros.core.exploration.belief import Belief
@@ -89,8 +88,7 @@ class ControllerConfig:
                                  self.strategy)
         if not (math.isfinite(self.comm_range) and self.comm_range >= 0):
             raise ConfigError.at("comm_range", "must be a finite number >= 0", self.comm_range)
-        for name in ("neighbour_timeout", "goal_tolerance", "arrival_tolerance",
-                     "teleop_timeout"):
+        for name in ("neighbour_timeout", "goal_tolerance", "arrival_tolerance", "teleop_timeout"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
                 raise ConfigError.at(name, "must be a finite number > 0", v)
@@ -152,7 +150,7 @@ class RobotController:
         #: Stopped and holding until resumed (cells and states keep being published).
         self.paused = False
         self._teleop = (0.0, 0.0, -math.inf)  # (v, w, receive time [s])
-        self._replan = False  # an escape ended: the next update plans a new path
+        self._replan = ""  # why an escape ended: the next update plans a new path
         self.sent: tuple[float, float] | None = None  # the last (v, w) returned by command()
         self._lock = threading.Lock()
 
@@ -221,6 +219,9 @@ class RobotController:
                     float(np.hypot(*(new_goal - goal))) > REPLAN_DISTANCE or \
                     (arrived and float(np.hypot(*(new_goal - pose[:2]))) >= tol):
                 goal, path = new_goal, plan_path(nav, pose[:2], new_goal)
+                if replan == ROBOT_AHEAD:  # it gave way: around the robots in its way
+                    P, R, _ = safety_discs(nbrs, now, self.config.robot)
+                    path = detour(nav, path, P, self.safety.config.clearance_to(R))
                 if snapshot is not None:
                     self._planned_version = snapshot.version
         shared = decision.shared
@@ -237,7 +238,7 @@ class RobotController:
         result = UpdateResult(decision, path, state, [n.robot_id for n in nbrs], pose)
         with self._lock:
             self.velocity, self.goal, self.path = decision.velocity, goal, path
-            self._replan = self._replan and not replan
+            self._replan = "" if replan else self._replan
             self.heading = decision.heading if decision.velocity is not None else None
             self.last = result
             if nav is not self.safety.domain:
@@ -329,9 +330,8 @@ class RobotController:
         autonomous = not (self.paused or self.manual)
         escape = self.recovery.command(pose, now) if autonomous else None
         if self.recovery.ended:  # plan again from where the escape ended
-            self.recovery.ended = False
+            self._replan, self.recovery.ended = self.recovery.ended, ""
             self.goal = self.path = None
-            self._replan = True
         if escape is not None:
             v, w = escape
         elif self.paused:

@@ -11,6 +11,7 @@ Paths are ``(M, 2)`` map-frame points [m].
 from __future__ import annotations
 
 import math
+from itertools import pairwise
 
 import numpy as np
 from scipy.sparse.csgraph import dijkstra
@@ -162,3 +163,49 @@ def _visible(ok: np.ndarray, a: np.ndarray, ends: np.ndarray) -> np.ndarray:
     free = np.zeros(len(pts), dtype=bool)
     free[inside] = ok[r[inside], c[inside]]
     return np.logical_and.reduceat(free, starts)
+
+
+#: [m] a detour keeps this much more than the safety filter needs from the robot it passes.
+DETOUR_MARGIN = 0.06
+#: Points of the arc a detour bends around a robot in the way (from 60 degrees before it
+#: to 60 degrees past it): chords of 30 degrees stay within 4 % of the arc's radius.
+DETOUR_ANGLES = np.radians([-60.0, -30.0, 0.0, 30.0, 60.0])
+
+
+def detour(domain: CoverageDomain, path: np.ndarray | None, positions: np.ndarray,
+           clearances: np.ndarray) -> np.ndarray | None:
+    """``path`` bent around the first robot its first leg runs into: neighbours at
+    ``positions (n, 2)`` [m], from which the safety filter keeps ``clearances (n,)`` [m]. The
+    leg is replaced by an arc of :data:`DETOUR_ANGLES` around the neighbour, at its clearance
+    plus :data:`DETOUR_MARGIN`, on the right of the way if the new legs are free (the side a
+    robot gives way to, :mod:`.recovery`), else on the left; ``path`` as it was when no
+    neighbour is in the way or neither side is free.
+
+    The planner knows only the map: a robot standing on the straight line to another one's
+    goal (a settled robot on a relocating one's way) held it until it moved (the live Lee &
+    Lee Fig. 18a-c: 45 s, giving way three times and planning the same straight line again)."""
+    if path is None or len(path) < 2 or len(positions) == 0:
+        return path
+    a, b = path[0], path[1]
+    length = float(np.hypot(*(b - a)))
+    if length < 1e-9:
+        return path
+    u = (b - a) / length
+    left = np.array([-u[1], u[0]])
+    positions = np.asarray(positions, dtype=np.float64).reshape(-1, 2)
+    need = np.asarray(clearances, dtype=np.float64).reshape(-1)
+    along, across = (positions - a) @ u, (positions - a) @ left
+    blocking = (along > -need) & (along < length + need) & (np.abs(across) < need)
+    if not blocking.any():
+        return path
+    j = int(np.argmin(np.where(blocking, along, np.inf)))
+    centre, radius = positions[j], float(need[j]) + DETOUR_MARGIN
+    for side in (-1.0, 1.0):  # right of the way first
+        arc = centre + radius * (side * np.cos(DETOUR_ANGLES)[:, None] * left
+                                 + np.sin(DETOUR_ANGLES)[:, None] * u)
+        # (arc points already behind the robot are left out: it starts beside the neighbour)
+        arc = arc[(arc - a) @ u > 0.0]
+        bent = np.vstack([a, arc, path[1:]])
+        if all(segment_free(domain, p, q) for p, q in pairwise(bent)):
+            return bent
+    return path

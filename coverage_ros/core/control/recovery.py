@@ -77,8 +77,9 @@ class StuckRecovery:
         self.escape: tuple[np.ndarray, float, float, str, float] | None = None
         self.escapes = 0
         self.give_ways = 0
-        #: Set when an escape ended: the caller replans (and clears the flag).
-        self.ended = False
+        #: Why the escape that just ended began (:data:`ROBOT_AHEAD` for giving way): the
+        #: caller replans - around the robots in the way after giving way - and clears it.
+        self.ended = ""
 
     def observe(self, wanted_v: float, v: float, note: str, pose: np.ndarray, now: float,
                 obstacles: Callable[[], np.ndarray]) -> None:
@@ -119,8 +120,7 @@ class StuckRecovery:
             return None
         start, direction, until, _, distance = self.escape
         if float(np.hypot(*(pose[:2] - start))) >= distance or not now < until:
-            self.escape = None
-            self.ended = True
+            self.ended, self.escape = self.escape[3], None
             return None
         err = float(wrap_angle(direction - pose[2]))
         sign = 1.0

@@ -49,6 +49,10 @@ class SafetyConfig:
     horizon: float = 0.6  # [s] arc simulated beyond the stopping distance
     a_max: float = RobotSpec().a_max  # [m/s^2] braking
 
+    def clearance_to(self, radii: np.ndarray) -> np.ndarray:
+        """[m] centre to centre distance kept from neighbours of ``radii``."""
+        return self.radius + np.asarray(radii, dtype=np.float64) + self.robot_margin
+
 
 def unicycle(pose: np.ndarray, v: float, w: float, t: np.ndarray) -> np.ndarray:
     """``(len(t), 3)`` poses of a differential drive holding ``(v, w)`` from ``pose`` for
@@ -172,7 +176,7 @@ class SafetyFilter:
             nb = np.asarray(neighbours, dtype=np.float64).reshape(-1, 2)
             r = np.broadcast_to(np.asarray(radii if radii is not None else c.radius,
                                            dtype=np.float64), (len(nb),))
-            need = c.radius + r + c.robot_margin
+            need = c.clearance_to(r)
             d_now = np.hypot(*(nb - p0).T)
             d_arc = np.hypot(arc[1:, None, 0] - nb[None, :, 0],
                              arc[1:, None, 1] - nb[None, :, 1]).min(axis=0)

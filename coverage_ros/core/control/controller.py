@@ -33,11 +33,11 @@ from collections import deque
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from scipy.sparse.csgraph import dijkstra
 
 from coverage_ros.core.control.neighbours import NeighbourTable, safety_discs
 from coverage_ros.core.control.planning import detour, plan_path
 from coverage_ros.core.control.recovery import ESCAPE_LOOK, ROBOT_AHEAD, StuckRecovery
+from coverage_ros.core.control.region_seek import seek_region
 from coverage_ros.core.control.safety import SafetyConfig, SafetyFilter, ScanMemory, unicycle
 from coverage_ros.core.control.tracking import PathTracker, TrackerConfig
 from coverage_ros.core.exploration.belief import Belief
@@ -59,8 +59,6 @@ from coverage_ros.core.world.region import Region
 from coverage_ros.core.world.robot import RobotSpec
 from coverage_ros.errors import ConfigError
 
-#: A cell with less than this share of the domain's mass is empty (see _seek_region).
-EMPTY_CELL = 1e-6
 #: [m] goal changes smaller than this keep the current path (no replanning jitter).
 REPLAN_DISTANCE = 0.05
 #: [s] a pose is carried forward under the last command by at most this much of its age.
@@ -204,7 +202,7 @@ class RobotController:
                                     len(self.domain.graph.offsets))
             _ = nav.clearance  # computed here, not under the lock (see _commit)
         obs = Observation(self.config.robot_id, pose, now, scan, snapshot, scan_pose)
-        decision = self._seek_region(self.strategy.update(obs, nbrs), pose)
+        decision = seek_region(self.domain, self.region, self.strategy.update(obs, nbrs), pose)
         update_ms = (time.perf_counter() - t0) * 1e3
         if decision.velocity is None and decision.goal is not None:
             new_goal = np.asarray(decision.goal, dtype=np.float64)
@@ -244,25 +242,6 @@ class RobotController:
             if nav is not self.safety.domain:
                 self.safety.set_domain(nav)
         return result
-
-    def _seek_region(self, decision: Decision, pose: np.ndarray) -> Decision:
-        """A robot whose cell holds none of the region of interest (the others' cells cover
-        it) would stay where it is, its Lloyd control zero: it heads for the region's nearest
-        point (along the map's paths) until its cell holds some of it."""
-        domain = self.domain
-        if self.region.everywhere or decision.velocity is not None or \
-                decision.mass > EMPTY_CELL * float(domain.mass_element.sum()):
-            return decision
-        nodes, _, _ = domain.snap(pose[:2])
-        if len(nodes) == 0:
-            return decision
-        dist = dijkstra(domain.graph.csr, directed=True, indices=nodes, min_only=True)
-        dist[domain.density.ravel() <= 0] = np.inf
-        k = int(np.argmin(dist))
-        if not np.isfinite(dist[k]):
-            return decision
-        target = domain.to_map(domain.node_centers(np.array([k])))[0]
-        return replace(decision, goal=target, target=target, mode="seek", converged=False)
 
     def presence_state(self) -> dict[str, float]:
         """What to publish before the first update: who and where this robot is and its

@@ -190,11 +190,11 @@ def test_paper_mode_equals_the_papers_pseudo_code():
 
 
 def test_cache_and_search_growth_do_not_change_results():
-    # Large enough for 12 robots' searches to stay short of the whole map (a search that
+    # Large enough for 24 robots' searches to stay short of the whole map (a search that
     # would cover it all takes the whole-map path, which needs no cache).
     rng = np.random.default_rng(3)
     domain = random_domain(rng, 60, 160, blocks=14)
-    gens = random_generators(domain, rng, 12)
+    gens = random_generators(domain, rng, 24)
     cache = SearchCache()
     for step in range(8):
         gens = [Generator(g.position + rng.normal(0, 0.01, 2)) if domain.is_free_point(
@@ -239,13 +239,13 @@ def test_a_cold_update_starts_from_the_extent_of_its_straight_line_cell():
 
 
 def test_a_cell_reaching_round_a_wall_grows_its_search():
-    """A wall along y = 2 m from x = 0 to 4.5 m on a 40 m x 6 m map, robots at (1, 1) below
+    """A wall along y = 2 m from x = 0 to 4.5 m on a 60 m x 6 m map, robots at (1, 1) below
     it, at (5.2, 1) right of its end and at (12, 3). The region above the wall's left part is
     the first robot's in straight lines but the second's along paths (through the gap): the
     second's cell reaches further than its straight-line cell, so its cold search is too short
     at first - the second pass searches the whole map (settling what is in line of sight
     first) - and the cell is exact."""
-    occ = np.zeros((60, 400), np.int8)
+    occ = np.zeros((60, 600), np.int8)
     occ[20:22, :45] = OCCUPIED
     domain = CoverageDomain.from_grid(GridMap(occ, RES), 0.0)
     gens = [Generator(np.array([5.2, 1.0])), Generator(np.array([1.0, 1.0])),

@@ -30,7 +30,13 @@ from scipy.sparse.csgraph import dijkstra
 
 from coverage_ros.core.geodesic.descent import next_vertex, reachable_goal
 from coverage_ros.core.geodesic.domain import CoverageDomain
-from coverage_ros.core.geodesic.local_search import LocalGraph, SearchCache, local_graph_for
+from coverage_ros.core.geodesic.local_search import (
+    SIGHT_WHOLE_SHARE,
+    WHOLE_SHARE,
+    LocalGraph,
+    SearchCache,
+    local_graph_for,
+)
 from coverage_ros.core.geodesic.tangents import ancestor_table, first_ancestor_where
 from coverage_ros.core.geodesic.tessellation import (
     Generator,
@@ -107,6 +113,8 @@ def geodesic_cell(domain: CoverageDomain, own: Generator, others: Sequence[Gener
         L = math.ceil((hint + WARM_SLACK_EDGES * max_edge) / step) * step
     else:
         L = max(cold_radius(domain, centers, weights), 4.0 * max_edge)
+    # (a whole-map search that settles what is in line of sight first pays off sooner)
+    share = SIGHT_WHOLE_SHARE if method == "visibility" and not power else WHOLE_SHARE
     passes = 0
     while True:
         passes += 1
@@ -125,7 +133,7 @@ def geodesic_cell(domain: CoverageDomain, own: Generator, others: Sequence[Gener
         else:
             relevant = np.arange(1, len(gens))
         idx = np.concatenate([[0], relevant]).astype(np.int64)
-        local = local_graph_for(domain, cache, centers[idx], radii[idx], L)
+        local = local_graph_for(domain, cache, centers[idx], radii[idx], L, share)
         # The whole map, settling what is in line of sight first, when the region is most of
         # it (a team still bunched up leaves a few robots half the map each) or a first pass
         # was too short (a small cell may border the cell of a robot far away along paths,

@@ -40,6 +40,13 @@ CACHE_MAX_OVERSIZE = 1.35
 MAX_CONNECTIONS = 4
 #: A search region holding at least this share of the map's free cells is the whole map.
 WHOLE_SHARE = 0.5
+#: The same share for a search that settles what is in line of sight of the sources first
+#: (``visibility`` sources, equal weights: cell.py). From about a third of the map on, its
+#: limited search (every neighbour's source joined to the cells it sees) costs as much as the
+#: whole-map search, which settles the cells in sight without searching and never has to grow
+#: (depot, bunched teams of 16 and 64: the slowest cold update 131 -> 64 ms and 321 -> 238 ms
+#: against a share of 0.5; bench_core).
+SIGHT_WHOLE_SHARE = 0.35
 
 
 @dataclass
@@ -261,9 +268,10 @@ def covers(graph: LocalGraph, centers: np.ndarray, radii: np.ndarray, lam_cells:
 
 
 def local_graph_for(domain: CoverageDomain, cache: SearchCache | None, centers: np.ndarray,
-                    radii: np.ndarray, L: float) -> LocalGraph:
+                    radii: np.ndarray, L: float, whole_share: float = WHOLE_SHARE) -> LocalGraph:
     """A search graph that covers the own ball and cones for search radius ``L``, reused
-    from ``cache`` when the cached region already contains the required one."""
+    from ``cache`` when the cached region already contains the required one; the whole map's
+    graph when the region would hold ``whole_share`` of its free cells or more."""
     if not math.isfinite(L) or any(domain.graph.wrap):
         key = "whole_graph"
         g = domain._cache.get(key)
@@ -278,7 +286,7 @@ def local_graph_for(domain: CoverageDomain, cache: SearchCache | None, centers: 
         return cache.graph
     margin = CACHE_MARGIN_CELLS if cache is not None else 0.0
     counts = _free_counts(domain)
-    whole = WHOLE_SHARE * counts.sum()
+    whole = whole_share * counts.sum()
     blocks = required_blocks(domain, centers, radii, L, margin, enough=whole)
     if counts[blocks].sum() >= whole:
         # Most of the map: the domain's one whole-map graph, shared by every search on it (a

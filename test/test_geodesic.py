@@ -12,6 +12,7 @@ from conftest import WORLDS
 from coverage_ros.core.geodesic.cell import COLD_STRIDE, SearchCache, cold_radius, geodesic_cell
 from coverage_ros.core.geodesic.domain import CoverageDomain
 from coverage_ros.core.geodesic.graph import octile_bound
+from coverage_ros.core.geodesic.local_search import SIGHT_WHOLE_SHARE, WHOLE_SHARE
 from coverage_ros.core.geodesic.reference import obvious_cell, paper_cell
 from coverage_ros.core.geodesic.tangents import (
     SIGHT_TILE,
@@ -238,29 +239,51 @@ def test_a_cold_update_starts_from_the_extent_of_its_straight_line_cell():
     assert set(cell.nodes.tolist()) == set(np.flatnonzero(labels == outer))
 
 
-def test_a_cell_reaching_round_a_wall_grows_its_search():
-    """A wall along y = 2 m from x = 0 to 4.5 m on a 60 m x 6 m map, robots at (1, 1) below
-    it, at (5.2, 1) right of its end and at (12, 3). The region above the wall's left part is
-    the first robot's in straight lines but the second's along paths (through the gap): the
-    second's cell reaches further than its straight-line cell, so its cold search is too short
-    at first - the second pass searches the whole map (settling what is in line of sight
-    first) - and the cell is exact."""
-    occ = np.zeros((60, 600), np.int8)
+def _wall_scene(length_m: float) -> tuple[CoverageDomain, list[Generator], int]:
+    """A wall along y = 2 m from x = 0 to 4.5 m on a ``length_m`` x 6 m map, robots at
+    (5.2, 1) right of its end, at (1, 1) below it and at (12, 3); and the map's cell count."""
+    occ = np.zeros((60, int(round(length_m / RES))), np.int8)
     occ[20:22, :45] = OCCUPIED
     domain = CoverageDomain.from_grid(GridMap(occ, RES), 0.0)
     gens = [Generator(np.array([5.2, 1.0])), Generator(np.array([1.0, 1.0])),
             Generator(np.array([12.0, 3.0]))]
+    return domain, gens, occ.size
+
+
+def test_a_cell_reaching_round_a_wall_grows_its_search():
+    """:func:`_wall_scene` on a 60 m map. The region above the wall's left part is the robot
+    at (1, 1)'s in straight lines but the one at (5.2, 1)'s along paths (through the gap): the
+    latter's cell reaches further than its straight-line cell, so its cold search is too short
+    at first - the second pass searches the whole map (settling what is in line of sight
+    first) - and the cell is exact."""
+    domain, gens, size = _wall_scene(60.0)
     cell = geodesic_cell(domain, gens[0], gens[1:], cache=SearchCache())
     labels = tessellate(domain, gens).labels.ravel()
-    assert cell.passes == 2 and cell.searched_nodes == occ.size
+    assert cell.passes == 2 and cell.searched_nodes == size
     assert set(cell.nodes.tolist()) == set(np.flatnonzero(labels == 0))
     top_left = domain.to_grid(np.array([[0.3, 5.7]]))[0].astype(int)
-    assert labels[top_left[1] * 400 + top_left[0]] == 0
+    assert labels[top_left[1] * domain.shape[1] + top_left[0]] == 0
     # The paper's pseudo-code sources (no line of sight) grow the pruned search instead.
     paper = geodesic_cell(domain, gens[0], gens[1:], cache=SearchCache(), method="paper")
-    assert paper.passes >= 2 and paper.searched_nodes < occ.size
+    assert paper.passes >= 2 and paper.searched_nodes < size
     assert set(paper.nodes.tolist()) == set(np.flatnonzero(
         tessellate(domain, gens, "paper").labels.ravel() == 0))
+
+
+def test_a_line_of_sight_search_over_a_third_of_the_map_searches_the_whole_map_at_once():
+    """:func:`_wall_scene` on a 40 m map: the first search region of the robot at (5.2, 1)
+    would hold over a third of the free cells (``SIGHT_WHOLE_SHARE``), so in ``visibility``
+    mode it searches the whole map at once (line of sight first; it cannot fall short); in
+    ``paper`` mode, whose whole-map search is a plain Dijkstra over every vertex, it searches
+    regions up to half the map (``WHOLE_SHARE``) and grows one. Both cells are exact."""
+    domain, gens, size = _wall_scene(40.0)
+    for method, passes, searched in (("visibility", 1, size), ("paper", 2, None)):
+        cell = geodesic_cell(domain, gens[0], gens[1:], cache=SearchCache(), method=method)
+        assert cell.passes == passes, method
+        assert (cell.searched_nodes == size) if searched else (
+            SIGHT_WHOLE_SHARE * size < cell.searched_nodes < WHOLE_SHARE * size), method
+        labels = tessellate(domain, gens, method).labels.ravel()
+        assert set(cell.nodes.tolist()) == set(np.flatnonzero(labels == 0)), method
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])

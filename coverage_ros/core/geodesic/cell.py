@@ -134,8 +134,9 @@ def geodesic_cell(domain: CoverageDomain, own: Generator, others: Sequence[Gener
             relevant = np.arange(1, len(gens))
         idx = np.concatenate([[0], relevant]).astype(np.int64)
         local = local_graph_for(domain, cache, centers[idx], radii[idx], L, share)
-        # The whole map, settling what is in line of sight first, when the region is most of
-        # it (a team still bunched up leaves a few robots half the map each) or a first pass
+        # The whole map, settling what is in line of sight first, when the region is a large
+        # share of it (a team still bunched up leaves a few robots half the map each; the
+        # share: local_search.SIGHT_WHOLE_SHARE / WHOLE_SHARE) or a first pass
         # was too short (a small cell may border the cell of a robot far away along paths,
         # whose distance certifies the border: several growth passes in a bunched team). The
         # other sources, too, search the whole map without a limit when the region is most of

@@ -267,15 +267,43 @@ def test_greedy_mask_alg1_threshold():
         False, False, False, True]
 
 
+def test_dropout_switch_ends_a_limit_cycle_that_the_filter_would_keep_for_long():
+    # Fig. 3's pattern: a big first Delta I (out of the corner), then I swinging between two
+    # values. The filter alone (gain 0.2) stays above epsilon for ~28 samples.
+    trace = [1.2, 0.7, 0.3, 0.1, 0.05] + [0.046, 0.042] * 20
+    alone = DropoutSwitch(DropoutConfig(stall_iterations=0))
+    on_filter = next(i for i, m in enumerate(trace) if not alone.update(m))
+    assert on_filter > 25
+    switch = DropoutSwitch(DropoutConfig(stall_iterations=5))
+    ends = next(i for i, m in enumerate(trace) if not switch.update(m))
+    # Samples 5 (0.046 < 0.05 - 0.002) and 6 (0.042 < 0.046 - 0.002) are the last new lows by
+    # epsilon; the dropout ends at the fifth sample without one.
+    assert ends == 6 + 5
+    # A team that keeps improving by more than epsilon per sample is never stopped by it.
+    steady = DropoutSwitch(DropoutConfig(stall_iterations=5, filter_gain=1.0))
+    assert all(steady.update(2.0 - 0.01 * i) for i in range(100))
+    # A new low counts once it is epsilon below the last: 0.001 per sample makes one every
+    # third sample (a first Delta I of 1 and a tiny gain keep the filter out of the way).
+    slow = [2.0] + [1.0 - 0.001 * i for i in range(30)]
+    assert all(DropoutSwitch(DropoutConfig(stall_iterations=3, filter_gain=1e-6)).update(m)
+               for m in slow)
+    two = DropoutSwitch(DropoutConfig(stall_iterations=2, filter_gain=1e-6))
+    assert [two.update(m) for m in slow[:4]] == [True, True, True, False]
+    with pytest.raises(ConfigError, match="stall_iterations"):
+        DropoutConfig(stall_iterations=-1)
+    with pytest.raises(ConfigError, match="stall_iterations"):
+        DropoutConfig(stall_iterations=2.5)
+
+
 def test_dropout_switch_low_pass_filter():
-    switch = DropoutSwitch(DropoutConfig(filter_gain=0.5, epsilon=0.002))
+    switch = DropoutSwitch(DropoutConfig(filter_gain=0.5, epsilon=0.002, stall_iterations=0))
     assert switch.update(1.0)  # no Delta I yet
     assert switch.update(0.8)  # Delta I 0.2, filtered 0.2
     assert switch.update(0.85)  # Delta I -0.05 is smoothed: 0.2 + 0.5 * (-0.25) = 0.075
     assert switch.filtered == pytest.approx(0.075)
     assert not switch.update(1.0)  # Delta I -0.15: 0.075 + 0.5 * (-0.225) < 0.002
     assert not switch.update(0.0)  # off for good
-    unfiltered = DropoutSwitch(DropoutConfig(filter_gain=1.0))
+    unfiltered = DropoutSwitch(DropoutConfig(filter_gain=1.0, stall_iterations=0))
     unfiltered.update(1.0)
     unfiltered.update(0.8)
     assert not unfiltered.update(0.85)

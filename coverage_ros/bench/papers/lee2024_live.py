@@ -113,39 +113,81 @@ def live_metric(world: dict, starts: np.ndarray, speeds: np.ndarray, params: dic
 SLOW, FAST = scenes.SLOW, scenes.FAST
 
 
+#: The methods a live figure runs side by side, as in the paper: (name, ``strategy_params``).
+METHODS = (("iCVT+Projection", {"dropout": False}), ("alpha-CVT", {}))
+
+
 def _fig(world: dict, starts: np.ndarray, speeds: np.ndarray, visible: bool, metric: str,
-         seed: int) -> dict[str, float]:
+         seed: int, methods: tuple[str, ...] | None = None) -> dict[str, float]:
     spec = CellSpec(visibility=visible)
     hetero = bool(np.ptp(speeds) > 0)
     out: dict[str, float] = {}
     collisions = 0
-    for name, params in (("iCVT+Projection", {"dropout": False}), ("alpha-CVT", {})):
+    for name, params in METHODS:
+        if methods is not None and name not in methods:
+            continue
         value, hits = live_metric(world, starts, speeds, {**params, "visibility": visible},
                                   spec, hetero, seed)
         out[f"{metric}, {name} (live)"] = value
         collisions += hits
-    out["collisions (both runs)"] = float(collisions)
+    out["collisions (both runs)" if methods is None else "collisions"] = float(collisions)
     return out
 
 
-def fig17_targets(seed: int) -> dict[str, float]:
+def fig17_targets(seed: int, methods: tuple[str, ...] | None = None) -> dict[str, float]:
     return _fig(_targets_world(), scenes.corner_cluster(seed, 10), np.full(10, SLOW), False,
-                "I", seed)
+                "I", seed, methods)
 
 
-def fig17_room(seed: int) -> dict[str, float]:
+def fig17_room(seed: int, methods: tuple[str, ...] | None = None) -> dict[str, float]:
     starts = scenes.corner_cluster(seed, 10, scenes.LOWER_LEFT, arena=ROOM_SIDE,
                                    keep=_clear_of_walls)
-    return _fig(_room_world(), starts, np.full(10, FAST), True, "I^L", seed)
+    return _fig(_room_world(), starts, np.full(10, FAST), True, "I^L", seed, methods)
 
 
-def fig18_targets(seed: int) -> dict[str, float]:
+def fig18_targets(seed: int, methods: tuple[str, ...] | None = None) -> dict[str, float]:
     speeds = np.r_[np.full(5, SLOW), np.full(5, FAST)]
-    return _fig(_targets_world(), scenes.corner_cluster(seed, 10), speeds, False, "I^H", seed)
+    return _fig(_targets_world(), scenes.corner_cluster(seed, 10), speeds, False, "I^H", seed,
+                methods)
 
 
-def fig18_room(seed: int) -> dict[str, float]:
+def fig18_room(seed: int, methods: tuple[str, ...] | None = None) -> dict[str, float]:
     speeds = np.r_[np.full(4, SLOW), np.full(6, FAST)]
     starts = scenes.corner_cluster(seed, 10, scenes.LOWER_LEFT, arena=ROOM_SIDE,
                                    keep=_clear_of_walls)
-    return _fig(_room_world(), starts, speeds, True, "I^H", seed)
+    return _fig(_room_world(), starts, speeds, True, "I^H", seed, methods)
+
+
+FIGURES = {"fig17-targets": fig17_targets, "fig17-room": fig17_room,
+           "fig18-targets": fig18_targets, "fig18-room": fig18_room}
+
+
+def main(argv: list[str] | None = None) -> int:
+    """One live figure's runs for some methods only (``bench_papers`` runs them all): e.g. the
+    alpha-CVT runs again after a change to the dropout, which iCVT + projection does not run."""
+    import argparse
+
+    ap = argparse.ArgumentParser(prog="python -m coverage_ros.bench.papers.lee2024_live",
+                                 description=main.__doc__)
+    ap.add_argument("figure", choices=sorted(FIGURES))
+    ap.add_argument("--methods", default=",".join(name for name, _ in METHODS),
+                    help="comma-separated, of: " + ", ".join(name for name, _ in METHODS))
+    ap.add_argument("--seeds", type=int, default=5,
+                    help="the first N seeds, the same starts as bench_papers' (default 5)")
+    args = ap.parse_args(argv)
+    methods = tuple(m.strip() for m in args.methods.split(",") if m.strip())
+    known = {name for name, _ in METHODS}
+    if not methods or not set(methods) <= known:
+        ap.error(f"--methods {args.methods!r}: expected some of {sorted(known)}")
+    rows = []
+    for seed in range(args.seeds):
+        values = FIGURES[args.figure](seed, methods)
+        print(f"{args.figure} seed {seed + 1}/{args.seeds}: " + ", ".join(
+            f"{k} {v:.4g}" for k, v in values.items()), flush=True)
+        rows.append({"seed": seed, **values})
+    print(json.dumps({"figure": args.figure, "runs": rows}))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

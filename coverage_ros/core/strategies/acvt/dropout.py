@@ -44,6 +44,14 @@ PAPER_EPSILON = 0.002
 #: Weight of the newest Delta I sample in the first-order low-pass filter. The paper applies
 #: "a low pass filter" without giving it; this one forgets a sample after a few iterations.
 DEFAULT_FILTER_GAIN = 0.2
+#: Iterations without a new lowest I (by epsilon) after which the dropout ends: the paper's
+#: "negligible improvement". A team in the dropout's limit cycle (greedy agents taking turns,
+#: I swinging between two values) improves on nothing, but the filter started at the first
+#: Delta I - the spread out of the start cluster, ~1 against epsilon's 0.002 - keeps the
+#: filtered value above epsilon for ~28 iterations at gain 0.2 whatever the team does (Fig.
+#: 3's corner starts: a limit cycle from the 6th iteration to the 27th). While the team still
+#: improves (a walled room's corridors take 40-50 iterations) the test does not fire.
+DEFAULT_STALL_ITERATIONS = 5
 
 
 @dataclass(frozen=True)
@@ -54,8 +62,14 @@ class DropoutConfig:
     epsilon: float = PAPER_EPSILON  # threshold on the filtered Delta I (Eq. 10)
     filter_gain: float = DEFAULT_FILTER_GAIN  # in (0, 1]; 1 = no filtering
     drop_factor: float | None = None  # tau_drop = drop_factor * mean M; None = k / (k - 1)
+    #: the dropout also ends after this many iterations without a new lowest I (0: never)
+    stall_iterations: int = DEFAULT_STALL_ITERATIONS
 
     def __post_init__(self) -> None:
+        if isinstance(self.stall_iterations, bool) or not (
+                isinstance(self.stall_iterations, int | np.integer) and self.stall_iterations >= 0):
+            raise ConfigError.at("stall_iterations", "must be an integer >= 0 (0: no stall test)",
+                                 self.stall_iterations)
         if not (math.isfinite(self.epsilon) and self.epsilon > 0):
             raise ConfigError.at("epsilon", "must be a finite number > 0 (the paper: 0.002)",
                                  self.epsilon)
@@ -88,7 +102,8 @@ def greedy_mask(masses: np.ndarray, drop_factor: float | None = None) -> np.ndar
 
 class DropoutSwitch:
     """Alg. 2, lines 11-14: turns the dropout off for good once the low-pass-filtered
-    Delta I = I_{t-1} - I_t falls below epsilon.
+    Delta I = I_{t-1} - I_t falls below epsilon, or once ``stall_iterations`` samples in a row
+    have not brought I below its lowest value before them by epsilon (a limit cycle).
 
     The filter is first order, ``f <- f + gain * (Delta I - f)``, started at the first sample.
     """
@@ -98,6 +113,8 @@ class DropoutSwitch:
         self.active = config.enabled
         self.previous: float | None = None
         self.filtered: float | None = None
+        self.best = math.inf  # lowest I fed
+        self.stalled = 0  # samples since I last went below best - epsilon
 
     def update(self, metric: float) -> bool:
         """Feed I_t; returns whether the dropout is still active."""
@@ -111,6 +128,13 @@ class DropoutSwitch:
                 self.filtered += self.config.filter_gain * (delta - self.filtered)
             if self.filtered < self.config.epsilon:
                 self.active = False
+        if metric < self.best - self.config.epsilon:
+            self.stalled = 0
+        else:
+            self.stalled += 1
+            if 0 < self.config.stall_iterations <= self.stalled:
+                self.active = False
+        self.best = min(self.best, metric)
         self.previous = metric
         return self.active
 

@@ -50,6 +50,7 @@ from coverage_ros.core.metrics import mass_deviation
 from coverage_ros.core.strategies.acvt.cells import CellSpec, MassCells, normalized_masses
 from coverage_ros.core.strategies.acvt.dropout import (
     DEFAULT_FILTER_GAIN,
+    DEFAULT_STALL_ITERATIONS,
     PAPER_EPSILON,
     DropoutConfig,
     DropoutSwitch,
@@ -97,6 +98,8 @@ class AcvtParams:
     epsilon: float = PAPER_EPSILON  # threshold on the filtered Delta I (Eq. 10)
     filter_gain: float = DEFAULT_FILTER_GAIN  # low-pass gain of Delta I, in (0, 1]
     drop_factor: float | None = None  # tau_drop = drop_factor * mean M; None: k / (k - 1)
+    #: the dropout also ends after this many iterations without a new lowest I (0: never)
+    stall_iterations: int = DEFAULT_STALL_ITERATIONS
     visibility: bool = False  # Eq. 11-12: only the part of the cell in line of sight
     scale_x: float = 1.0  # a of T_c in Eq. 15 (shape constraint), on map x
     scale_y: float = 1.0  # b of T_c in Eq. 15, on map y
@@ -126,7 +129,8 @@ class AcvtParams:
 
     def dropout_config(self) -> DropoutConfig:
         return DropoutConfig(bool(self.dropout), float(self.epsilon), float(self.filter_gain),
-                             None if self.drop_factor is None else float(self.drop_factor))
+                             None if self.drop_factor is None else float(self.drop_factor),
+                             self.stall_iterations)
 
     def relocation_config(self, targets: int = 1) -> RelocationConfig:
         """The relocation on a domain whose density has ``targets`` separate parts (for

@@ -415,6 +415,11 @@ def test_strategy_protocol_greedy_and_dropped_neighbours(two_targets):
         make_strategy(strategy_choice("acvt", {"tau": 2.0}), ctx)
     with pytest.raises(ConfigError, match="filter_gain"):
         make_strategy(strategy_choice("acvt", {"filter_gain": 0.0}), ctx)
+    with pytest.raises(ConfigError, match="stall_iterations"):
+        make_strategy(strategy_choice("acvt", {"stall_iterations": 1.5}), ctx)
+    assert make_strategy(strategy_choice("acvt", {"stall_iterations": 0}),
+                         ctx).switch.config.stall_iterations == 0
+    assert robot.switch.config.stall_iterations == 5
     with pytest.raises(ConfigError, match=r"acvt\.gap_penalty: must be a finite number"):
         make_strategy(strategy_choice("acvt", {"gap_penalty": "2"}), ctx)
 

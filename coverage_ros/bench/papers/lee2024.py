@@ -28,7 +28,12 @@ from coverage_ros.core.geodesic.domain import CoverageDomain
 from coverage_ros.core.offline.runner import OfflineConfig, run_offline
 from coverage_ros.core.strategies import StrategyContext, strategy_choice
 from coverage_ros.core.strategies.acvt.cells import CellSpec, MassCells, deviation_metric
-from coverage_ros.core.strategies.acvt.dropout import AcvtConfig, AlphaCvt, DropoutConfig
+from coverage_ros.core.strategies.acvt.dropout import (
+    DEFAULT_STALL_ITERATIONS,
+    AcvtConfig,
+    AlphaCvt,
+    DropoutConfig,
+)
 from coverage_ros.core.strategies.acvt.relocation import RelocationConfig
 from coverage_ros.core.world.robot import RobotSpec
 
@@ -47,8 +52,11 @@ PLAIN = CellSpec()  # Eq. 1
 @functools.lru_cache(maxsize=64)
 def _solver(domain: CoverageDomain, method: str, spec: CellSpec,
             drop_factor: float | None) -> AlphaCvt:
+    # As published: Alg. 2's end tests only (no stall test, which is this project's).
     dropout = DropoutConfig(enabled=method not in ("iCVT", "iCVT+Projection"),
-                            drop_factor=drop_factor)
+                            drop_factor=drop_factor,
+                            stall_iterations=0 if method == "published" else
+                            DEFAULT_STALL_ITERATIONS)
     config = AcvtConfig(dropout=dropout, cells=spec, projection=method != "iCVT",
                         relocation=RelocationConfig(enabled=method == "relocation"))
     return AlphaCvt(domain, config)
@@ -67,14 +75,16 @@ def decentralized(domain: CoverageDomain, starts: np.ndarray,
                   speeds: np.ndarray | None = None, spec: CellSpec = PLAIN,
                   relocate: bool | str = "auto") -> float:
     """The metric at the end of a ``coverage-plan``-style run of the ``acvt`` strategy
-    (``relocate=False``: its dropout as published, without the relocation; the default
-    ``auto`` relocates on separate targets, as the strategy does)."""
+    (``relocate=False``: its dropout as published, without the relocation or the stall test;
+    the default ``auto`` relocates on separate targets, as the strategy does)."""
     k = len(starts)
     robots = [RobotSpec() for _ in range(k)] if speeds is None else \
         [RobotSpec(v_max=float(v)) for v in speeds]
     contexts = [StrategyContext(domain=domain, robot=robots[i], robot_id=i) for i in range(k)]
     params = {"visibility": spec.visibility, "scale_x": spec.scale[0], "scale_y": spec.scale[1],
               "gap_penalty": spec.gap_penalty, "relocate": relocate}
+    if relocate is False:
+        params["stall_iterations"] = 0
     run = run_offline(domain, strategy_choice("acvt", params), starts, contexts,
                       OfflineConfig(max_iterations=DECENTRALIZED_ITERATIONS))
     cells = MassCells(domain)

@@ -51,7 +51,7 @@ DEFAULT_FILTER_GAIN = 0.2
 #: filtered value above epsilon for ~28 iterations at gain 0.2 whatever the team does (Fig.
 #: 3's corner starts: a limit cycle from the 6th iteration to the 27th). While the team still
 #: improves (a walled room's corridors take 40-50 iterations) the test does not fire.
-DEFAULT_STALL_ITERATIONS = 5
+DEFAULT_STALL_ITERATIONS = 10
 
 
 @dataclass(frozen=True)
@@ -148,7 +148,8 @@ class AcvtConfig:
     dropout: DropoutConfig = field(default_factory=DropoutConfig)
     cells: CellSpec = field(default_factory=CellSpec)
     #: This project's relocation once the team has settled (:mod:`.relocation`); disabled,
-    #: the run is the paper's Alg. 2 as published. Only with the dropout and the projection
+    #: and with ``DropoutConfig(stall_iterations=0)``, the run is the paper's Alg. 2 as
+    #: published. Only with the dropout and the projection
     #: on (iCVT and iCVT + projection, the paper's baselines, never relocate).
     relocation: RelocationConfig = field(default_factory=RelocationConfig)
     max_iterations: int = 300

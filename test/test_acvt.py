@@ -40,6 +40,7 @@ from coverage_ros.core.strategies.acvt.cells import (
     visible_mass_deviation,
 )
 from coverage_ros.core.strategies.acvt.dropout import (
+    STALL_ITERATIONS,
     AcvtConfig,
     AlphaCvt,
     DropoutConfig,
@@ -419,7 +420,8 @@ def test_strategy_protocol_greedy_and_dropped_neighbours(two_targets):
         make_strategy(strategy_choice("acvt", {"stall_iterations": 1.5}), ctx)
     assert make_strategy(strategy_choice("acvt", {"stall_iterations": 0}),
                          ctx).switch.config.stall_iterations == 0
-    assert robot.switch.config.stall_iterations == 5
+    assert robot.switch.config.stall_iterations == STALL_ITERATIONS  # auto: separate targets
+    assert DropoutConfig().stall_iterations == 0  # the centralized form: Alg. 2 as published
     with pytest.raises(ConfigError, match=r"acvt\.gap_penalty: must be a finite number"):
         make_strategy(strategy_choice("acvt", {"gap_penalty": "2"}), ctx)
 

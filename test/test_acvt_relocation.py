@@ -20,7 +20,12 @@ from coverage_ros.core.strategies import (
     strategy_choice,
 )
 from coverage_ros.core.strategies.acvt.cells import CellSpec, MassCells
-from coverage_ros.core.strategies.acvt.dropout import AcvtConfig, AlphaCvt, DropoutConfig
+from coverage_ros.core.strategies.acvt.dropout import (
+    STALL_ITERATIONS,
+    AcvtConfig,
+    AlphaCvt,
+    DropoutConfig,
+)
 from coverage_ros.core.strategies.acvt.exchange import agent_regions, exchanges, swaps
 from coverage_ros.core.strategies.acvt.plans import heard_plan, plan_extras
 from coverage_ros.core.strategies.acvt.relocation import (
@@ -279,6 +284,11 @@ def test_relocate_auto_is_on_for_separate_targets_only(domain):
     for dom, on in ((domain, True), (room, False)):
         robot = make_strategy("acvt", StrategyContext(domain=dom, robot_id=0))
         assert robot.relocation.enabled is on
+        # stall_iterations: auto likewise (in the live room it ended the dropout too early)
+        assert robot.switch.config.stall_iterations == (STALL_ITERATIONS if on else 0)
+    fixed = make_strategy(strategy_choice("acvt", {"stall_iterations": 7}),
+                          StrategyContext(domain=room, robot_id=0))
+    assert fixed.switch.config.stall_iterations == 7
     forced = make_strategy(strategy_choice("acvt", {"relocate": True}),
                            StrategyContext(domain=room, robot_id=0))
     assert forced.relocation.enabled

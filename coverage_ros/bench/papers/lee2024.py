@@ -29,7 +29,7 @@ from coverage_ros.core.offline.runner import OfflineConfig, run_offline
 from coverage_ros.core.strategies import StrategyContext, strategy_choice
 from coverage_ros.core.strategies.acvt.cells import CellSpec, MassCells, deviation_metric
 from coverage_ros.core.strategies.acvt.dropout import (
-    DEFAULT_STALL_ITERATIONS,
+    STALL_ITERATIONS,
     AcvtConfig,
     AlphaCvt,
     DropoutConfig,
@@ -52,11 +52,12 @@ PLAIN = CellSpec()  # Eq. 1
 @functools.lru_cache(maxsize=64)
 def _solver(domain: CoverageDomain, method: str, spec: CellSpec,
             drop_factor: float | None) -> AlphaCvt:
-    # As published: Alg. 2's end tests only (no stall test, which is this project's).
+    # As published: Alg. 2's end tests only; with the relocation, also the stall test where
+    # the targets are separate, as the acvt strategy has it (``stall_iterations: auto``).
+    separate = method == "relocation" and MassCells(domain).regions > 1
     dropout = DropoutConfig(enabled=method not in ("iCVT", "iCVT+Projection"),
                             drop_factor=drop_factor,
-                            stall_iterations=0 if method == "published" else
-                            DEFAULT_STALL_ITERATIONS)
+                            stall_iterations=STALL_ITERATIONS if separate else 0)
     config = AcvtConfig(dropout=dropout, cells=spec, projection=method != "iCVT",
                         relocation=RelocationConfig(enabled=method == "relocation"))
     return AlphaCvt(domain, config)

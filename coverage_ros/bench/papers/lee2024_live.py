@@ -173,16 +173,20 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--methods", default=",".join(name for name, _ in METHODS),
                     help="comma-separated, of: " + ", ".join(name for name, _ in METHODS))
     ap.add_argument("--seeds", type=int, default=5,
-                    help="the first N seeds, the same starts as bench_papers' (default 5)")
+                    help="N seeds, the same starts as bench_papers' (default 5)")
+    ap.add_argument("--first-seed", type=int, default=0,
+                    help="seed to begin with (default 0; bench_papers runs 0..4)")
     args = ap.parse_args(argv)
     methods = tuple(m.strip() for m in args.methods.split(",") if m.strip())
     known = {name for name, _ in METHODS}
     if not methods or not set(methods) <= known:
         ap.error(f"--methods {args.methods!r}: expected some of {sorted(known)}")
     rows = []
-    for seed in range(args.seeds):
+    if args.seeds < 1 or args.first_seed < 0:
+        ap.error(f"--seeds {args.seeds} / --first-seed {args.first_seed}: expected >= 1 / >= 0")
+    for seed in range(args.first_seed, args.first_seed + args.seeds):
         values = FIGURES[args.figure](seed, methods)
-        print(f"{args.figure} seed {seed + 1}/{args.seeds}: " + ", ".join(
+        print(f"{args.figure} seed {seed + 1}: " + ", ".join(
             f"{k} {v:.4g}" for k, v in values.items()), flush=True)
         rows.append({"seed": seed, **values})
     print(json.dumps({"figure": args.figure, "runs": rows}))

@@ -50,8 +50,8 @@ from coverage_ros.core.metrics import mass_deviation
 from coverage_ros.core.strategies.acvt.cells import CellSpec, MassCells, normalized_masses
 from coverage_ros.core.strategies.acvt.dropout import (
     DEFAULT_FILTER_GAIN,
-    DEFAULT_STALL_ITERATIONS,
     PAPER_EPSILON,
+    STALL_ITERATIONS,
     DropoutConfig,
     DropoutSwitch,
     greedy_mask,
@@ -98,8 +98,9 @@ class AcvtParams:
     epsilon: float = PAPER_EPSILON  # threshold on the filtered Delta I (Eq. 10)
     filter_gain: float = DEFAULT_FILTER_GAIN  # low-pass gain of Delta I, in (0, 1]
     drop_factor: float | None = None  # tau_drop = drop_factor * mean M; None: k / (k - 1)
-    #: the dropout also ends after this many iterations without a new lowest I (0: never)
-    stall_iterations: int = DEFAULT_STALL_ITERATIONS
+    #: the dropout also ends after this many iterations without a new lowest I (0: never);
+    #: "auto": STALL_ITERATIONS where the density's support has separate targets, else never
+    stall_iterations: int | str = "auto"
     visibility: bool = False  # Eq. 11-12: only the part of the cell in line of sight
     scale_x: float = 1.0  # a of T_c in Eq. 15 (shape constraint), on map x
     scale_y: float = 1.0  # b of T_c in Eq. 15, on map y
@@ -113,6 +114,11 @@ class AcvtParams:
     def __post_init__(self) -> None:
         if not (self.relocate == "auto" or isinstance(self.relocate, bool | np.bool_)):
             raise ConfigError.at("relocate", "must be true, false or auto", self.relocate)
+        if not (self.stall_iterations == "auto" or (
+                isinstance(self.stall_iterations, int | np.integer)
+                and not isinstance(self.stall_iterations, bool) and self.stall_iterations >= 0)):
+            raise ConfigError.at("stall_iterations", "must be an integer >= 0 or auto",
+                                 self.stall_iterations)
         for name in ("dropout", "visibility", "speed_weighted"):
             if not isinstance(getattr(self, name), bool | np.bool_):
                 raise ConfigError.at(name, "must be true or false", getattr(self, name))
@@ -127,10 +133,15 @@ class AcvtParams:
         self.dropout_config()
         self.cell_spec()
 
-    def dropout_config(self) -> DropoutConfig:
+    def dropout_config(self, targets: int = 1) -> DropoutConfig:
+        """The dropout on a domain whose density has ``targets`` separate parts (for
+        ``stall_iterations: auto``)."""
+        stall = self.stall_iterations
+        if stall == "auto":
+            stall = STALL_ITERATIONS if targets > 1 else 0
         return DropoutConfig(bool(self.dropout), float(self.epsilon), float(self.filter_gain),
                              None if self.drop_factor is None else float(self.drop_factor),
-                             self.stall_iterations)
+                             int(stall))
 
     def relocation_config(self, targets: int = 1) -> RelocationConfig:
         """The relocation on a domain whose density has ``targets`` separate parts (for
@@ -166,11 +177,11 @@ class AcvtStrategy(Strategy):
 
     def __init__(self, context: StrategyContext, params: AcvtParams | None = None) -> None:
         super().__init__(context, params)
-        self.dropout = self.params.dropout_config()
+        self.cells = MassCells(context.domain)
+        self.dropout = self.params.dropout_config(self.cells.regions)
         self.spec = self.params.cell_spec()
         self.speed_weighted = bool(self.params.speed_weighted)
         self.reach = context.robot.v_max * REACH_TIME
-        self.cells = MassCells(context.domain)
         self.switch = DropoutSwitch(self.dropout)
         self.iterations = MoveIterations(context.robot.v_max,
                                          SETTLED_FACTOR * context.convergence_tolerance)

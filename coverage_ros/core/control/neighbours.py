@@ -116,18 +116,16 @@ def safety_discs(neighbours: list[Neighbour], now: float,
     published: carried forward by its velocity and grown by what a change of speed at ``own``
     a_max can have made of it, else grown by how far it can have gone. Radius and v_max are its
     own when it publishes them, ``own``'s otherwise."""
+    nan = math.nan
+    rows = [(n.stamp, e.get("radius", own.radius), e.get("v_max", own.v_max), e.get("vx", nan),
+             e.get("vy", nan)) for n in neighbours for e in (n.state.extra,)]
     positions = np.array([n.position for n in neighbours], dtype=np.float64).reshape(-1, 2)
-    radii = np.empty(len(neighbours))
-    velocities = np.full((len(neighbours), 2), np.nan)
-    for i, n in enumerate(neighbours):
-        extra = n.state.extra
-        age = min(max(now - n.stamp, 0.0), MAX_NEIGHBOUR_AGE)
-        radius, v_max = extra.get("radius", own.radius), extra.get("v_max", own.v_max)
-        vel = np.array([extra.get("vx", np.nan), extra.get("vy", np.nan)], dtype=np.float64)
-        if np.isfinite(vel).all():
-            positions[i] += vel * age
-            velocities[i] = vel
-            radii[i] = radius + min(v_max * age, 0.5 * own.a_max * age * age)
-        else:
-            radii[i] = radius + v_max * age
+    table = np.array(rows, dtype=np.float64).reshape(-1, 5)
+    age = np.clip(now - table[:, 0], 0.0, MAX_NEIGHBOUR_AGE)
+    radius, v_max, velocities = table[:, 1], table[:, 2], table[:, 3:5].copy()
+    moving = np.isfinite(velocities).all(axis=1)
+    positions[moving] += velocities[moving] * age[moving, None]
+    velocities[~moving] = nan
+    grown = np.where(moving, np.minimum(v_max * age, 0.5 * own.a_max * age * age), v_max * age)
+    radii = radius + grown
     return positions, radii, velocities

@@ -26,7 +26,7 @@ from coverage_ros.cli.team_robots import (
     robot_params,
 )
 from coverage_ros.core.world.grid import GridMap
-from coverage_ros.nodes.plumbing import LastWords, UpdateWorker
+from coverage_ros.nodes.plumbing import WAIT_FRESH, LastWords, UpdatePool, UpdateWorker
 from coverage_ros.nodes.robot_shared import SharedInputs, grid_digest, state_topics
 
 
@@ -138,6 +138,64 @@ def test_robots_of_a_process_take_turns_with_their_updates():
     spans.sort(key=lambda s: s[1])
     assert all(a[2] <= b[1] for a, b in itertools.pairwise(spans)), spans
     assert SharedInputs().update_slots is None  # one robot per process: no turns
+
+
+def test_a_pooled_credit_goes_to_the_robot_that_waited_longest():
+    """The robots of a process share one credit; while it is short, the worker whose last
+    call started longest ago goes first - a cheap robot asking again cannot jump the queue -
+    and a wait that is not renewed lapses."""
+    pool = UpdatePool()
+    a, b = pool.join(0.1, 0.0), pool.join(0.1, 0.0)
+    assert (pool.load, pool.burst, pool.members) == (pytest.approx(0.2), 0.0, 2)
+    t = time.monotonic() + 1.0
+    assert pool.ask(a, -np.inf, now=t)  # credit 0: not negative
+    pool.spend(0.05, at=t)
+    assert not pool.ask(b, -np.inf, now=t + 0.02)  # short of credit: b waits
+    assert not pool.ask(a, t, now=t + 0.4)  # refilled (0.2 x 0.38 > 0.05), but b came first
+    assert pool.ask(b, -np.inf, now=t + 0.45)
+    pool.spend(0.05, at=t + 0.45)
+    assert not pool.ask(a, t, now=t + 0.46)  # a waits (started at t) ...
+    late = t + 0.46 + WAIT_FRESH + 0.5
+    assert pool.ask(b, t + 0.45, now=late)  # ... but asked no more: its wait lapsed
+    # Plenty of credit: no one waits and everyone starts.
+    rich = UpdatePool()
+    c, d = rich.join(0.1, 1.0), rich.join(0.1, 1.0)
+    assert rich.ask(c, 5.0) and rich.ask(d, 1.0) and rich.ask(c, 6.0)
+
+
+def test_pooled_workers_share_their_budget_and_take_turns():
+    """Four workers of one process in one pool: three cheap ones asking every 2 ms and a
+    costly one (ten times the CPU per call) asking every 50 ms. While the credit is short they
+    take turns, so the costly one updates about as often as the cheap ones (without the turns:
+    3 calls against ~90 each); together they stay within the pool's burst + load x elapsed."""
+    shared = SharedInputs(update_slots=1)
+
+    def spin(ms):
+        def run(now):
+            end = time.thread_time() + ms / 1e3
+            while time.thread_time() < end:
+                pass
+        return run
+
+    load, burst = 0.05, 0.005
+    workers = [UpdateWorker(spin(ms), load, burst=burst, slots=shared.update_slots,
+                            pool=shared.update_pool) for ms in (2.0, 2.0, 2.0, 20.0)]
+    t0 = time.monotonic()
+    try:
+        for i in itertools.count():
+            if time.monotonic() - t0 > 3.0:
+                break
+            for w in workers[:3] if i % 25 else workers:
+                w.request(0.0)
+            time.sleep(0.002)
+    finally:
+        for w in workers:
+            w.close()
+    calls = [w.calls for w in workers]
+    assert calls[3] >= 10 and calls[3] >= 0.5 * min(calls[:3]), calls
+    used = sum(sum(w.cpu_ms) for w in workers) / 1e3
+    starts = max(w.starts[-1] for w in workers)
+    assert used <= 4 * burst + 4 * load * (starts - t0) + 0.025, (used, calls)
 
 
 def test_state_topics_are_the_teams_own():

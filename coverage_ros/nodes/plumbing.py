@@ -149,36 +149,103 @@ def release_free_memory() -> None:
         _LIBC[0].malloc_trim(0)
 
 
+#: [s] a worker's refused request counts as waiting for this long (robots ask every control
+#: period, 0.5 s by default).
+WAIT_FRESH = 1.5
+
+
+class UpdatePool:
+    """The CPU-time credit of the update workers of one process (a token bucket): it grows by
+    the sum of their loads per wall second up to the sum of their bursts, and every call
+    spends its CPU time; a call may start while the credit is not negative. One worker alone
+    is the bucket of one robot. The robots of a container pool their shares, so that a robot
+    with a large cell (a whole-map search) can use what robots with small cells leave.
+
+    Pooled credit alone would go to whoever asks first after it refills: robots with cheap
+    updates ask as often and would keep the costly ones waiting. So once a worker has been
+    refused for want of credit it *waits*, and while workers wait the credit goes to the one
+    whose last call started longest ago (others are refused too); a wait not renewed within
+    WAIT_FRESH seconds lapses. Thread-safe."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self.load = 0.0  # [CPU s / s]
+        self.burst = 0.0  # [CPU s]
+        self._credit = 0.0
+        self._credit_at = time.monotonic()
+        self._waiting: dict[int, tuple[float, float]] = {}  # member -> (last start, asked at)
+        self.members = 0
+
+    def join(self, load: float, burst: float) -> int:
+        """Add a worker's load and burst (its burst is credit from the start); its member id."""
+        with self._lock:
+            self._refill(time.monotonic())
+            self.load += load
+            self.burst += burst
+            self._credit += burst
+            self.members += 1
+            return self.members
+
+    def ask(self, member: int, last_start: float, now: float | None = None) -> bool:
+        """Whether ``member``, whose last call started at ``last_start`` (monotonic; -inf:
+        none yet), may start a call ``now`` (monotonic; default: the time of the call)."""
+        now = time.monotonic() if now is None else now
+        with self._lock:
+            fresh = {m: w for m, w in self._waiting.items() if now - w[1] <= WAIT_FRESH}
+            self._waiting = fresh
+            first = min(fresh, key=lambda m: fresh[m][0], default=member)
+            if self._refill(now) < 0 or (first != member and fresh[first][0] < last_start):
+                self._waiting[member] = (last_start, now)
+                return False
+            self._waiting.pop(member, None)
+            return True
+
+    def spend(self, cpu: float, at: float) -> None:
+        """Take ``cpu`` seconds of a call that started at ``at`` (monotonic) from the credit."""
+        with self._lock:
+            self._refill(at)
+            self._credit -= cpu
+
+    def _refill(self, now: float) -> float:
+        if now > self._credit_at:
+            self._credit = min(self.burst, self._credit + self.load * (now - self._credit_at))
+            self._credit_at = now
+        return self._credit
+
+
 class UpdateWorker:
     """Runs ``run(now)`` on its own thread when asked, one call at a time, and keeps the CPU
     time of the calls within ``load`` of one core on average (see the module's thread rules).
 
-    A CPU-time credit (a token bucket) grows by ``load`` per wall second up to ``burst``
-    seconds and every call spends its CPU time; a call may start while the credit is not
-    negative. So by any start time t, the calls before it used at most
+    A CPU-time credit (a token bucket, :class:`UpdatePool`) grows by ``load`` per wall second
+    up to ``burst`` seconds and every call spends its CPU time; a call may start while the
+    credit is not negative. So by any start time t, the calls before it used at most
     ``burst + load * (t - created)`` seconds of CPU, and a single costly call (the first,
     cold one, or one in a very large cell) is absorbed by the credit instead of holding back
-    the next updates for c / load seconds. An exception raised by a call goes to ``on_error``
-    and the worker carries on. ``slots``: a semaphore the workers of one process share, so that
-    only that many of their calls run at once (robot_container: each runnable update thread
-    takes turns at the GIL with the executor thread, whose tracking must not wait for them)."""
+    the next updates for c / load seconds. ``pool``: the bucket the workers of one process
+    share (robot_container), whose load and burst are the sums of theirs; the guarantee then
+    holds for their calls together. An exception raised by a call goes to ``on_error`` and the
+    worker carries on. ``slots``: a semaphore the workers of one process share, so that only
+    that many of their calls run at once (robot_container: each runnable update thread takes
+    turns at the GIL with the executor thread, whose tracking must not wait for them)."""
 
     def __init__(self, run: Callable[[float], None], load: float,
                  on_error: Callable[[Exception], None] | None = None,
                  burst: float = UPDATE_BURST,
-                 slots: threading.Semaphore | None = None) -> None:
+                 slots: threading.Semaphore | None = None,
+                 pool: UpdatePool | None = None) -> None:
         self._run = run
         self._on_error = on_error
         self._slots = slots  # shared by the workers of one process: calls that may run at once
         self._load = load
         self.burst = burst
+        self._pool = pool if pool is not None else UpdatePool()
+        self._member = self._pool.join(load, burst)
         self._wake = threading.Event()
         self._closing = False
         self._busy = False
         self._now = 0.0
         self.created = time.monotonic()
-        self._credit = burst  # [s] CPU time
-        self._credit_at = self.created
         self.calls = 0
         self.cpu_ms: deque[float] = deque(maxlen=RECENT_CALLS)  # CPU time of recent calls
         self.cpu_ms_max = 0.0
@@ -189,7 +256,8 @@ class UpdateWorker:
 
     def request(self, now: float) -> bool:
         """Start a call for node time ``now``; False if one is running or it is too early."""
-        if self._busy or self._closing or self._refill(time.monotonic()) < 0:
+        if self._busy or self._closing or \
+                not self._pool.ask(self._member, self.starts[-1] if self.starts else -math.inf):
             return False
         self._busy, self._now = True, now
         self._wake.set()
@@ -217,8 +285,7 @@ class UpdateWorker:
                     self._slots.release()
                 release_free_memory()
                 cpu = time.thread_time() - cpu0
-                self._refill(start)
-                self._credit -= cpu
+                self._pool.spend(cpu, start)
                 self.calls += 1
                 self.cpu_ms.append(1e3 * cpu)
                 self.cpu_ms_max = max(self.cpu_ms_max, 1e3 * cpu)
@@ -226,12 +293,6 @@ class UpdateWorker:
                     self.first_start = start
                 self.starts.append(start)
                 self._busy = False
-
-    def _refill(self, now: float) -> float:
-        if now > self._credit_at:
-            self._credit = min(self.burst, self._credit + self._load * (now - self._credit_at))
-            self._credit_at = now
-        return self._credit
 
     def summary(self) -> str:
         """One line on the calls so far: count, mean, median and longest period (of the

@@ -10,9 +10,8 @@ to the robot's own navigator (Nav2's ``goal_pose``), only when it moved
 (:mod:`~coverage_ros.core.control.goal_relay`). README "Robot node": parameters, topics.
 
 Coverage updates run on a worker thread, so that tracking, the safety filter and incoming
-messages never wait for them; an update costs in proportion to the robot's own cell, which is
-large while a team is still bunched up, so updates are spaced out to keep their CPU time
-within ``update_load`` of one core (a robot far from its goal loses little by that).
+messages never wait for them; they cost in proportion to the own cell (large in a team still
+bunched up) and are spaced out to keep within ``update_load`` of a core (container: pooled).
 
     ros2 run coverage_ros robot_node --ros-args -r __ns:=/robot_3 -p robot_id:=3 \\
         -p use_sim_time:=true -p strategy:=geodesic
@@ -140,6 +139,7 @@ class RobotNode(RobotRequests, Node):
             self.create_timer(1.0, self._check_clock, clock=wall)
         self._worker = UpdateWorker(
             self._update, self.config.update_load, slots=self.shared.update_slots,
+            pool=self.shared.update_pool,
             on_error=lambda exc: self._warn("update", f"coverage update failed: {exc!r}"))
         self.create_timer(1.0 / self.config.control_rate, self._on_control)
         self.create_timer(1.0 / self.config.tracking_rate, self._on_tracking)

@@ -7,6 +7,7 @@ from its section of the parameters file)."""
 from __future__ import annotations
 
 import itertools
+import os
 import subprocess
 import sys
 import time
@@ -22,6 +23,7 @@ from coverage_ros.bench.team import update_periods
 from coverage_ros.cli.processes import ProcessStats
 from coverage_ros.cli.team_robots import (
     default_robots_per_process,
+    default_update_load,
     plan_processes,
     robot_params,
 )
@@ -81,6 +83,13 @@ def test_default_robots_per_process_shares_processes_beyond_eight_robots_per_cor
     assert default_robots_per_process(64, cores=2) == 16
     assert default_robots_per_process(64, cores=8) == 1
     assert default_robots_per_process(65, cores=8) == 5
+
+
+def test_robots_sharing_processes_get_the_larger_pooled_update_share():
+    cores = os.cpu_count() or 1
+    assert default_update_load(64) == pytest.approx(min(0.1, 0.15 * cores / 64))
+    assert default_update_load(64, 16) == pytest.approx(min(0.1, 0.3 * cores / 64))
+    assert default_update_load(2, 2) == 0.1  # at most a tenth of a core each
 
 
 def test_robot_params_are_read_as_rcl_reads_them():

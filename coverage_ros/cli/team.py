@@ -106,8 +106,8 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--control-rate", type=float, default=2.0, help="[Hz] coverage updates")
     ap.add_argument("--update-load", type=float, default=None,
                     help="robot_node update_load: CPU share of one core each robot may spend "
-                    "on coverage updates (default: the team's fair share of a quarter of the "
-                    "machine, at most 0.1)")
+                    "on coverage updates (default: the team's fair share of 15 %% of the "
+                    "machine's cores, 30 %% with several robots per process, at most 0.1)")
     ap.add_argument("--clock-rate", type=float, default=10.0,
                     help="[Hz, sim time] /clock rate; every message wakes every robot process "
                     "(0: every physics step)")
@@ -218,14 +218,15 @@ def run(args: argparse.Namespace) -> int:
                  if args.discovery_server is not None else None)
     args.executor = args.executor or executor_kind()  # a bad COVERAGE_ROS_EXECUTOR: refused
     check_reach(dict(os.environ), remote, discovery is not None)
-    load = args.update_load if args.update_load is not None else default_update_load(args.robots)
-    if not (math.isfinite(load) and 0 < load <= 1):
-        raise ConfigError.at("--update-load", "must be a fraction in (0, 1]", load)
-    extra = robot_params(args.robot_param)
     per_process = (args.robots_per_process if args.robots_per_process is not None
                    else default_robots_per_process(args.robots))
     if per_process < 1:
         raise ConfigError.at("--robots-per-process", "must be >= 1", per_process)
+    load = (args.update_load if args.update_load is not None
+            else default_update_load(args.robots, per_process))
+    if not (math.isfinite(load) and 0 < load <= 1):
+        raise ConfigError.at("--update-load", "must be a fraction in (0, 1]", load)
+    extra = robot_params(args.robot_param)
     region = Region(tuple(parse_region_text(t) for t in args.region))
     if args.explore and not region.everywhere:
         raise ConfigError.at("--region", "does not apply to --explore (the density is the "

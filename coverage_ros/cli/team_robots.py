@@ -24,6 +24,11 @@ from coverage_ros.nodes.robot_config import SPEC_PARAMETERS
 
 #: Fraction of the machine's cores the whole team may spend on coverage updates by default.
 UPDATE_SHARE = 0.15
+#: The same with several robots per process: one executor per process handles the team's
+#: messages for all of its robots, and their budgets are pooled (nodes/plumbing.UpdatePool),
+#: so updates may have more (64 robots in 4 processes on 2 cores: rtf 0.99 with the robots'
+#: updates at ~0.6 of a core).
+POOLED_UPDATE_SHARE = 0.3
 #: Robots per core up to which every robot gets a process of its own by default (16 robots on
 #: 2 cores run at real time that way), and the robot processes per core beyond that (2 cores,
 #: bench_team on depot: 32 robots in 32 processes rtf 0.69-0.81, in 4 processes 1.00; 64 in 16
@@ -32,11 +37,13 @@ SOLO_PER_CORE = 8
 PROCESSES_PER_CORE = 2
 
 
-def default_update_load(robots: int) -> float:
-    """Each robot's share of UPDATE_SHARE of the machine's cores for coverage updates, at
-    most 0.1: message handling in every robot process, the world and the launcher need the
-    rest (measured with 16 robots on 2 cores: robots' executors ~100 %, world ~17 %)."""
-    return min(0.1, UPDATE_SHARE * (os.cpu_count() or 1) / max(robots, 1))
+def default_update_load(robots: int, per_process: int = 1) -> float:
+    """Each robot's share of UPDATE_SHARE of the machine's cores for coverage updates (of
+    POOLED_UPDATE_SHARE when robots share processes), at most 0.1: message handling in every
+    robot process, the world and the launcher need the rest (measured with 16 robots on 2
+    cores: robots' executors ~100 %, world ~17 %)."""
+    share = UPDATE_SHARE if per_process <= 1 else POOLED_UPDATE_SHARE
+    return min(0.1, share * (os.cpu_count() or 1) / max(robots, 1))
 
 
 def default_robots_per_process(robots: int, cores: int | None = None) -> int:

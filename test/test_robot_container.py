@@ -10,6 +10,7 @@ import itertools
 import os
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -28,7 +29,13 @@ from coverage_ros.cli.team_robots import (
     robot_params,
 )
 from coverage_ros.core.world.grid import GridMap
-from coverage_ros.nodes.plumbing import WAIT_FRESH, LastWords, UpdatePool, UpdateWorker
+from coverage_ros.nodes.plumbing import (
+    WAIT_FRESH,
+    LastWords,
+    UpdatePool,
+    UpdateTurns,
+    UpdateWorker,
+)
 from coverage_ros.nodes.robot_shared import SharedInputs, grid_digest, state_topics
 
 
@@ -149,6 +156,29 @@ def test_robots_of_a_process_take_turns_with_their_updates():
     assert SharedInputs().update_slots is None  # one robot per process: no turns
 
 
+def test_a_freed_update_slot_goes_to_the_robot_that_waited_longest():
+    """Calls waiting for the process's update slot go in the order of their workers' last
+    starts, oldest first (not in the order they came)."""
+    turns = UpdateTurns(1)
+    turns.acquire()
+    order = []
+
+    def wait(last_start):
+        turns.acquire(last_start)
+        order.append(last_start)
+        turns.release()
+
+    threads = [threading.Thread(target=wait, args=(t,)) for t in (5.0, 1.0, 3.0, -np.inf)]
+    for th in threads:
+        th.start()
+        time.sleep(0.05)
+    assert order == []
+    turns.release()
+    for th in threads:
+        th.join(5.0)
+    assert order == [-np.inf, 1.0, 3.0, 5.0]
+
+
 def test_a_pooled_credit_goes_to_the_robot_that_waited_longest():
     """The robots of a process share one credit; while it is short, the worker whose last
     call started longest ago goes first - a cheap robot asking again cannot jump the queue -
@@ -170,6 +200,7 @@ def test_a_pooled_credit_goes_to_the_robot_that_waited_longest():
     rich = UpdatePool()
     c, d = rich.join(0.1, 1.0), rich.join(0.1, 1.0)
     assert rich.ask(c, 5.0) and rich.ask(d, 1.0) and rich.ask(c, 6.0)
+    assert rich.burst == 1.0  # refilled up to one robot's burst (it started at both)
 
 
 def test_pooled_workers_share_their_budget_and_take_turns():

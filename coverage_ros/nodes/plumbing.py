@@ -39,6 +39,8 @@ per-message cost, so robot_node keeps the single-threaded executor and one updat
 
 from __future__ import annotations
 
+import heapq
+import itertools
 import math
 import threading
 import time
@@ -155,11 +157,14 @@ WAIT_FRESH = 1.5
 
 
 class UpdatePool:
-    """The CPU-time credit of the update workers of one process (a token bucket): it grows by
-    the sum of their loads per wall second up to the sum of their bursts, and every call
-    spends its CPU time; a call may start while the credit is not negative. One worker alone
-    is the bucket of one robot. The robots of a container pool their shares, so that a robot
-    with a large cell (a whole-map search) can use what robots with small cells leave.
+    """The CPU-time credit of the update workers of one process (a token bucket): it starts
+    at the sum of their bursts (every robot's first, cold update), grows by the sum of their
+    loads per wall second up to the largest of their bursts, and every call spends its CPU
+    time; a call may start while the credit is not negative. One worker alone is the bucket of
+    one robot. The robots of a container pool their shares, so that a robot with a large cell
+    (a whole-map search) can use what robots with small cells leave; the refill stops at one
+    robot's burst, so that the pool's shares bind soon and the turns below apply (with the sum,
+    cheap robots updating every control period spent 16 robots' bursts first).
 
     Pooled credit alone would go to whoever asks first after it refills: robots with cheap
     updates ask as often and would keep the costly ones waiting. So once a worker has been
@@ -181,7 +186,7 @@ class UpdatePool:
         with self._lock:
             self._refill(time.monotonic())
             self.load += load
-            self.burst += burst
+            self.burst = max(self.burst, burst)
             self._credit += burst
             self.members += 1
             return self.members
@@ -208,9 +213,39 @@ class UpdatePool:
 
     def _refill(self, now: float) -> float:
         if now > self._credit_at:
-            self._credit = min(self.burst, self._credit + self.load * (now - self._credit_at))
+            if self._credit < self.burst:  # (the starting credit may be above it)
+                self._credit = min(self.burst, self._credit + self.load * (now - self._credit_at))
             self._credit_at = now
         return self._credit
+
+
+class UpdateTurns:
+    """At most ``slots`` calls of the update workers of one process at once, and when a slot
+    frees the waiting call whose worker's last call started longest ago goes next (a
+    semaphore would wake any of them: robots with cheap updates, asking every control period,
+    kept one with a costly update waiting). Thread-safe."""
+
+    def __init__(self, slots: int) -> None:
+        self._free = slots
+        self._cond = threading.Condition()
+        self._waiting: list[tuple[float, int]] = []  # (last start, ticket), a heap
+        self._tickets = itertools.count()
+
+    def acquire(self, last_start: float = -math.inf) -> None:
+        """Wait for a slot; ``last_start`` [s monotonic] of the worker's last call (-inf: none
+        yet) orders the waiting calls."""
+        with self._cond:
+            me = (last_start, next(self._tickets))
+            heapq.heappush(self._waiting, me)
+            self._cond.wait_for(lambda: self._free > 0 and self._waiting[0] == me)
+            heapq.heappop(self._waiting)
+            self._free -= 1
+            self._cond.notify_all()
+
+    def release(self) -> None:
+        with self._cond:
+            self._free += 1
+            self._cond.notify_all()
 
 
 class UpdateWorker:
@@ -223,16 +258,17 @@ class UpdateWorker:
     ``burst + load * (t - created)`` seconds of CPU, and a single costly call (the first,
     cold one, or one in a very large cell) is absorbed by the credit instead of holding back
     the next updates for c / load seconds. ``pool``: the bucket the workers of one process
-    share (robot_container), whose load and burst are the sums of theirs; the guarantee then
-    holds for their calls together. An exception raised by a call goes to ``on_error`` and the
-    worker carries on. ``slots``: a semaphore the workers of one process share, so that only
-    that many of their calls run at once (robot_container: each runnable update thread takes
-    turns at the GIL with the executor thread, whose tracking must not wait for them)."""
+    share (robot_container; its load is the sum of theirs, its starting credit the sum of
+    their bursts): the guarantee then holds for their calls together. An exception raised by a call goes to ``on_error`` and the
+    worker carries on. ``slots``: the :class:`UpdateTurns` of the workers of one process, so
+    that only that many of their calls run at once (robot_container: each runnable update
+    thread takes turns at the GIL with the executor thread, whose tracking must not wait for
+    them), the longest-waiting robot first."""
 
     def __init__(self, run: Callable[[float], None], load: float,
                  on_error: Callable[[Exception], None] | None = None,
                  burst: float = UPDATE_BURST,
-                 slots: threading.Semaphore | None = None,
+                 slots: UpdateTurns | None = None,
                  pool: UpdatePool | None = None) -> None:
         self._run = run
         self._on_error = on_error
@@ -270,7 +306,7 @@ class UpdateWorker:
             if self._closing:
                 return
             if self._slots is not None:
-                self._slots.acquire()
+                self._slots.acquire(self.starts[-1] if self.starts else -math.inf)
                 if self._closing:
                     self._slots.release()
                     return

@@ -38,7 +38,7 @@ from coverage_ros.core.world.grid import GridMap
 from coverage_ros.core.world.metric import zeta_on_grid
 from coverage_ros.core.world.spec import WorldSpec
 from coverage_ros.nodes import conversions as conv
-from coverage_ros.nodes.plumbing import TEAM_QOS, UpdatePool, quiet_subscription
+from coverage_ros.nodes.plumbing import TEAM_QOS, UpdatePool, UpdateTurns, quiet_subscription
 from coverage_ros.worlds import resolve_world_path
 
 STATE_TYPE = "sensor_msgs/msg/JointState"
@@ -71,7 +71,7 @@ class SharedInputs:
         """``update_slots``: coverage updates of the process's robots that may run at once
         (None: no limit, one robot per process); with slots, the robots' update CPU budgets
         are pooled too (``update_pool``, :class:`~coverage_ros.nodes.plumbing.UpdatePool`)."""
-        self.update_slots = None if update_slots is None else threading.Semaphore(update_slots)
+        self.update_slots = None if update_slots is None else UpdateTurns(update_slots)
         self.update_pool = None if update_slots is None else UpdatePool()
         self._lock = threading.Lock()
         self._worlds: dict[str, WorldSpec] = {}

@@ -260,10 +260,10 @@ class UpdateWorker:
     the next updates for c / load seconds. ``pool``: the bucket the workers of one process
     share (robot_container; its load is the sum of theirs, its starting credit the sum of
     their bursts): the guarantee then holds for their calls together. An exception raised by
-    a call goes to ``on_error`` and the worker carries on. ``slots``: the :class:`UpdateTurns` of the workers of one process, so
-    that only that many of their calls run at once (robot_container: each runnable update
-    thread takes turns at the GIL with the executor thread, whose tracking must not wait for
-    them), the longest-waiting robot first."""
+    a call goes to ``on_error`` and the worker carries on. ``slots``: the
+    :class:`UpdateTurns` of the workers of one process, so that only that many of their calls
+    run at once (robot_container: each runnable update thread takes turns at the GIL with the
+    executor thread, whose tracking must not wait for them), the longest-waiting robot first."""
 
     def __init__(self, run: Callable[[float], None], load: float,
                  on_error: Callable[[Exception], None] | None = None,

@@ -95,7 +95,7 @@ def test_default_robots_per_process_shares_processes_beyond_eight_robots_per_cor
 def test_robots_sharing_processes_get_the_larger_pooled_update_share():
     cores = os.cpu_count() or 1
     assert default_update_load(64) == pytest.approx(min(0.1, 0.15 * cores / 64))
-    assert default_update_load(64, 16) == pytest.approx(min(0.1, 0.3 * cores / 64))
+    assert default_update_load(64, 16) == pytest.approx(min(0.1, 0.4 * cores / 64))
     assert default_update_load(2, 2) == 0.1  # at most a tenth of a core each
 
 
@@ -200,7 +200,7 @@ def test_a_pooled_credit_goes_to_the_robot_that_waited_longest():
     rich = UpdatePool()
     c, d = rich.join(0.1, 1.0), rich.join(0.1, 1.0)
     assert rich.ask(c, 5.0) and rich.ask(d, 1.0) and rich.ask(c, 6.0)
-    assert rich.burst == 1.0  # refilled up to one robot's burst (it started at both)
+    assert rich.burst == 1.0  # one robot's burst, not the sum
 
 
 def test_pooled_workers_share_their_budget_and_take_turns():

@@ -28,7 +28,7 @@ UPDATE_SHARE = 0.15
 #: messages for all of its robots, and their budgets are pooled (nodes/plumbing.UpdatePool),
 #: so updates may have more (64 robots in 4 processes on 2 cores: rtf 0.99 with the robots'
 #: updates at ~0.6 of a core).
-POOLED_UPDATE_SHARE = 0.3
+POOLED_UPDATE_SHARE = 0.4
 #: Robots per core up to which every robot gets a process of its own by default (16 robots on
 #: 2 cores run at real time that way), and the robot processes per core beyond that (2 cores,
 #: bench_team on depot: 32 robots in 32 processes rtf 0.69-0.81, in 4 processes 1.00; 64 in 16

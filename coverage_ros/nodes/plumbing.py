@@ -157,14 +157,14 @@ WAIT_FRESH = 1.5
 
 
 class UpdatePool:
-    """The CPU-time credit of the update workers of one process (a token bucket): it starts
-    at the sum of their bursts (every robot's first, cold update), grows by the sum of their
-    loads per wall second up to the largest of their bursts, and every call spends its CPU
-    time; a call may start while the credit is not negative. One worker alone is the bucket of
-    one robot. The robots of a container pool their shares, so that a robot with a large cell
-    (a whole-map search) can use what robots with small cells leave; the refill stops at one
-    robot's burst, so that the pool's shares bind soon and the turns below apply (with the sum,
-    cheap robots updating every control period spent 16 robots' bursts first).
+    """The CPU-time credit of the update workers of one process (a token bucket): it grows by
+    the sum of their loads per wall second up to the largest of their bursts (where it
+    starts), and every call spends its CPU time; a call may start while the credit is not
+    negative. One worker alone is the bucket of one robot. The robots of a container pool
+    their shares, so that a robot with a large cell (a whole-map search) can use what robots
+    with small cells leave. The burst is one robot's, not the sum of theirs: with 16 robots'
+    bursts, cheap robots updating every control period spent 16 s of CPU before the shares
+    bound, and the team's first minute saturated the machine (64 robots: rtf 0.96).
 
     Pooled credit alone would go to whoever asks first after it refills: robots with cheap
     updates ask as often and would keep the costly ones waiting. So once a worker has been
@@ -186,8 +186,8 @@ class UpdatePool:
         with self._lock:
             self._refill(time.monotonic())
             self.load += load
+            self._credit += max(burst - self.burst, 0.0)
             self.burst = max(self.burst, burst)
-            self._credit += burst
             self.members += 1
             return self.members
 
@@ -213,8 +213,7 @@ class UpdatePool:
 
     def _refill(self, now: float) -> float:
         if now > self._credit_at:
-            if self._credit < self.burst:  # (the starting credit may be above it)
-                self._credit = min(self.burst, self._credit + self.load * (now - self._credit_at))
+            self._credit = min(self.burst, self._credit + self.load * (now - self._credit_at))
             self._credit_at = now
         return self._credit
 
@@ -223,29 +222,32 @@ class UpdateTurns:
     """At most ``slots`` calls of the update workers of one process at once, and when a slot
     frees the waiting call whose worker's last call started longest ago goes next (a
     semaphore would wake any of them: robots with cheap updates, asking every control period,
-    kept one with a costly update waiting). Thread-safe."""
+    kept one with a costly update waiting). A freed slot is handed to that one waiter (no
+    wake-up of all of them: each would take the GIL from the executor thread). Thread-safe."""
 
     def __init__(self, slots: int) -> None:
         self._free = slots
-        self._cond = threading.Condition()
-        self._waiting: list[tuple[float, int]] = []  # (last start, ticket), a heap
+        self._lock = threading.Lock()
+        self._waiting: list[tuple[float, int, threading.Event]] = []  # a heap
         self._tickets = itertools.count()
 
     def acquire(self, last_start: float = -math.inf) -> None:
         """Wait for a slot; ``last_start`` [s monotonic] of the worker's last call (-inf: none
         yet) orders the waiting calls."""
-        with self._cond:
-            me = (last_start, next(self._tickets))
-            heapq.heappush(self._waiting, me)
-            self._cond.wait_for(lambda: self._free > 0 and self._waiting[0] == me)
-            heapq.heappop(self._waiting)
-            self._free -= 1
-            self._cond.notify_all()
+        with self._lock:
+            if self._free > 0 and not self._waiting:
+                self._free -= 1
+                return
+            handed = threading.Event()
+            heapq.heappush(self._waiting, (last_start, next(self._tickets), handed))
+        handed.wait()
 
     def release(self) -> None:
-        with self._cond:
-            self._free += 1
-            self._cond.notify_all()
+        with self._lock:
+            if self._waiting:
+                heapq.heappop(self._waiting)[2].set()  # the slot passes on
+            else:
+                self._free += 1
 
 
 class UpdateWorker:
@@ -258,8 +260,8 @@ class UpdateWorker:
     ``burst + load * (t - created)`` seconds of CPU, and a single costly call (the first,
     cold one, or one in a very large cell) is absorbed by the credit instead of holding back
     the next updates for c / load seconds. ``pool``: the bucket the workers of one process
-    share (robot_container; its load is the sum of theirs, its starting credit the sum of
-    their bursts): the guarantee then holds for their calls together. An exception raised by
+    share (robot_container; its load is the sum of theirs, its burst the largest of theirs):
+    the guarantee then holds for their calls together. An exception raised by
     a call goes to ``on_error`` and the worker carries on. ``slots``: the
     :class:`UpdateTurns` of the workers of one process, so that only that many of their calls
     run at once (robot_container: each runnable update thread takes turns at the GIL with the

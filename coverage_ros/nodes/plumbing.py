@@ -151,26 +151,17 @@ def release_free_memory() -> None:
         _LIBC[0].malloc_trim(0)
 
 
-#: [s] a worker's refused request counts as waiting for this long (robots ask every control
-#: period, 0.5 s by default).
-WAIT_FRESH = 1.5
-
-
 class UpdatePool:
     """The CPU-time credit of the update workers of one process (a token bucket): it grows by
     the sum of their loads per wall second up to the largest of their bursts (where it
     starts), and every call spends its CPU time; a call may start while the credit is not
     negative. One worker alone is the bucket of one robot. The robots of a container pool
     their shares, so that a robot with a large cell (a whole-map search) can use what robots
-    with small cells leave. The burst is one robot's, not the sum of theirs: with 16 robots'
-    bursts, cheap robots updating every control period spent 16 s of CPU before the shares
-    bound, and the team's first minute saturated the machine (64 robots: rtf 0.96).
-
-    Pooled credit alone would go to whoever asks first after it refills: robots with cheap
-    updates ask as often and would keep the costly ones waiting. So once a worker has been
-    refused for want of credit it *waits*, and while workers wait the credit goes to the one
-    whose last call started longest ago (others are refused too); a wait not renewed within
-    WAIT_FRESH seconds lapses. Thread-safe."""
+    with small cells leave; the worker whose turn it is (:class:`UpdateTurns`: the robot that
+    waited longest) waits for the credit, so no cheap robot asking meanwhile goes before it.
+    The burst is one robot's, not the sum of theirs: with 16 robots' bursts, cheap robots
+    updating every control period spent 16 s of CPU before the shares bound, and the team's
+    first minute saturated the machine (64 robots: rtf 0.96). Thread-safe."""
 
     def __init__(self) -> None:
         self._lock = threading.Lock()
@@ -178,32 +169,23 @@ class UpdatePool:
         self.burst = 0.0  # [CPU s]
         self._credit = 0.0
         self._credit_at = time.monotonic()
-        self._waiting: dict[int, tuple[float, float]] = {}  # member -> (last start, asked at)
         self.members = 0
 
-    def join(self, load: float, burst: float) -> int:
-        """Add a worker's load and burst (its burst is credit from the start); its member id."""
+    def join(self, load: float, burst: float) -> None:
+        """Add a worker's load and burst."""
         with self._lock:
             self._refill(time.monotonic())
             self.load += load
             self._credit += max(burst - self.burst, 0.0)
             self.burst = max(self.burst, burst)
             self.members += 1
-            return self.members
 
-    def ask(self, member: int, last_start: float, now: float | None = None) -> bool:
-        """Whether ``member``, whose last call started at ``last_start`` (monotonic; -inf:
-        none yet), may start a call ``now`` (monotonic; default: the time of the call)."""
-        now = time.monotonic() if now is None else now
+    def delay(self, now: float | None = None) -> float:
+        """[s] until the credit is no longer negative at ``now`` (monotonic; default: the
+        time of the call); 0 when a call may start."""
         with self._lock:
-            fresh = {m: w for m, w in self._waiting.items() if now - w[1] <= WAIT_FRESH}
-            self._waiting = fresh
-            first = min(fresh, key=lambda m: fresh[m][0], default=member)
-            if self._refill(now) < 0 or (first != member and fresh[first][0] < last_start):
-                self._waiting[member] = (last_start, now)
-                return False
-            self._waiting.pop(member, None)
-            return True
+            credit = self._refill(time.monotonic() if now is None else now)
+            return 0.0 if credit >= 0 else -credit / self.load
 
     def spend(self, cpu: float, at: float) -> None:
         """Take ``cpu`` seconds of a call that started at ``at`` (monotonic) from the credit."""
@@ -271,16 +253,18 @@ class UpdateWorker:
                  on_error: Callable[[Exception], None] | None = None,
                  burst: float = UPDATE_BURST,
                  slots: UpdateTurns | None = None,
-                 pool: UpdatePool | None = None) -> None:
+                 pool: UpdatePool | None = None,
+                 clock: Callable[[], float] | None = None) -> None:
         self._run = run
         self._on_error = on_error
         self._slots = slots  # shared by the workers of one process: calls that may run at once
         self._load = load
         self.burst = burst
         self._pool = pool if pool is not None else UpdatePool()
-        self._member = self._pool.join(load, burst)
+        self._pool.join(load, burst)
+        self._clock = clock  # node time when a call starts (else: when it was asked for)
         self._wake = threading.Event()
-        self._closing = False
+        self._closed = threading.Event()
         self._busy = False
         self._now = 0.0
         self.created = time.monotonic()
@@ -293,9 +277,10 @@ class UpdateWorker:
         self._thread.start()
 
     def request(self, now: float) -> bool:
-        """Start a call for node time ``now``; False if one is running or it is too early."""
-        if self._busy or self._closing or \
-                not self._pool.ask(self._member, self.starts[-1] if self.starts else -math.inf):
+        """Ask for a call for node time ``now`` (``clock``'s time when it starts, if given);
+        False if one is running or waiting for its turn or the credit. A solo worker's call
+        waits only for the credit; pooled ones take turns (:class:`UpdatePool`)."""
+        if self._busy or self._closed.is_set():
             return False
         self._busy, self._now = True, now
         self._wake.set()
@@ -305,32 +290,35 @@ class UpdateWorker:
         while True:
             self._wake.wait()
             self._wake.clear()
-            if self._closing:
+            if self._closed.is_set():
                 return
             if self._slots is not None:
                 self._slots.acquire(self.starts[-1] if self.starts else -math.inf)
-                if self._closing:
-                    self._slots.release()
-                    return
-            start, cpu0 = time.monotonic(), time.thread_time()
             try:
-                self._run(self._now)
-            except Exception as exc:
-                if self._on_error is not None:
-                    self._on_error(exc)
+                if self._closed.is_set():  # (closed while waiting for the turn)
+                    return
+                while (wait := self._pool.delay()) > 0:
+                    if self._closed.wait(min(wait, 1.0)):
+                        return
+                start, cpu0 = time.monotonic(), time.thread_time()
+                try:
+                    self._run(self._clock() if self._clock is not None else self._now)
+                except Exception as exc:
+                    if self._on_error is not None:
+                        self._on_error(exc)
             finally:
                 if self._slots is not None:
                     self._slots.release()
-                release_free_memory()
-                cpu = time.thread_time() - cpu0
-                self._pool.spend(cpu, start)
-                self.calls += 1
-                self.cpu_ms.append(1e3 * cpu)
-                self.cpu_ms_max = max(self.cpu_ms_max, 1e3 * cpu)
-                if self.calls == 1:
-                    self.first_start = start
-                self.starts.append(start)
-                self._busy = False
+            release_free_memory()
+            cpu = time.thread_time() - cpu0
+            self._pool.spend(cpu, start)
+            self.calls += 1
+            self.cpu_ms.append(1e3 * cpu)
+            self.cpu_ms_max = max(self.cpu_ms_max, 1e3 * cpu)
+            if self.calls == 1:
+                self.first_start = start
+            self.starts.append(start)
+            self._busy = False
 
     def summary(self) -> str:
         """One line on the calls so far: count, mean, median and longest period (of the
@@ -349,7 +337,7 @@ class UpdateWorker:
 
     def close(self, timeout: float = 5.0) -> None:
         """Stop the thread (waits for a running call up to ``timeout``)."""
-        self._closing = True
+        self._closed.set()
         self._wake.set()
         self._thread.join(timeout)
 

@@ -139,7 +139,7 @@ class RobotNode(RobotRequests, Node):
             self.create_timer(1.0, self._check_clock, clock=wall)
         self._worker = UpdateWorker(
             self._update, self.config.update_load, slots=self.shared.update_slots,
-            pool=self.shared.update_pool,
+            pool=self.shared.update_pool, clock=self._now,
             on_error=lambda exc: self._warn("update", f"coverage update failed: {exc!r}"))
         self.create_timer(1.0 / self.config.control_rate, self._on_control)
         self.create_timer(1.0 / self.config.tracking_rate, self._on_tracking)

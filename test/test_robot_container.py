@@ -94,7 +94,7 @@ def test_default_robots_per_process_shares_processes_beyond_eight_robots_per_cor
 def test_robots_sharing_processes_get_the_larger_pooled_update_share():
     cores = os.cpu_count() or 1
     assert default_update_load(64) == pytest.approx(min(0.1, 0.15 * cores / 64))
-    assert default_update_load(64, 16) == pytest.approx(min(0.1, 0.4 * cores / 64))
+    assert default_update_load(64, 16) == pytest.approx(min(0.1, 0.5 * cores / 64))
     assert default_update_load(2, 2) == 0.1  # at most a tenth of a core each
 
 

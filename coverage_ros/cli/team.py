@@ -107,7 +107,7 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--update-load", type=float, default=None,
                     help="robot_node update_load: CPU share of one core each robot may spend "
                     "on coverage updates (default: the team's fair share of 15 %% of the "
-                    "machine's cores, 40 %% with several robots per process, at most 0.1)")
+                    "machine's cores, 50 %% with several robots per process, at most 0.1)")
     ap.add_argument("--clock-rate", type=float, default=10.0,
                     help="[Hz, sim time] /clock rate; every message wakes every robot process "
                     "(0: every physics step)")

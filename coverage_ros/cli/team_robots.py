@@ -25,10 +25,11 @@ from coverage_ros.nodes.robot_config import SPEC_PARAMETERS
 #: Fraction of the machine's cores the whole team may spend on coverage updates by default.
 UPDATE_SHARE = 0.15
 #: The same with several robots per process: one executor per process handles the team's
-#: messages for all of its robots, and their budgets are pooled (nodes/plumbing.UpdatePool),
-#: so updates may have more (64 robots in 4 processes on 2 cores: rtf 0.99 with the robots'
-#: updates at ~0.6 of a core).
-POOLED_UPDATE_SHARE = 0.4
+#: messages for all of its robots, which leaves more for updates, and the robots' budgets are
+#: pooled and taken in turns (nodes/plumbing.UpdatePool). 64 robots in 4 processes on 2
+#: cores, bench_team: 0.4 - rtf 0.99-1.00, worst median update period 2.5-2.6 s; 0.5 - rtf
+#: 1.00, 1.7-2.0 s.
+POOLED_UPDATE_SHARE = 0.5
 #: Robots per core up to which every robot gets a process of its own by default (16 robots on
 #: 2 cores run at real time that way), and the robot processes per core beyond that (2 cores,
 #: bench_team on depot: 32 robots in 32 processes rtf 0.69-0.81, in 4 processes 1.00; 64 in 16

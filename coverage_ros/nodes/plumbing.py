@@ -185,7 +185,9 @@ class UpdatePool:
         time of the call); 0 when a call may start."""
         with self._lock:
             credit = self._refill(time.monotonic() if now is None else now)
-            return 0.0 if credit >= 0 else -credit / self.load
+            if credit >= 0:
+                return 0.0
+            return -credit / self.load if self.load > 0 else math.inf
 
     def spend(self, cpu: float, at: float) -> None:
         """Take ``cpu`` seconds of a call that started at ``at`` (monotonic) from the credit."""
@@ -243,8 +245,9 @@ class UpdateWorker:
     cold one, or one in a very large cell) is absorbed by the credit instead of holding back
     the next updates for c / load seconds. ``pool``: the bucket the workers of one process
     share (robot_container; its load is the sum of theirs, its burst the largest of theirs):
-    the guarantee then holds for their calls together. An exception raised by
-    a call goes to ``on_error`` and the worker carries on. ``slots``: the
+    the guarantee then holds for their calls together. A call asked for while the credit is
+    negative waits for it (and then runs at ``clock``'s time, when given). An exception raised
+    by a call goes to ``on_error`` and the worker carries on. ``slots``: the
     :class:`UpdateTurns` of the workers of one process, so that only that many of their calls
     run at once (robot_container: each runnable update thread takes turns at the GIL with the
     executor thread, whose tracking must not wait for them), the longest-waiting robot first."""
@@ -279,7 +282,7 @@ class UpdateWorker:
     def request(self, now: float) -> bool:
         """Ask for a call for node time ``now`` (``clock``'s time when it starts, if given);
         False if one is running or waiting for its turn or the credit. A solo worker's call
-        waits only for the credit; pooled ones take turns (:class:`UpdatePool`)."""
+        waits only for the credit; pooled ones also take turns (:class:`UpdateTurns`)."""
         if self._busy or self._closed.is_set():
             return False
         self._busy, self._now = True, now

@@ -35,7 +35,13 @@ from coverage_ros.nodes.plumbing import (
     UpdateTurns,
     UpdateWorker,
 )
-from coverage_ros.nodes.robot_shared import SharedInputs, grid_digest, state_topics
+from coverage_ros.nodes.robot_shared import (
+    SLOW_LOOKS,
+    GraphLooks,
+    SharedInputs,
+    grid_digest,
+    state_topics,
+)
 
 
 def _params(ids, **extra):
@@ -230,6 +236,17 @@ def test_pooled_workers_share_their_budget_and_take_turns():
     used = sum(sum(w.cpu_ms) for w in workers) / 1e3
     starts = max(w.starts[-1] for w in workers)
     assert used <= burst + 4 * load * (starts - t0) + 0.025, (used, calls)
+
+
+def test_a_robot_that_hears_its_whole_team_looks_at_the_graph_seldom():
+    looks = GraphLooks(team_size=4)
+    assert all(looks.due(2) for _ in range(25))  # one of three missing: every period
+    seldom = [looks.due(3) for _ in range(3 * SLOW_LOOKS)]
+    assert sum(seldom) == 3
+    assert looks.due(1)  # fewer known: every period again
+    unknown = GraphLooks(team_size=0)
+    assert all(unknown.due(50) for _ in range(25))  # team size unknown: always
+    assert all(GraphLooks(4).due(-1) for _ in range(25))  # exploring: always
 
 
 def test_state_topics_are_the_teams_own():

@@ -66,7 +66,8 @@ PARAMETERS: dict[str, tuple[Any, str]] = {  # name: (default, description)
     "team_size": (0, "robots in the team, this one included (coverage-team sets it): before "
                   "its first update the robot listens until it has heard the other team_size "
                   "- 1 robots' states (or listen_timeout passed); 0: it listens for one look "
-                  "at the ROS graph (1.5 s)"),
+                  "at the ROS graph (1.5 s). Once it has found them all it looks at the graph "
+                  "for new ones every 10 s instead of every second"),
     "listen_timeout": (10.0, "[s] wall time a robot with team_size waits at most for its team "
                        "before its first update; then it starts with those it heard, warning"),
     "pose_source": ("ground_truth", "where the robot's pose comes from: 'ground_truth' "

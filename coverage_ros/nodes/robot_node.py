@@ -55,7 +55,7 @@ from coverage_ros.nodes.plumbing import (
 from coverage_ros.nodes.region_input import RegionInput
 from coverage_ros.nodes.robot_config import PARAMETERS, load_robot_inputs
 from coverage_ros.nodes.robot_requests import RobotRequests
-from coverage_ros.nodes.robot_shared import SharedInputs, state_topics
+from coverage_ros.nodes.robot_shared import GraphLooks, SharedInputs, state_topics
 from coverage_ros.nodes.runner import FatalConfigError, declare_parameters, run_node
 from coverage_ros.nodes.tf_input import TfPoseInput
 
@@ -88,11 +88,13 @@ class RobotNode(RobotRequests, Node):
         self._density = inputs.density
         self._world = inputs.world
         self._throttle = WarnThrottle(self.get_logger().warning)
+        self._warn = self._throttle.warn  # (key, text)
         self._subs: dict[int, object] = {}
         self._last_tick = None
         # Before the first update: listen for the team (wall time, as discovery runs).
-        self._listen = TeamListening(LISTEN_FIRST, self.config.team_size,
-                                     self.config.listen_timeout)
+        team = self.config.team_size
+        self._listen = TeamListening(LISTEN_FIRST, team, self.config.listen_timeout)
+        self._looks = GraphLooks(team)  # when to look at the graph for new neighbours
         self._pose_stamp = -math.inf  # [s] stamp of the last pose taken from pose_topic
         self._last_state = -math.inf
         self._paused = False  # asked before the map came: applied when the controller is built
@@ -106,8 +108,7 @@ class RobotNode(RobotRequests, Node):
                                  "cmd_vel") if self.config.drive else None
         self.goals = GoalOutput(publisher, self.config.drive, self.config.goal_topic,
                                 self.config.goal_resend_distance)
-        self.plan_pub = publisher(Path, "plan")
-        self.cell_pub = publisher(OccupancyGrid, "cell")
+        self.plan_pub, self.cell_pub = publisher(Path, "plan"), publisher(OccupancyGrid, "cell")
         self.polygon_pub = publisher(PolygonStamped, "cell_polygon")
         self.state_pub = publisher(JointState, "coverage_state")
         if self.config.pose_source == "tf":  # map -> base_link, as AMCL or slam_toolbox give it
@@ -263,10 +264,11 @@ class RobotNode(RobotRequests, Node):
         return self.config.controller.robot_id
 
     def _discover(self) -> None:
-        """Subscribe to every new /<prefix><k>/coverage_state topic (k != own id; unless the
-        process's StateHub does), and when exploring to every /<prefix><k>/observations."""
-        if not self._own_states and self.exchange is None:
-            return  # nothing to look for: the hub subscribes (a graph query saved)
+        """Subscribe to every new /<prefix><k>/coverage_state (k != own id; unless the hub
+        does) and, exploring, /<prefix><k>/observations; seldom once all are heard."""
+        if (not self._own_states and self.exchange is None) or \
+                not self._looks.due(len(self._subs) if self.exchange is None else -1):
+            return
         names = self.get_topic_names_and_types()
         if self.exchange is not None:
             evidence = re.compile(rf"/{re.escape(self.config.robot_prefix)}(\d+)/{OBSERVATIONS}")
@@ -293,8 +295,8 @@ class RobotNode(RobotRequests, Node):
 
     def take_state(self, robot_id: int, values: dict[str, float],
                    parsed: dict | None = None) -> None:
-        """A neighbour's parsed coverage_state (from this node's subscription or the hub,
-        which passes its ``parsed``: see ``NeighbourTable.receive``)."""
+        """A neighbour's coverage_state (from this node's subscription or the hub, which
+        passes its ``parsed``: see ``NeighbourTable.receive``)."""
         if self.controller is None:
             return
         why = self.controller.neighbours.receive(robot_id, values, self._now(), parsed)
@@ -407,9 +409,6 @@ class RobotNode(RobotRequests, Node):
                                    f"heard {len(self.exchange.heard)} robots")
         if self.context.ok():
             self._publish_cmd(0.0, 0.0, self._now(), last=True)
-
-    def _warn(self, key: str, text: str) -> None:
-        self._throttle.warn(key, text)
 
 
 def main(args=None) -> int:

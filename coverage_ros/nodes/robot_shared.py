@@ -8,10 +8,11 @@ parameters). The robots of one process share:
   map, its graph and density and every table computed on them), built once per map, robot
   radius, density, connectivity and metric: a robot's strategy only reads its domain, and the
   domain's lazily filled tables are the same whoever fills them;
-* update turns (container only): one robot's coverage update runs at a time, the others'
-  wait their turn, so the executor thread (tracking, safety filter, messages) never competes
-  with more than one busy thread for the GIL, and the process holds one update's temporary
-  arrays, not K;
+* update turns and budget (container only): one robot's coverage update runs at a time, the
+  others wait their turn (the one whose last update is oldest first), so the executor thread
+  (tracking, safety filter, messages) never competes with more than one busy thread for the
+  GIL, and the process holds one update's temporary arrays, not K; the robots' update CPU
+  budgets are pooled (``nodes/plumbing.py``);
 * :class:`StateHub` (container only) - one subscription per neighbour's ``coverage_state``,
   parsed once and handed to every local robot but its sender, instead of one per robot and
   neighbour (with K robots per process, a team of N sends N * N / K messages instead of N * N);
@@ -52,6 +53,29 @@ def state_topics(names_and_types: Iterable[tuple[str, list[str]]],
         m = pattern.fullmatch(name)
         if m and STATE_TYPE in types:
             yield int(m.group(1)), name
+
+
+#: Once a robot hears its whole team, it looks at the ROS graph for new neighbours only every
+#: this many discovery periods: a look at the graph of 32 robot processes costs ~9 ms, and one
+#: a second in each was a sixth of a robot process's CPU (its restarts keep their topic names:
+#: the subscription stays, no look needed).
+SLOW_LOOKS = 10
+
+
+class GraphLooks:
+    """Whether a robot looks at the ROS graph this discovery period: every period while it
+    knows fewer than ``team_size - 1`` neighbours (or ``team_size`` is 0: unknown), else every
+    :data:`SLOW_LOOKS`-th."""
+
+    def __init__(self, team_size: int) -> None:
+        self.team_size = team_size
+        self.periods = 0
+
+    def due(self, known: int) -> bool:
+        """``known``: neighbours found so far (< 0: always look)."""
+        self.periods += 1
+        whole = 0 < self.team_size - 1 <= known
+        return not whole or self.periods % SLOW_LOOKS == 0
 
 
 def grid_digest(grid: GridMap) -> bytes:

@@ -131,23 +131,13 @@ class WarnThrottle:
 #: Calls whose CPU times :class:`UpdateWorker` keeps for its summary's median (bounded memory).
 RECENT_CALLS = 4096
 _LIBC: list = []  # [the C library, or None where it has no malloc_trim], once looked up
-#: [s] wall time between two trims of a process's heap (:func:`release_free_memory`).
-TRIM_PERIOD = 2.0
-_TRIMMED = [-math.inf]  # [s] monotonic time of the process's last trim
 
 
 def release_free_memory() -> None:
     """Hand heap memory that is free again back to the operating system (glibc's
-    ``malloc_trim``; nothing elsewhere), at most once per TRIM_PERIOD per process. glibc
-    keeps freed heap pages, so without it a robot's RSS stays at the high-water mark of its
-    largest update ever - e.g. of the large cell it had while a neighbour was restarting -
-    instead of following what it uses. A trim walks the whole heap (~0.2 ms alone, more in a
-    process of 16 robots whose executor thread allocates meanwhile), and its CPU counts
-    against the update budget: 16 robots updating twice a second trimmed 32 times a second."""
-    now = time.monotonic()
-    if now - _TRIMMED[0] < TRIM_PERIOD:
-        return
-    _TRIMMED[0] = now
+    ``malloc_trim``; nothing elsewhere). glibc keeps freed heap pages, so without it a robot's
+    RSS stays at the high-water mark of its largest update ever - e.g. of the large cell it had
+    while a neighbour was restarting - instead of following what it uses (~1 ms)."""
     if not _LIBC:
         import ctypes
         import ctypes.util

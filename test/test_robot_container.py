@@ -17,24 +17,18 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-from conftest import REPO, shared_map
+from conftest import REPO
 from rosutil import domain_id, ros_env
 
 from coverage_ros.bench.team import update_periods
 from coverage_ros.cli.processes import ProcessStats
 from coverage_ros.cli.team_robots import (
-    deal,
     default_robots_per_process,
     default_update_load,
     plan_processes,
     robot_params,
-    start_cells,
 )
-from coverage_ros.core.geodesic.domain import CoverageDomain
-from coverage_ros.core.geodesic.tessellation import Generator, tessellate
-from coverage_ros.core.world import load_world
 from coverage_ros.core.world.grid import GridMap
-from coverage_ros.core.world.placement import team_starts
 from coverage_ros.nodes.plumbing import (
     LastWords,
     UpdatePool,
@@ -92,37 +86,6 @@ def test_the_outer_ring_of_a_start_cluster_is_spread_over_the_processes(tmp_path
     assert all(len(p.ids) == 16 and sum(i >= 48 for i in p.ids) == 4 for p in procs)
     procs = plan_processes(_params(range(10)), 4, alone=set(), params_dir=tmp_path)
     assert [p.ids for p in procs] == [(0, 3, 6, 9), (1, 4, 7), (2, 5, 8)]
-
-
-def test_robots_with_the_costliest_start_are_dealt_to_different_processes(tmp_path):
-    """With each robot's expected cost (its start cell), the costliest go first, each to the
-    process with the least so far that has room: the group sizes stay those of dealing in turn,
-    no process gets two of the three big ones, and the totals end as even as they go."""
-    cost = {rid: 1.0 for rid in range(10)} | {3: 50.0, 7: 40.0, 9: 45.0, 0: 5.0}
-    groups = deal(list(range(10)), 3, cost)
-    assert sorted(len(g) for g in groups) == [3, 3, 4]
-    assert sorted(i for g in groups for i in g) == list(range(10))
-    assert all(sum(i in (3, 7, 9) for i in g) == 1 for g in groups) and all(
-        g == sorted(g) for g in groups)
-    totals = sorted(sum(cost[i] for i in g) for g in groups)
-    assert totals[-1] - totals[0] <= 10.0
-    procs = plan_processes(_params(range(10)), 4, alone={5}, params_dir=tmp_path, cost=cost)
-    assert [p.ids for p in procs if len(p.ids) > 1] == [tuple(g) for g in
-                                                      sorted(deal([0, 1, 2, 3, 4, 6, 7, 8, 9],
-                                                                  3, cost))]
-    assert deal(list(range(10)), 3) == [[0, 3, 6, 9], [1, 4, 7], [2, 5, 8]]  # no cost: in turn
-
-
-def test_the_start_cells_of_a_cluster_on_depot_are_largest_on_its_outside():
-    world = load_world(shared_map("depot"))
-    domain = CoverageDomain.from_world(world, world.robot_spec(0).radius)
-    specs = [world.robot_spec(i) for i in range(16)]
-    starts = team_starts(world, specs, None, 0)
-    cells = start_cells(domain, {i: tuple(starts[i]) for i in range(16)}, {})
-    labels = tessellate(domain, [Generator(p[:2]) for p in starts]).labels
-    assert cells == {i: float((labels == i).sum()) for i in range(16)}
-    assert 0.95 * domain.free.sum() <= sum(cells.values()) <= domain.free.sum()  # reachable
-    assert max(cells, key=cells.get) >= 8  # the outer ring (ids fill ring by ring)
 
 
 def test_default_robots_per_process_shares_processes_beyond_eight_robots_per_core():

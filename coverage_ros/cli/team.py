@@ -39,7 +39,6 @@ from coverage_ros.cli.team_robots import (
     plan_processes,
     robot_params,
     spec_parameters,
-    start_cells,
 )
 from coverage_ros.cli.team_setup import build_team
 from coverage_ros.core.geodesic.domain import CoverageDomain
@@ -266,11 +265,8 @@ def run(args: argparse.Namespace) -> int:
                      "manual": m.role == "human", "map_free": bool(args.map_free),
                      "team_size": len(team),
                      **spec_parameters(m.spec), **extra} for m in team}
-    alone = {rid for _, rid, _ in faults} | set(remote)
-    cost = (start_cells(domain, {m.id: m.start for m in team},
-                        {m.id: m.spec.power_weight for m in team})
-            if per_process > 1 and not args.explore else None)
-    processes = plan_processes(params, per_process, alone, out / "params", cost)
+    processes = plan_processes(params, per_process, {rid for _, rid, _ in faults} |
+                               set(remote), out / "params")
     # Participants: the robot processes (here or on other hosts), the world, the launcher, the
     # bridge and the markers.
     participants = len(processes) + 2 + int(bool(

@@ -15,12 +15,9 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
 import yaml
 
 from coverage_ros.cli.processes import executable, ros_args
-from coverage_ros.core.geodesic.domain import CoverageDomain
-from coverage_ros.core.geodesic.tessellation import Generator, fast_tessellate
 from coverage_ros.core.world.robot import RobotSpec
 from coverage_ros.errors import ConfigError
 from coverage_ros.nodes.robot_config import SPEC_PARAMETERS
@@ -107,54 +104,23 @@ def group_name(ids: list[int]) -> str:
     return f"robots_{ids[0]}-{ids[-1]}" + ("" if step == 1 else f"_every_{step}")
 
 
-def deal(ids: list[int], groups: int, cost: dict[int, float] | None = None) -> list[list[int]]:
-    """``ids`` (in increasing order) in ``groups`` groups, each in increasing order, of sizes
-    as even as they go (the first ones one larger). Without ``cost``, dealt in turn (0, G,
-    2G, ... in the first of G groups); with ``cost`` (each robot's expected update cost), the
-    costliest first, each to the group with the least cost so far that has room."""
-    if cost is None:
-        return [ids[g::groups] for g in range(groups)]
-    room = [len(ids[g::groups]) for g in range(groups)]
-    out: list[list[int]] = [[] for _ in range(groups)]
-    load = [0.0] * groups
-    for rid in sorted(ids, key=lambda r: (-cost.get(r, 0.0), r)):
-        g = min((g for g in range(groups) if len(out[g]) < room[g]), key=lambda g: load[g])
-        out[g].append(rid)
-        load[g] += cost.get(rid, 0.0)
-    return [sorted(group) for group in out]
-
-
-def start_cells(domain: CoverageDomain, starts: dict[int, tuple[float, ...]],
-                weights: dict[int, float]) -> dict[int, float]:
-    """Each robot's cell at its start [free cells] (the centralized tessellation): a robot's
-    update costs about in proportion to its cell, and in a start cluster a few robots on its
-    outside have cells of half the map."""
-    ids = sorted(starts)
-    labels = fast_tessellate(domain, [Generator(np.asarray(starts[r][:2], dtype=np.float64),
-                                                weights.get(r, 0.0)) for r in ids]).labels
-    counts = np.bincount(labels[labels >= 0].ravel(), minlength=len(ids))
-    return {r: float(counts[k]) for k, r in enumerate(ids)}
-
-
 def plan_processes(params: dict[int, dict[str, object]], per_process: int,
-                   alone: set[int], params_dir: Path,
-                   cost: dict[int, float] | None = None) -> list[RobotProcess]:
+                   alone: set[int], params_dir: Path) -> list[RobotProcess]:
     """The processes for robots ``{id: parameters}``: groups of up to ``per_process`` ids in a
     ``robot_container`` (parameters written to ``params_dir``), and a ``robot_node`` of its
     own for each robot in ``alone`` and for a group of one.
 
-    The robots whose updates cost most (the largest cells) must not share a process, whose
-    robots update one at a time within one CPU budget: with ``cost`` (the launcher's: each
-    robot's start cell, :func:`start_cells`) the ids are dealt by it (:func:`deal`; 64 robots
-    on depot: three of the six outer robots whose cells are half the map had come to one
-    process, whose robots then updated every 2.5 s against 1.3-1.9 s in the others); without
-    it in turn, as the launcher's start cluster fills ring by ring in id order (in groups of
-    16 consecutive ids the 16 outer robots shared one process, robots there waiting 8 s)."""
+    The ids are dealt to the groups in turn (0, G, 2G, ... in the first of G groups): the
+    launcher's start cluster fills ring by ring in id order, and the robots of the outer ring,
+    whose cells are largest and whose updates cost most, would otherwise all share one
+    process and its one update at a time (64 robots in groups of 16 consecutive ids: the 16
+    outer robots in one process, robots there waiting 8 s for their turn)."""
     out = [RobotProcess(f"robot_{rid}", robot_node_command(rid, params[rid]), (rid,))
            for rid in sorted(alone)]
     shared = [rid for rid in sorted(params) if rid not in alone]
     count = math.ceil(len(shared) / per_process)
-    for ids in deal(shared, count, cost):
+    for g in range(count):
+        ids = shared[g::count]
         if len(ids) == 1:
             out.append(RobotProcess(f"robot_{ids[0]}",
                                     robot_node_command(ids[0], params[ids[0]]), (ids[0],)))

@@ -28,7 +28,7 @@ UPDATE_SHARE = 0.15
 #: messages for all of its robots, which leaves more for updates, and the robots' budgets are
 #: pooled and taken in turns (nodes/plumbing.UpdatePool). 64 robots in 4 processes on 2
 #: cores, bench_team: 0.4 - rtf 0.99-1.00, worst median update period 2.5-2.6 s; 0.5 - rtf
-#: 1.00, 1.7-2.0 s.
+#: 1.00, 1.7-2.5 s (four runs).
 POOLED_UPDATE_SHARE = 0.5
 #: Robots per core up to which every robot gets a process of its own by default (16 robots on
 #: 2 cores run at real time that way), and the robot processes per core beyond that (2 cores,

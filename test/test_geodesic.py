@@ -304,8 +304,8 @@ def test_whole_domain_search_shared_by_a_team_gives_each_robot_its_own_cell(seed
         np.testing.assert_allclose(shared.covector, alone.covector, rtol=1e-9, atol=1e-12)
         np.testing.assert_allclose(shared.goal, alone.goal)
         assert shared.neighbours == alone.neighbours
-    key, _ = domain._cache["shared_search"]  # the one search kept served the five robots
-    assert len(key[1]) == len(gens)
+    held = domain._cache["shared_search"]  # the one search kept served the five robots
+    assert len(held.positions) == len(gens)
 
 
 def test_larger_power_weight_gets_a_larger_cell():

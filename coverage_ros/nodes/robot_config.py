@@ -57,6 +57,10 @@ PARAMETERS: dict[str, tuple[Any, str]] = {  # name: (default, description)
     "control_rate": (2.0, "[Hz] coverage updates (cell, goal, state), at most"),
     "update_load": (0.1, "largest fraction of one CPU core spent on coverage updates; "
                     "costly updates are spaced out to keep within it"),
+    "search_reuse": (0.2, "[m] robots sharing a process (robot_container): a robot takes its "
+                     "cell from a whole-map search another one made since its own last update "
+                     "when every robot is within this distance of where that search had it "
+                     "(geodesic); 0: each robot searches for itself"),
     "tracking_rate": (10.0, "[Hz] path tracking and cmd_vel"),
     "state_rate": (2.5, "[Hz] coverage_state: the last update's values with the current "
                    "position (neighbours' tessellations and safety filters); at most "
@@ -284,7 +288,7 @@ def load_robot_inputs(values: dict[str, Any], namespace: str,
         robot_id=rid, strategy=choice, robot=robot_spec(base, values),
         comm_range=values["comm_range"], neighbour_timeout=values["neighbour_timeout"],
         goal_tolerance=values["goal_tolerance"], arrival_tolerance=values["arrival_tolerance"],
-        teleop_timeout=values["teleop_timeout"])
+        teleop_timeout=values["teleop_timeout"], search_reuse=values["search_reuse"])
     config = RobotNodeConfig(
         controller=controller, world=values["world"], map_topic=values["map_topic"],
         control_rate=values["control_rate"], update_load=values["update_load"],

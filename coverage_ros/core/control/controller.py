@@ -77,6 +77,7 @@ class ControllerConfig:
     goal_tolerance: float = 0.05  # [m] a goal step shorter than this: converged
     arrival_tolerance: float = 0.05  # [m] the tracker stops this near its goal
     teleop_timeout: float = 0.5  # [s] a manual robot stops when its person sends nothing
+    search_reuse: float = 0.0  # [m] see StrategyContext.search_reuse
 
     def __post_init__(self) -> None:
         if self.robot_id < 0:
@@ -90,6 +91,9 @@ class ControllerConfig:
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
                 raise ConfigError.at(name, "must be a finite number > 0", v)
+        if not (math.isfinite(self.search_reuse) and self.search_reuse >= 0):
+            raise ConfigError.at("search_reuse", "must be a finite number >= 0 [m]",
+                                 self.search_reuse)
 
 
 @dataclass
@@ -119,7 +123,7 @@ class RobotController:
         self._planned_version = -1  # belief version the current path was planned on
         ctx = StrategyContext(domain=domain, robot=config.robot, robot_id=config.robot_id,
                               convergence_tolerance=config.goal_tolerance,
-                              seed=config.robot_id)
+                              seed=config.robot_id, search_reuse=config.search_reuse)
         self.strategy = make_strategy(config.strategy, ctx)
         self.neighbours = NeighbourTable(domain.geometry.extent(), config.neighbour_timeout)
         self.tracker = PathTracker(TrackerConfig.for_robot(

@@ -111,6 +111,8 @@ class SearchCache:
     def __init__(self) -> None:
         self.graph: LocalGraph | None = None
         self.cell_radius: float | None = None
+        #: the domain's whole-map search kept when this robot's last update ended
+        self.whole_search: object | None = None
         self.hits = 0
         self.misses = 0
 

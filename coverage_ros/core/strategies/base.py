@@ -222,11 +222,18 @@ class StrategyContext:
     robot_id: int = 0
     convergence_tolerance: float = 0.05  # [m] goal closer than this = converged
     seed: int = 0
+    #: [m] a robot may take its cell from a whole-map search that another robot on the same
+    #: domain made since its last update, when every robot is within this distance of where
+    #: that search had it (geodesic; :func:`coverage_ros.core.geodesic.cell.geodesic_cell`)
+    search_reuse: float = 0.0
 
     def __post_init__(self) -> None:
         v = self.convergence_tolerance
         if not (isinstance(v, int | float) and math.isfinite(v) and v > 0):
             raise ConfigError.at("convergence_tolerance", "must be a finite number > 0", v)
+        v = self.search_reuse
+        if not (isinstance(v, int | float) and math.isfinite(v) and v >= 0):
+            raise ConfigError.at("search_reuse", "must be a finite number >= 0 [m]", v)
 
     @property
     def weight(self) -> float:

@@ -65,7 +65,7 @@ class GeodesicStrategy(Strategy):
         own = Generator(obs.position, self.context.weight)
         others = [Generator(n.position, n.state.weight) for n in neighbours]
         cell = geodesic_cell(self.context.domain, own, others, cache=self.cache,
-                             method=self.params.method)
+                             method=self.params.method, reuse=self.context.search_reuse)
         step = float(np.hypot(*(cell.goal - obs.position)))
         return Decision(
             goal=cell.goal, velocity=None, cell=cell.nodes,

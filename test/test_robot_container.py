@@ -7,6 +7,7 @@ from its section of the parameters file)."""
 from __future__ import annotations
 
 import itertools
+import math
 import os
 import subprocess
 import sys
@@ -24,11 +25,14 @@ from coverage_ros.bench.team import update_periods
 from coverage_ros.cli.processes import ProcessStats
 from coverage_ros.cli.team_robots import (
     default_robots_per_process,
+    default_state_rate,
     default_update_load,
     plan_processes,
     robot_params,
+    team_rates,
 )
 from coverage_ros.core.world.grid import GridMap
+from coverage_ros.errors import ConfigError
 from coverage_ros.nodes.plumbing import (
     LastWords,
     UpdatePool,
@@ -102,6 +106,19 @@ def test_robots_sharing_processes_get_the_larger_pooled_update_share():
     assert default_update_load(64) == pytest.approx(min(0.1, 0.15 * cores / 64))
     assert default_update_load(64, 16) == pytest.approx(min(0.1, 0.5 * cores / 64))
     assert default_update_load(2, 2) == 0.1  # at most a tenth of a core each
+
+
+def test_robots_alone_in_a_big_team_publish_their_states_less_often():
+    assert default_state_rate(16) == 2.5  # robot_node's default
+    assert default_state_rate(32) == pytest.approx(40.0 / 31)  # 40 states a second each
+    assert default_state_rate(64, 16) == 2.5  # a container parses each state once
+    assert default_state_rate(1) == 2.5
+    assert team_rates(32, 1, None, 2.0) == (pytest.approx(default_update_load(32)), 2.0)
+    for bad in (0.0, -1.0, math.nan):
+        with pytest.raises(ConfigError, match="--state-rate"):
+            team_rates(32, 1, None, bad)
+    with pytest.raises(ConfigError, match="--update-load"):
+        team_rates(32, 1, 1.5, None)
 
 
 def test_robot_params_are_read_as_rcl_reads_them():

@@ -35,10 +35,10 @@ from coverage_ros.cli.team_network import (
 )
 from coverage_ros.cli.team_robots import (
     default_robots_per_process,
-    default_update_load,
     plan_processes,
     robot_params,
     spec_parameters,
+    team_rates,
 )
 from coverage_ros.cli.team_setup import build_team
 from coverage_ros.core.geodesic.domain import CoverageDomain
@@ -108,6 +108,9 @@ def build_parser() -> argparse.ArgumentParser:
                     help="robot_node update_load: CPU share of one core each robot may spend "
                     "on coverage updates (default: the team's fair share of 15 %% of the "
                     "machine's cores, 50 %% with several robots per process, at most 0.1)")
+    ap.add_argument("--state-rate", type=float, default=None,
+                    help="[Hz] robot_node state_rate (default: 2.5, lower for robots that run "
+                    "alone in a big team: each then handles at most 40 states a second)")
     ap.add_argument("--clock-rate", type=float, default=10.0,
                     help="[Hz, sim time] /clock rate; every message wakes every robot process "
                     "(0: every physics step)")
@@ -222,10 +225,7 @@ def run(args: argparse.Namespace) -> int:
                    else default_robots_per_process(args.robots))
     if per_process < 1:
         raise ConfigError.at("--robots-per-process", "must be >= 1", per_process)
-    load = (args.update_load if args.update_load is not None
-            else default_update_load(args.robots, per_process))
-    if not (math.isfinite(load) and 0 < load <= 1):
-        raise ConfigError.at("--update-load", "must be a fraction in (0, 1]", load)
+    load, state_rate = team_rates(args.robots, per_process, args.update_load, args.state_rate)
     extra = robot_params(args.robot_param)
     region = Region(tuple(parse_region_text(t) for t in args.region))
     if args.explore and not region.everywhere:
@@ -260,7 +260,8 @@ def run(args: argparse.Namespace) -> int:
         f"s sim time (ROS_DOMAIN_ID={domain_id}, discovery {reach}); output in {out}")
     params = {m.id: {"robot_id": m.id, "use_sim_time": True, "strategy": args.strategy,
                      "world": str(world_path), "control_rate": float(args.control_rate),
-                     "update_load": float(load), "explore": bool(args.explore),
+                     "update_load": float(load), "state_rate": float(state_rate),
+                     "explore": bool(args.explore),
                      "strategy_params": args.strategy_params,
                      "manual": m.role == "human", "map_free": bool(args.map_free),
                      "team_size": len(team),

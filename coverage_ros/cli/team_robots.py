@@ -20,7 +20,7 @@ import yaml
 from coverage_ros.cli.processes import executable, ros_args
 from coverage_ros.core.world.robot import RobotSpec
 from coverage_ros.errors import ConfigError
-from coverage_ros.nodes.robot_config import SPEC_PARAMETERS
+from coverage_ros.nodes.robot_config import PARAMETERS, SPEC_PARAMETERS
 
 #: Fraction of the machine's cores the whole team may spend on coverage updates by default.
 UPDATE_SHARE = 0.15
@@ -30,6 +30,11 @@ UPDATE_SHARE = 0.15
 #: cores, bench_team: 0.4 - rtf 0.99-1.00, worst median update period 2.5-2.6 s; 0.5 - rtf
 #: 1.00, 1.7-2.5 s (four runs).
 POOLED_UPDATE_SHARE = 0.5
+#: [1/s] neighbours' coverage_state messages a robot alone in its process handles at most by
+#: default (the launcher lowers state_rate for it; every message costs its Python executor
+#: a callback). 32 robots in 32 processes on 2 cores, bench_team: state_rate 2.5 Hz - rtf
+#: 0.92-0.96, 5.4-5.6 % of a core per robot; 1.25 Hz - rtf 0.98, 5.1 %.
+SOLO_STATES_PER_SECOND = 40.0
 #: Robots per core up to which every robot gets a process of its own by default (16 robots on
 #: 2 cores run at real time that way), and the robot processes per core beyond that (2 cores,
 #: bench_team on depot: 32 robots in 32 processes rtf 0.69-0.81, in 4 processes 1.00; 64 in 16
@@ -45,6 +50,30 @@ def default_update_load(robots: int, per_process: int = 1) -> float:
     cores: robots' executors ~100 %, world ~17 %)."""
     share = UPDATE_SHARE if per_process <= 1 else POOLED_UPDATE_SHARE
     return min(0.1, share * (os.cpu_count() or 1) / max(robots, 1))
+
+
+def default_state_rate(robots: int, per_process: int = 1) -> float:
+    """robot_node's ``state_rate`` for the team: its default, unless robots that run alone would
+    each handle more than SOLO_STATES_PER_SECOND neighbours' states a second - then as many as
+    that allows (32 robots: 1.29 Hz). A robot_container parses each state once for all its
+    robots, so its robots keep the default."""
+    rate = float(PARAMETERS["state_rate"][0])
+    if per_process > 1 or robots < 2:
+        return rate
+    return min(rate, SOLO_STATES_PER_SECOND / (robots - 1))
+
+
+def team_rates(robots: int, per_process: int, update_load: float | None,
+               state_rate: float | None) -> tuple[float, float]:
+    """The robots' ``update_load`` and ``state_rate``: those asked for (``--update-load``,
+    ``--state-rate``), checked, or the defaults for the team."""
+    load = update_load if update_load is not None else default_update_load(robots, per_process)
+    if not (math.isfinite(load) and 0 < load <= 1):
+        raise ConfigError.at("--update-load", "must be a fraction in (0, 1]", load)
+    rate = state_rate if state_rate is not None else default_state_rate(robots, per_process)
+    if not (math.isfinite(rate) and rate > 0):
+        raise ConfigError.at("--state-rate", "must be a number > 0 [Hz]", rate)
+    return load, rate
 
 
 def default_robots_per_process(robots: int, cores: int | None = None) -> int:

@@ -315,9 +315,10 @@ def _held_search(domain: CoverageDomain, gens: Sequence[Generator], method: str,
     (``reuse`` 0: at the same point), and unless it is ``last`` (the one kept when the robot's
     last update ended) and some are not at the same point: a robot takes an approximate search
     only from a sibling, made since its own last update - it never steers twice by the same
-    one, and a robot alone in its domain never by one at all; None otherwise. Returns ``(local, (own, g, pred,
-    touching), base node, grid point)``: the whole-domain graph, the :func:`_search` results
-    (touching: indices into ``gens``) and the own generator's snap there."""
+    one, and a robot alone in its domain never by one at all; None otherwise. Returns
+    ``(local, (own, g, pred, touching), base node, grid point)``: the whole-domain graph, the
+    :func:`_search` results (touching: indices into ``gens``) and the own generator's snap
+    there."""
     held = domain._cache.get("shared_search")
     if held is None or held.method != method or len(held.positions) != len(gens):
         return None

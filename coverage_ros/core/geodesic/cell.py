@@ -78,7 +78,7 @@ class CellResult:
     search_radius: float  # the limit L of the final pass
     cell_radius: float  # max g over the cell (hint for the next update)
     searched_nodes: int  # nodes in the pruned search graph of the final pass
-    passes: int  # searches run (1 when the first radius sufficed)
+    passes: int  # searches run (1 when the first radius sufficed; 0: a sibling's search reused)
 
 def geodesic_cell(domain: CoverageDomain, own: Generator, others: Sequence[Generator],
                   cache: SearchCache | None = None, method: str = "auto",

@@ -43,7 +43,7 @@ class GeodesicParams:
 @dataclass(frozen=True)
 class GeodesicDetails(StrategyDetails):
     method: str  # the method asked for
-    passes: int  # searches run (1 when the first search radius sufficed)
+    passes: int  # searches run (1 when the first search radius sufficed; 0: a sibling's reused)
     searched: int  # nodes in the pruned search graph
     neighbours: tuple[int, ...]  # robot ids of the neighbours whose cells border the own
     cell_radius: float  # max geodesic distance over the own cell

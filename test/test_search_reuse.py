@@ -113,3 +113,20 @@ def test_without_reuse_only_the_very_same_team_shares_a_search():
         assert set(cell.nodes.tolist()) == set(np.flatnonzero(now == b).tolist()), b
         same = geodesic_cell(domain, gens[b], gens[:b] + gens[b + 1:], cache=SearchCache())
         assert set(same.nodes.tolist()) == set(np.flatnonzero(then == b).tolist()), b
+
+
+def test_two_robots_at_one_point_still_get_their_cells():
+    """(The kept search cannot match them one to one by position: it is searched again. Which
+    twin a tied cell goes to is arbitrary.)"""
+    domain, gens = _team(6)
+    a = _whole_map_searcher(domain, gens)
+    twin = (a + 1) % len(gens)
+    gens[twin] = Generator(gens[a].position.copy())
+    labels = tessellate(domain, gens).labels.ravel()
+    common = set(np.flatnonzero((labels == a) | (labels == twin)).tolist())
+    assert len(common) > 100
+    for k in (a, twin):
+        for _ in range(2):
+            cell = geodesic_cell(domain, gens[k], gens[:k] + gens[k + 1:], cache=SearchCache(),
+                                 reuse=REUSE)
+            assert set(cell.nodes.tolist()) <= common, k

@@ -305,7 +305,9 @@ def _shared_search(domain: CoverageDomain, local: LocalGraph, gens: Sequence[Gen
         method, np.array([gens[k].position for k in order], dtype=np.float64),
         np.array([snaps[k][2] for k in order]),
         np.array([int(snaps[k][0][0]) for k in order], dtype=np.int64), dist, pred, label)
-    return _held_search(domain, gens, method, 0.0)
+    match = np.empty(len(gens), dtype=np.int64)
+    match[order] = np.arange(len(gens))  # (not matched by position: two may share one)
+    return _cell_in(domain._cache["shared_search"], local, match)
 
 
 def _held_search(domain: CoverageDomain, gens: Sequence[Generator], method: str,
@@ -329,15 +331,20 @@ def _held_search(domain: CoverageDomain, gens: Sequence[Generator], method: str,
     worst = gap[np.arange(len(gens)), match].max()
     if worst > reuse or len(np.unique(match)) < len(gens) or (held is last and worst > 0):
         return None
-    local = local_graph_for(domain, None, held.grids[:1], np.zeros(1), math.inf)
-    first = local.n + 1
+    return _cell_in(held, local_graph_for(domain, None, held.grids[:1], np.zeros(1), math.inf),
+                    match)
+
+
+def _cell_in(held: _WholeSearch, local: LocalGraph, match: np.ndarray):
+    """:func:`_held_search`'s result for the generators whose sources in ``held`` are
+    ``match`` (``gens[k]`` is source ``match[k]``) on the whole-domain graph ``local``."""
     own_label = int(match[0])
-    own = np.flatnonzero(held.label[1:first] == own_label) + 1
+    own = np.flatnonzero(held.label[1:local.n + 1] == own_label) + 1
     nb_label = held.label[local.nb[own - 1]]
     touching_held = np.unique(nb_label[local.edge[own - 1] & (nb_label >= 0)
                                        & (nb_label != own_label)])
-    back = np.empty(len(gens), dtype=np.int64)
-    back[match] = np.arange(len(gens))
+    back = np.empty(len(match), dtype=np.int64)
+    back[match] = np.arange(len(match))
     return (local, (own, held.dist[own], held.pred, back[touching_held]),
             int(held.bases[own_label]), held.grids[own_label])
 

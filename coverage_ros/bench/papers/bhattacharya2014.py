@@ -28,6 +28,7 @@ from scipy.sparse import csgraph
 
 from coverage_ros.bench.papers import Experiment, Metric
 from coverage_ros.core.geodesic import cell as cell_module
+from coverage_ros.core.geodesic import shared_search as shared_search_module
 from coverage_ros.core.geodesic import tessellation as tessellation_module
 from coverage_ros.core.geodesic import visible_first as visible_first_module
 from coverage_ros.core.geodesic.cell import SearchCache, geodesic_cell
@@ -50,7 +51,8 @@ class SearchCount:
 
 
 #: The modules whose searches are counted (each imports scipy's ``dijkstra`` by name).
-_SEARCH_MODULES = (cell_module, tessellation_module, visible_first_module)
+_SEARCH_MODULES = (cell_module, shared_search_module, tessellation_module,
+                   visible_first_module)
 
 
 @contextmanager

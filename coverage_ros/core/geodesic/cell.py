@@ -37,6 +37,7 @@ from coverage_ros.core.geodesic.local_search import (
     SearchCache,
     local_graph_for,
 )
+from coverage_ros.core.geodesic.shared_search import held_search, shared_search
 from coverage_ros.core.geodesic.tangents import ancestor_table, first_ancestor_where
 from coverage_ros.core.geodesic.tessellation import (
     Generator,
@@ -44,7 +45,6 @@ from coverage_ros.core.geodesic.tessellation import (
     source_row,
     star_shaped,
 )
-from coverage_ros.core.geodesic.visible_first import visible_first_search
 
 __all__ = ["CellResult", "SearchCache", "geodesic_cell"]
 
@@ -95,7 +95,7 @@ def geodesic_cell(domain: CoverageDomain, own: Generator, others: Sequence[Gener
     another robot made it since this one's last update (``cache``), when each generator is
     within this distance of one of that search's, one to one - the exact cell of a generator
     set that close, with the own control from the own generator there (robots of one process
-    share their searches so; :func:`_held_search`). 0: only the very same set.
+    share their searches so; :mod:`.shared_search`). 0: only the very same set.
     """
     method = resolve_method(domain, method)
     res = domain.resolution
@@ -122,7 +122,7 @@ def geodesic_cell(domain: CoverageDomain, own: Generator, others: Sequence[Gener
     share = SIGHT_WHOLE_SHARE if method == "visibility" and not power else WHOLE_SHARE
     passes = 0
     last = cache.whole_search if cache is not None else None
-    held = (_held_search(domain, gens, method, reuse, last)
+    held = (held_search(domain, gens, method, reuse, last)
             if reuse > 0 and not power and not whole and others else None)
     while held is None:
         passes += 1
@@ -158,7 +158,7 @@ def geodesic_cell(domain: CoverageDomain, own: Generator, others: Sequence[Gener
             if not whole:
                 local = local_graph_for(domain, None, centers[:1], radii[:1], math.inf)
                 idx = np.arange(len(gens))  # every generator takes part (touching: into gens)
-            held = _shared_search(domain, local, gens, snaps, method, reuse, last)
+            held = shared_search(domain, local, gens, snaps, method, reuse, last)
             break
         csr = local.with_sources([source_row(domain, local, snaps[k], radii[k], method)
                                   for k in idx])
@@ -262,91 +262,6 @@ def _search(local: LocalGraph, csr: csr_matrix, weights: np.ndarray, radii: np.n
         return None
     touching = np.unique(nb_label[edge & (nb_label > 0)])
     return own, own_dist[own], pred, touching
-
-
-@dataclass(frozen=True)
-class _WholeSearch:
-    """A whole-map multi-source search kept in its domain (the latest one)."""
-
-    method: str
-    positions: np.ndarray  # (k, 2) [m] the generators, in source order
-    grids: np.ndarray  # (k, 2) their grid coordinates
-    bases: np.ndarray  # (k,) the node each one's snap starts from
-    dist: np.ndarray
-    pred: np.ndarray
-    label: np.ndarray  # source order, -1 for nobody's
-
-
-def _shared_search(domain: CoverageDomain, local: LocalGraph, gens: Sequence[Generator],
-                   snaps: list, method: str, reuse: float = 0.0, last: object = None):
-    """:func:`_search` of the whole domain with equal weights, for generator 0, from one
-    multi-source Dijkstra kept in the domain: robots that share a domain and see the same
-    generators, or ones within ``reuse`` of them (a team in one process), search it once. The
-    sources are ordered by position, so every robot's search is the same one. Returns what
-    :func:`_held_search` does."""
-    held = _held_search(domain, gens, method, reuse, last)
-    if held is not None:
-        return held
-    order = sorted(range(len(gens)), key=lambda k: (float(gens[k].position[0]),
-                                                    float(gens[k].position[1])))
-    first = local.n + 1
-    if method == "visibility" and local.covers_all:
-        dist, pred, label = visible_first_search(domain, local, [snaps[k] for k in order])
-    else:
-        csr = local.with_sources([source_row(domain, local, snaps[k], math.inf, method)
-                                  for k in order])
-        dist, pred, src = dijkstra(csr, directed=True,
-                                   indices=np.arange(first, first + len(gens)),
-                                   min_only=True, return_predecessors=True)
-        label = np.where(src >= 0, src - first, -1)
-        label[0] = -1
-    # One search kept (the latest): a team solver makes a new one every step.
-    domain._cache["shared_search"] = _WholeSearch(
-        method, np.array([gens[k].position for k in order], dtype=np.float64),
-        np.array([snaps[k][2] for k in order]),
-        np.array([int(snaps[k][0][0]) for k in order], dtype=np.int64), dist, pred, label)
-    match = np.empty(len(gens), dtype=np.int64)
-    match[order] = np.arange(len(gens))  # (not matched by position: two may share one)
-    return _cell_in(domain._cache["shared_search"], local, match)
-
-
-def _held_search(domain: CoverageDomain, gens: Sequence[Generator], method: str,
-                 reuse: float, last: object = None):
-    """The own cell (generator 0) in the domain's kept whole-map search when every one of
-    ``gens`` is within ``reuse`` [m] of its nearest generator there, no two the same one
-    (``reuse`` 0: at the same point), and unless it is ``last`` (the one kept when the robot's
-    last update ended) and some are not at the same point: a robot takes an approximate search
-    only from a sibling, made since its own last update - it never steers twice by the same
-    one, and a robot alone in its domain never by one at all; None otherwise. Returns
-    ``(local, (own, g, pred, touching), base node, grid point)``: the whole-domain graph, the
-    :func:`_search` results (touching: indices into ``gens``) and the own generator's snap
-    there."""
-    held = domain._cache.get("shared_search")
-    if held is None or held.method != method or len(held.positions) != len(gens):
-        return None
-    want = np.array([g.position for g in gens], dtype=np.float64)
-    gap = np.hypot(want[:, None, 0] - held.positions[None, :, 0],
-                   want[:, None, 1] - held.positions[None, :, 1])
-    match = np.argmin(gap, axis=1)
-    worst = gap[np.arange(len(gens)), match].max()
-    if worst > reuse or len(np.unique(match)) < len(gens) or (held is last and worst > 0):
-        return None
-    return _cell_in(held, local_graph_for(domain, None, held.grids[:1], np.zeros(1), math.inf),
-                    match)
-
-
-def _cell_in(held: _WholeSearch, local: LocalGraph, match: np.ndarray):
-    """:func:`_held_search`'s result for the generators whose sources in ``held`` are
-    ``match`` (``gens[k]`` is source ``match[k]``) on the whole-domain graph ``local``."""
-    own_label = int(match[0])
-    own = np.flatnonzero(held.label[1:local.n + 1] == own_label) + 1
-    nb_label = held.label[local.nb[own - 1]]
-    touching_held = np.unique(nb_label[local.edge[own - 1] & (nb_label >= 0)
-                                       & (nb_label != own_label)])
-    back = np.empty(len(match), dtype=np.int64)
-    back[match] = np.arange(len(match))
-    return (local, (own, held.dist[own], held.pred, back[touching_held]),
-            int(held.bases[own_label]), held.grids[own_label])
 
 
 def _finish(domain: CoverageDomain, local: LocalGraph, base_node: int, own_grid: np.ndarray,

@@ -13,7 +13,7 @@ for good at its last settled cell. On an open map nothing is left to search.
 
 The arrays returned are those of the full search (``dist``, ``pred``, ``label`` over the local
 ids of the whole-domain search graph: sink 0, nodes, then one source per generator), so
-:func:`coverage_ros.core.geodesic.cell._shared_search` uses them as it would its own.
+:func:`coverage_ros.core.geodesic.shared_search.shared_search` uses them as it would its own.
 """
 
 from __future__ import annotations

@@ -29,6 +29,8 @@ from coverage_ros.core.strategies.acvt.dropout import (
 from coverage_ros.core.strategies.acvt.exchange import agent_regions, exchanges, swaps
 from coverage_ros.core.strategies.acvt.plans import heard_plan, plan_extras
 from coverage_ros.core.strategies.acvt.relocation import (
+    DEFAULT_LEVEL_WINDOW,
+    MetricLevel,
     RelocationConfig,
     best_relocation,
     insertion_point,
@@ -178,6 +180,19 @@ def test_an_exchange_mends_a_balanced_composition_whose_cells_stay_unequal(domai
         RelocationConfig(exchanges=-1)
 
 
+def test_a_metric_has_levelled_off_once_it_stops_falling_by_the_margin():
+    level = MetricLevel(3, 0.005)
+    assert [level.record(v) for v in (0.20, 0.15, 0.12, 0.10, 0.09)] == [False] * 5
+    # 0.10, 0.09, 0.088, 0.087: down by 0.013 over three updates - still falling
+    assert not level.record(0.088) and not level.record(0.087)
+    assert level.record(0.086)  # 0.09 -> 0.086 over the last three: levelled off
+    assert level.record(0.087)  # a rise is no fall either
+    level.reset()
+    assert [level.record(0.05) for _ in range(4)] == [False, False, False, True]
+    with pytest.raises(ConfigError, match="level_window"):
+        MetricLevel(0, 0.005)
+
+
 def test_a_mixed_team_moves_by_the_plan_its_lowest_id_robot_publishes(domain):
     """With mixed reaches only the robot of lowest id heard predicts; it publishes the exchange
     as a plan among its state's extras, and every robot the plan names drives to its point once
@@ -206,7 +221,11 @@ def test_a_mixed_team_moves_by_the_plan_its_lowest_id_robot_publishes(domain):
 
     other = next(a for a in move.agents if a != 0)
     assert decide(robot(other), other, P[other]).mode == "cvt"  # not the lowest id: waits
-    planner = decide(robot(0), 0, P[0])
+    lowest = robot(0)
+    for _ in range(DEFAULT_LEVEL_WINDOW):  # it predicts once the team's metric has levelled
+        waiting = decide(lowest, 0, P[0])
+        assert "plan_from" not in waiting.shared.extra and not waiting.converged
+    planner = decide(lowest, 0, P[0])
     extra = planner.shared.extra
     assert (extra["plan_from"], extra["plan_seq"]) == (0.0, 1.0)
     named = {a: pt for a, pt in zip(move.agents, move.points, strict=True)}
@@ -237,13 +256,17 @@ def test_the_decentralized_robot_relocates_when_its_settled_team_lets_it(domain,
     light = movers(masses, None, RelocationConfig().movers)
 
     def decide(robot_id, **neighbour_state):
+        """The robot's decision in the update after its team's metric has stayed level for
+        DEFAULT_LEVEL_WINDOW updates (in which it waits, as in every update but the last)."""
         ctx = StrategyContext(domain=domain, robot_id=robot_id)
         robot = make_strategy("acvt", ctx)
         robot.switch.stop()  # its dropout phase is over
         nbrs = [Neighbour(i, _state(wrong_split[i], masses[i], **neighbour_state))
                 for i in range(10) if i != robot_id]
-        return robot.update(Observation(robot_id, np.array([*wrong_split[robot_id], 0.0]), 1.0),
-                            nbrs)
+        obs = Observation(robot_id, np.array([*wrong_split[robot_id], 0.0]), 1.0)
+        for _ in range(DEFAULT_LEVEL_WINDOW):
+            assert robot.update(obs, nbrs).mode == "cvt"
+        return robot.update(obs, nbrs)
 
     d = decide(j)
     assert d.mode == "relocate" and not d.converged and _in(scenes.SMALL, d.goal) == 1

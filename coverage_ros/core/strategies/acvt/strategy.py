@@ -64,6 +64,8 @@ from coverage_ros.core.strategies.acvt.iterations import (
 )
 from coverage_ros.core.strategies.acvt.plans import heard_plan, plan_extras
 from coverage_ros.core.strategies.acvt.relocation import (
+    DEFAULT_LEVEL_WINDOW,
+    MetricLevel,
     RelocationConfig,
     best_relocation,
     movers,
@@ -188,6 +190,8 @@ class AcvtStrategy(Strategy):
         self.relocation = self.params.relocation_config(self.cells.regions)
         self._relocating: np.ndarray | None = None  # (2,) [m] target of a relocation under way
         self._relocations = 0
+        self._level = MetricLevel(DEFAULT_LEVEL_WINDOW, self.relocation.margin)
+        self._levelling = False  # waiting for the team's metric to level off to predict
         self._checked: np.ndarray | None = None  # team positions of the last prediction
         self._plan: dict[str, float] = {}  # the extras of the plan this robot publishes
         self._plans = 0  # plans made (mixed reaches: this robot predicts for its neighbourhood)
@@ -311,13 +315,15 @@ class AcvtStrategy(Strategy):
                 self._relocations += 1
         if self._relocating is not None:
             goal, converged, settled, mode = self._relocating.copy(), False, False, "relocate"
+        converged = converged and not self._levelling  # a prediction may yet move the team
         mine = labels == own
         return Decision(
             goal=goal, velocity=None, cell=self.cells.nodes[mine],
             shared=SharedState(position=p.copy(), weight=self.context.weight, mass=mass,
                                extra=self._extra(greedy, settled)),
             converged=converged, cost=self.cells.cost(labels, P, own), mass=mass, mode=mode,
-            settling=(self.switch.active and len(idx) > 1) or self._relocating is not None,
+            settling=(self.switch.active and len(idx) > 1) or self._relocating is not None
+            or self._levelling,
             details=AcvtDetails(greedy=greedy, dropout=self.switch.active,
                                 dropped=tuple(int(ids[order[j]]) for j in dropped),
                                 local_deviation=local_i, tau_drop=tau,
@@ -337,26 +343,32 @@ class AcvtStrategy(Strategy):
         and publishes the plan (:mod:`.plans`). A team configuration that was predicted already
         is not predicted again."""
         cfg = self.relocation
+        self._levelling = False
         mixed = reach is not None and len(np.unique(reach)) > 1 and cfg.exchanges > 0
         spent = self._plans >= MAX_PLANS if mixed else self._relocations >= cfg.max_moves
         if not cfg.enabled or self.switch.active or spent or len(P) < 2:
             return None
         if not all(st.extra.get("settled", 0.0) == 1.0 and st.extra.get("dropout", 1.0) == 0.0
                    and st.extra.get("relocating", 0.0) == 0.0 for st in neighbours):
+            self._level.reset()
             return None
         still = 2.0 * self.context.convergence_tolerance  # [m] live positions jitter this much
         if (self._checked is not None and self._checked.shape == P.shape
                 and float(np.hypot(*(self._checked - P).T).max()) < still):
             return None
-        if mixed:
-            if row_ids[own] != row_ids.min():
-                return None
-        else:
-            _, masses, _ = team_metric(self.cells, self.spec, P, reach)
-            if own not in movers(masses, reach, cfg.movers):
-                return None
+        if mixed and row_ids[own] != row_ids.min():
+            return None
+        _, masses, metric = team_metric(self.cells, self.spec, P, reach)
+        if not mixed and own not in movers(masses, reach, cfg.movers):
+            return None
+        # Predict from a team that has stopped converging on its own (MetricLevel).
+        if not self._level.record(metric):
+            self._levelling = True
+            return None
         self._checked = P.copy()
         move = best_relocation(self.cells, self.spec, P, reach, cfg)
+        if move is not None:
+            self._level.reset()
         if move is not None and mixed:
             self._plans += 1
             self._plan = plan_extras(int(row_ids[own]), self._plans,

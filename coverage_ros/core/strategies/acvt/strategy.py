@@ -313,6 +313,9 @@ class AcvtStrategy(Strategy):
             if move is not None:
                 self._relocating, predicted = move.point_of(own), move.metric_after
                 self._relocations += 1
+        else:  # moving: a later prediction waits for the metric to level off anew
+            self._level.reset()
+            self._levelling = False
         if self._relocating is not None:
             goal, converged, settled, mode = self._relocating.copy(), False, False, "relocate"
         converged = converged and not self._levelling  # a prediction may yet move the team
@@ -331,26 +334,17 @@ class AcvtStrategy(Strategy):
                                 relocation=None if self._relocating is None
                                 else self._relocating.copy(), predicted=predicted))
 
-    def _relocation_move(self, P: np.ndarray, reach: np.ndarray | None, own: int,
-                         neighbours: list[SharedState], row_ids: np.ndarray):
-        """The relocation this robot makes now, if any (:mod:`.relocation`): only with its
-        dropout over, every neighbour settled, out of the dropout and not relocating, and its
-        own (normalised) mass among the ``movers`` least of the team at ``P (k, 2)`` (row
-        ``own``); those robots all predict the same relocation, and only the robot it names
-        moves - so that in a team that hears everyone one robot at a time relocates. In a team
-        of mixed reaches, where an exchange or a swap names several robots, the robot of lowest
-        id among those heard (``row_ids``: the robot id of every row of ``P``) predicts alone
-        and publishes the plan (:mod:`.plans`). A team configuration that was predicted already
-        is not predicted again."""
+    def _prediction_metric(self, P: np.ndarray, reach: np.ndarray | None, own: int,
+                           neighbours: list[SharedState], row_ids: np.ndarray,
+                           mixed: bool) -> float | None:
+        """The team's metric at ``P`` if this robot may predict a relocation from it now (see
+        :meth:`_relocation_move`), else None."""
         cfg = self.relocation
-        self._levelling = False
-        mixed = reach is not None and len(np.unique(reach)) > 1 and cfg.exchanges > 0
         spent = self._plans >= MAX_PLANS if mixed else self._relocations >= cfg.max_moves
         if not cfg.enabled or self.switch.active or spent or len(P) < 2:
             return None
         if not all(st.extra.get("settled", 0.0) == 1.0 and st.extra.get("dropout", 1.0) == 0.0
                    and st.extra.get("relocating", 0.0) == 0.0 for st in neighbours):
-            self._level.reset()
             return None
         still = 2.0 * self.context.convergence_tolerance  # [m] live positions jitter this much
         if (self._checked is not None and self._checked.shape == P.shape
@@ -361,14 +355,33 @@ class AcvtStrategy(Strategy):
         _, masses, metric = team_metric(self.cells, self.spec, P, reach)
         if not mixed and own not in movers(masses, reach, cfg.movers):
             return None
-        # Predict from a team that has stopped converging on its own (MetricLevel).
-        if not self._level.record(metric):
-            self._levelling = True
+        return metric
+
+    def _relocation_move(self, P: np.ndarray, reach: np.ndarray | None, own: int,
+                         neighbours: list[SharedState], row_ids: np.ndarray):
+        """The relocation this robot makes now, if any (:mod:`.relocation`): only with its
+        dropout over, every neighbour settled, out of the dropout and not relocating, and its
+        own (normalised) mass among the ``movers`` least of the team at ``P (k, 2)`` (row
+        ``own``); those robots all predict the same relocation, and only the robot it names
+        moves - so that in a team that hears everyone one robot at a time relocates. In a team
+        of mixed reaches, where an exchange or a swap names several robots, the robot of lowest
+        id among those heard (``row_ids``: the robot id of every row of ``P``) predicts alone
+        and publishes the plan (:mod:`.plans`). A team configuration that was predicted already
+        is not predicted again, and none is predicted before the team's metric has levelled off
+        over this robot's last updates (:class:`~.relocation.MetricLevel`)."""
+        cfg = self.relocation
+        mixed = reach is not None and len(np.unique(reach)) > 1 and cfg.exchanges > 0
+        metric = self._prediction_metric(P, reach, own, neighbours, row_ids, mixed)
+        # Predict from a team that has stopped converging on its own (MetricLevel); any update
+        # in which this robot may not predict starts the wait over.
+        self._levelling = metric is not None and not self._level.record(metric)
+        if metric is None:
+            self._level.reset()
+        if metric is None or self._levelling:
             return None
         self._checked = P.copy()
         move = best_relocation(self.cells, self.spec, P, reach, cfg)
-        if move is not None:
-            self._level.reset()
+        self._level.reset()
         if move is not None and mixed:
             self._plans += 1
             self._plan = plan_extras(int(row_ids[own]), self._plans,

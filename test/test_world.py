@@ -47,6 +47,34 @@ def test_raster_marks_obstacles_where_they_are():
     assert math.pi * 0.5 ** 2 < circle_cells < math.pi * 0.6 ** 2
 
 
+def test_solid_cells_lie_wholly_in_obstacles_or_outside_the_arena():
+    """A box whose faces run through rows of cell centres: the cells it covers half are
+    occupied on the raster (a robot must not enter them) but not solid - a lidar beam grazing
+    the face rightly sees their free half. Cells with every corner in an obstacle are."""
+    world = parse_world({"bounds": [0, 0, 4, 3], "resolution": 0.1, "obstacles": [
+        {"type": "box", "center": [2.0, 1.5], "size": [0.4, 0.3]},  # x 1.8-2.2, y 1.35-1.65
+        {"type": "box", "center": [1.0, 1.0], "size": [0.3, 0.2]},  # two boxes sharing the
+        {"type": "box", "center": [1.3, 1.0], "size": [0.3, 0.2]},  # cells of x 1.1-1.2
+    ]})
+    grid, solid = world.grid, world.solid
+
+    def cell(x, y):
+        r, c = grid.world_to_cell(np.array([x, y]))
+        return int(r), int(c)
+
+    occupied = grid.occupied_mask()
+    box = [cell(x, y) for x in (1.85, 1.95, 2.05, 2.15) for y in (1.35, 1.45, 1.55, 1.65)]
+    assert all(occupied[rc] for rc in box)
+    assert {rc for rc in box if solid[rc]} == {cell(x, y) for x in (1.85, 1.95, 2.05, 2.15)
+                                                for y in (1.45, 1.55)}
+    assert solid[cell(1.15, 0.95)] and solid[cell(1.15, 1.05)]  # corners in one box or other
+    assert solid[cell(0.95, 0.95)] and not solid[cell(0.85, 0.95)]  # x 0.8-0.9: half in
+    assert not solid[cell(3.0, 2.5)]
+    assert solid[0, :].all() and solid[:, -1].all()  # the ring outside the arena
+    # Solid cells are a part of the occupied ones.
+    assert not (solid & ~occupied).any()
+
+
 def test_world_on_top_of_a_map_server_map():
     base = shared_map("depot")
     world = parse_world({"map": str(base), "obstacles": [

@@ -95,11 +95,29 @@ class WorldSpec:
 
     @cached_property
     def solid(self) -> np.ndarray:
-        """``(H, W) bool``: the cells of :attr:`grid` that are occupied for certain - their
-        centre lies in an obstacle, outside the arena or on a blocked map cell. :attr:`grid`
-        also marks cells an obstacle only reaches into (within half a cell of the centre),
-        which a lidar may rightly see partly free."""
-        return rasterize_world(self, reach=0.0).occupied_mask(unknown_is_occupied=False)
+        """``(H, W) bool``: the cells of :attr:`grid` that are occupied for certain - the whole
+        cell lies in obstacles (each of its four corners lies in one), outside the arena or on
+        a blocked map cell. :attr:`grid` also marks cells an obstacle only reaches into
+        (within half a cell of the centre), which a lidar may rightly see partly free: a beam
+        that grazes a wall whose face runs through a row of cells near their centres passes
+        through the free half of each."""
+        centred = rasterize_world(self, reach=0.0).occupied_mask(unknown_is_occupied=False)
+        grid = self.grid
+        X, Y = grid.all_cell_centers()
+        half = 0.5 * grid.resolution
+        in_obstacle = np.zeros(grid.shape, dtype=bool)  # centre in an obstacle
+        whole = np.zeros((4,) + grid.shape, dtype=bool)  # each corner in an obstacle
+        corners = ((-half, -half), (half, -half), (-half, half), (half, half))
+        for obs in self.obstacles:
+            bx0, by0, bx1, by1 = obs.bounding_box()
+            sel = (X >= bx0 - half) & (X <= bx1 + half) & (Y >= by0 - half) & (Y <= by1 + half)
+            if not sel.any():
+                continue
+            xs, ys = X[sel], Y[sel]
+            in_obstacle[sel] |= obs.distance(np.stack([xs, ys], axis=-1)) <= 0.0
+            for k, (dx, dy) in enumerate(corners):
+                whole[k][sel] |= obs.distance(np.stack([xs + dx, ys + dy], axis=-1)) <= 1e-9
+        return (centred & ~in_obstacle) | whole.all(axis=0)
 
     def robot_spec(self, index: int) -> RobotSpec:
         """The spec of robot ``index`` (its start entry's, else the world default)."""

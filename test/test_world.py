@@ -82,6 +82,14 @@ def test_world_on_top_of_a_map_server_map():
     assert world.grid.shape == world.base_map.shape
     r, c = world.grid.world_to_cell(np.array([10.0, 7.0]))
     assert world.grid.occupancy[r, c] == 100
+    # Solid: the map's blocked cells, whatever an obstacle covers of them, and the box's cells.
+    blocked = world.base_map.occupied_mask(unknown_is_occupied=False)
+    assert world.solid[r, c] and not (blocked & ~world.solid).any()
+    X, Y = world.grid.all_cell_centers()
+    r0, c0 = np.argwhere(blocked)[len(np.argwhere(blocked)) // 2]  # a wall of the depot
+    over = parse_world({"map": str(base), "obstacles": [
+        {"type": "circle", "center": [float(X[r0, c0]), float(Y[r0, c0])], "radius": 0.3}]})
+    assert not (blocked & ~over.solid).any()
 
 
 @pytest.mark.parametrize("data, where", [

@@ -101,11 +101,11 @@ class WorldSpec:
         (within half a cell of the centre), which a lidar may rightly see partly free: a beam
         that grazes a wall whose face runs through a row of cells near their centres passes
         through the free half of each."""
-        centred = rasterize_world(self, reach=0.0).occupied_mask(unknown_is_occupied=False)
+        bare = rasterize_world(self, with_obstacles=False).occupied_mask(
+            unknown_is_occupied=False)  # outside the arena, blocked on the map
         grid = self.grid
         X, Y = grid.all_cell_centers()
         half = 0.5 * grid.resolution
-        in_obstacle = np.zeros(grid.shape, dtype=bool)  # centre in an obstacle
         whole = np.zeros((4,) + grid.shape, dtype=bool)  # each corner in an obstacle
         corners = ((-half, -half), (half, -half), (-half, half), (half, half))
         for obs in self.obstacles:
@@ -114,19 +114,20 @@ class WorldSpec:
             if not sel.any():
                 continue
             xs, ys = X[sel], Y[sel]
-            in_obstacle[sel] |= obs.distance(np.stack([xs, ys], axis=-1)) <= 0.0
             for k, (dx, dy) in enumerate(corners):
                 whole[k][sel] |= obs.distance(np.stack([xs + dx, ys + dy], axis=-1)) <= 1e-9
-        return (centred & ~in_obstacle) | whole.all(axis=0)
+        return bare | whole.all(axis=0)
 
     def robot_spec(self, index: int) -> RobotSpec:
         """The spec of robot ``index`` (its start entry's, else the world default)."""
         return self.starts[index].robot if index < len(self.starts) else self.robot
 
 
-def rasterize_world(spec: WorldSpec, reach: float | None = None) -> GridMap:
+def rasterize_world(spec: WorldSpec, reach: float | None = None,
+                    with_obstacles: bool = True) -> GridMap:
     """A cell is occupied if an obstacle comes within ``reach`` [m] of its centre (default half
-    a cell), or the cell centre lies outside the arena bounds."""
+    a cell; no obstacle counts without ``with_obstacles``), or the cell centre lies outside the
+    arena bounds."""
     res = spec.resolution
     if spec.base_map is not None:
         base = spec.base_map
@@ -146,7 +147,7 @@ def rasterize_world(spec: WorldSpec, reach: float | None = None) -> GridMap:
         outside = (X < xmin) | (X > xmax) | (Y < ymin) | (Y > ymax)
         occ[outside] = OCCUPIED
     half = 0.5 * res if reach is None else reach
-    for obs in spec.obstacles:
+    for obs in spec.obstacles if with_obstacles else ():
         bx0, by0, bx1, by1 = obs.bounding_box()
         sel = (X >= bx0 - res) & (X <= bx1 + res) & (Y >= by0 - res) & (Y <= by1 + res)
         if not sel.any():

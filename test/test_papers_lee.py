@@ -85,6 +85,23 @@ def test_fig14_decentralized_team_predicts_its_plans_from_a_team_that_has_levell
     assert statistics.median(ours) <= 0.0367 and max(ours) <= 2 * 0.0367
 
 
+def test_fig4c_targets_of_different_densities_get_the_split_of_equal_masses():
+    """Paper: I = 0.22 on Fig. 3's targets with densities 0.4 and 0.9 (masses nearly equal,
+    so 5 + 5 agents). From one start of five the dropout ends at 4 + 6 (I 0.22); the move to
+    5 + 5 lowers I to 0.06 but raises H by 4 % - H, weighted by density, prefers more agents
+    on the larger, sparser target - so a relocation held to H never made it. A move between
+    targets may raise H as an exchange may (relocation.DEFAULT_EXCHANGE_SLACK)."""
+    domain = scenes.two_targets(scenes.PRIORITY)
+    ours = [lee2024._centralized(domain, scenes.corner_cluster(s, 10), ("relocation",))
+            [lee2024.RELOCATED] for s in SEEDS]
+    print(f"\nFig. 4c I, alpha-CVT with relocation: {np.round(ours, 3).tolist()}")
+    assert max(ours) <= 0.1 < 0.22
+    final = AlphaCvt(domain).run(scenes.corner_cluster(3, 10)).positions[-1]
+    cells = MassCells(domain)
+    in_big = points_in_polygon(final, scenes.BIG)
+    assert in_big.sum() == 5 and (cells.region_masses / cells.total).min() > 0.45
+
+
 def test_fig5_bullseye_and_fig4d_twin_targets():
     """Paper: I = 0.083 on the bullseye (iCVT + projection 0.367) and 0.039 on two identical
     targets."""

@@ -22,7 +22,9 @@ that give each its share of sum R^2 can be several single moves apart, each of w
 the metric (:mod:`.exchange`). There the relocation also predicts *exchanges* (several agents
 change targets at once) and *swaps* (two agents of different reach in one target trade
 places); their guard is the reach-weighted coverage cost, which they may raise by
-``exchange_slack``.
+``exchange_slack`` - as may a single agent's move into another target (where the targets'
+densities differ, H prefers another split than equal masses); a move within a target may not
+raise it at all.
 
 Every move taken lowers the predicted metric by ``margin`` or more, and a run makes at most
 ``max_moves`` of them (a decentralized team of mixed reaches, at most
@@ -51,7 +53,7 @@ from coverage_ros.core.strategies.acvt.cells import (
     deviation_metric,
     normalized_masses,
 )
-from coverage_ros.core.strategies.acvt.exchange import exchanges, swaps
+from coverage_ros.core.strategies.acvt.exchange import agent_regions, exchanges, swaps
 from coverage_ros.errors import ConfigError
 
 #: Fewest the predicted metric must fall by for a relocation to be made (absolute; I is a
@@ -66,10 +68,12 @@ DEFAULT_MOVERS = 3
 DEFAULT_HORIZON = 60
 #: Exchanges of several agents between targets tried in a heterogeneous team (:mod:`.exchange`).
 DEFAULT_EXCHANGES = 4
-#: Share by which the reach-weighted H may rise with an exchange. Compositions that give every
-#: target its share of R^2 can differ in H either way: on Fig. 14's setting the one whose cells
-#: Lloyd can equalise (I^H 0.021) has a 7 % higher H than four slow agents and a fast one in
-#: the small target (I^H 0.052).
+#: Share by which the reach-weighted H may rise with an exchange or a move into another target
+#: (a change of the split between targets). Compositions that give every target its share of
+#: R^2 can differ in H either way: on Fig. 14's setting the one whose cells Lloyd can equalise
+#: (I^H 0.021) has a 7 % higher H than four slow agents and a fast one in the small target
+#: (I^H 0.052). And H weighs a target's agents by its density: on Fig. 4c's targets of equal
+#: mass (densities 0.9 and 0.4) it prefers 4 + 6 agents to 5 + 5 by 4 % (I 0.22 against 0.06).
 DEFAULT_EXCHANGE_SLACK = 0.1
 #: Updates of a settled team over which its metric must not fall by ``margin`` before a robot
 #: predicts a relocation from it (:class:`MetricLevel`).
@@ -86,10 +90,11 @@ class RelocationConfig:
     margin: float = DEFAULT_MARGIN  # the predicted metric must fall by at least this
     horizon: int = DEFAULT_HORIZON  # iCVT + projection steps of a prediction
     tolerance: float = 0.01  # [m] a prediction has converged when no agent moves farther
-    energy_slack: float = 0.0  # share by which Eq. 2's H may rise with a relocation
+    energy_slack: float = 0.0  # share by which Eq. 2's H may rise with a move in a target
     max_moves: int = 20  # relocations of one run (centralized) or one robot (decentralized)
     exchanges: int = DEFAULT_EXCHANGES  # several-agent moves tried with mixed reaches (0: none)
-    exchange_slack: float = DEFAULT_EXCHANGE_SLACK  # share H may rise with an exchange
+    #: share H may rise with an exchange or a move into another target
+    exchange_slack: float = DEFAULT_EXCHANGE_SLACK
 
     def __post_init__(self) -> None:
         if not isinstance(self.enabled, bool | np.bool_):
@@ -263,13 +268,20 @@ def best_relocation(cells: MassCells, spec: CellSpec, positions: np.ndarray,
     energy = coverage_energy(cells, labels, P, reach)
     weighed = masses if reach is None else normalized_masses(masses, reach)
     heavy = [int(h) for h in np.argsort(-weighed, kind="stable")]
+    # A move into another target changes the split between targets, which sets each
+    # target's mass per agent; H and I part ways there where the targets' densities differ
+    # (Fig. 4c: H prefers 4 + 6 agents, I 5 + 5), so it may raise H as an exchange may.
+    target = agent_regions(cells, labels, len(P)) if cells.regions > 1 else \
+        np.full(len(P), -1)
     # (agents, the cells they enter, their points, H's allowed rise, look a swap ahead)
     tries: list[tuple[tuple[int, ...], tuple[int, ...], np.ndarray, float, bool]] = []
     for j in movers(masses, reach, config.movers):
         for h in [h for h in heavy if h != j][:config.candidates]:
             point = insertion_point(cells, labels, P, h)
             if point is not None:
-                tries.append(((j,), (h,), point[None], config.energy_slack, False))
+                across = target[j] >= 0 and target[h] >= 0 and target[j] != target[h]
+                slack = config.exchange_slack if across else config.energy_slack
+                tries.append(((j,), (h,), point[None], slack, False))
     mixed = reach is not None and config.exchanges > 0 and not spec.visibility
     if mixed:
         tries += [(e.agents, e.into, e.points, config.exchange_slack, True)

@@ -161,11 +161,10 @@ OWN_SHAPES: dict[str, tuple[tuple[np.ndarray, ...], tuple[int, int]]] = {
     "L and disc": ((np.array([[12.0, 8.0], [18.0, 8.0], [18.0, 11.0], [15.0, 11.0],
                               [15.0, 17.0], [12.0, 17.0]]),
                     _disc((5.0, 5.0), math.sqrt(24.0 / math.pi))), (6, 4)),
-    # a right triangle of 21 m^2 and an L of 49 m^2 (3 + 7): Lloyd's cells in a triangle are
-    # unequal, so even the right split leaves I near 0.09 here
+    # a right triangle of 21 m^2 and an L of 49 m^2 (a 7 x 3 m bar and a 4 x 7 m bar; 3 + 7)
     "triangle and L": ((np.array([[12.0, 3.0], [19.0, 3.0], [12.0, 9.0]]),
-                        np.array([[3.0, 3.0], [10.0, 3.0], [10.0, 6.0], [6.0, 6.0],
-                                  [6.0, 13.0], [3.0, 13.0]])), (3, 7)),
+                        np.array([[3.0, 3.0], [10.0, 3.0], [10.0, 6.0], [7.0, 6.0],
+                                  [7.0, 13.0], [3.0, 13.0]])), (3, 7)),
 }
 
 

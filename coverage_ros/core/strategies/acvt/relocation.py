@@ -11,8 +11,11 @@ shapes of our own, the published rule ended at I = 0.03-0.40 (the paper's Fig. 3
 
 What: once the dropout is off and the team has settled (every agent at its goal), each of the
 few agents of least (normalised) mass j tries moving to the point of each of the heaviest cells
-h farthest from that cell's agent (the part of the cell its owner covers worst), and the team's
-iCVT + projection is run forward to convergence from there (:func:`settle`). The best of these
+h farthest from that cell's agent (the part of the cell its owner covers worst) and to the point
+halfway to that agent (:func:`nudge_point`: one target's CVTs differ in how equal their cells
+are, and a step into a heavy neighbour's cell lets the team settle into a nearby, more equal
+one, where a far point rebuilds the same), and the team's iCVT + projection is run forward to
+convergence from there (:func:`settle`). The best of these
 predictions is taken if it lowers the scenario's metric (I, I^L or I^H) by at least ``margin``;
 otherwise nothing moves. It is the dropout idea one step further: instead of the greedy agents
 stepping aside, an idle one is reinserted where it is missing.
@@ -225,6 +228,14 @@ def insertion_point(cells: MassCells, labels: np.ndarray, positions: np.ndarray,
     return cells.xy[own[int(np.argmax(d2))]].copy()
 
 
+def nudge_point(cells: MassCells, positions: np.ndarray, agent: int, owner: int) -> np.ndarray:
+    """``(2,)`` [m]: halfway from ``agent`` to ``owner`` (projected onto rho > 0): a light
+    agent stepping into a heavy neighbour's cell, so that the team settles into a nearby CVT
+    rather than rebuilding one around a far point."""
+    P = np.asarray(positions, dtype=np.float64)
+    return cells.project((0.5 * (P[agent] + P[owner]))[None])[0]
+
+
 def movers(masses: np.ndarray, reach: np.ndarray | None, count: int) -> list[int]:
     """The ``count`` agents of least (reach-normalised) mass, lightest first (ties: the lowest
     index) - the agents :func:`best_relocation` may move."""
@@ -277,11 +288,12 @@ def best_relocation(cells: MassCells, spec: CellSpec, positions: np.ndarray,
     tries: list[tuple[tuple[int, ...], tuple[int, ...], np.ndarray, float, bool]] = []
     for j in movers(masses, reach, config.movers):
         for h in [h for h in heavy if h != j][:config.candidates]:
+            across = target[j] >= 0 and target[h] >= 0 and target[j] != target[h]
+            slack = config.exchange_slack if across else config.energy_slack
             point = insertion_point(cells, labels, P, h)
             if point is not None:
-                across = target[j] >= 0 and target[h] >= 0 and target[j] != target[h]
-                slack = config.exchange_slack if across else config.energy_slack
                 tries.append(((j,), (h,), point[None], slack, False))
+            tries.append(((j,), (h,), nudge_point(cells, P, j, h)[None], slack, False))
     mixed = reach is not None and config.exchanges > 0 and not spec.visibility
     if mixed:
         tries += [(e.agents, e.into, e.points, config.exchange_slack, True)

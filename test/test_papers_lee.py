@@ -85,6 +85,19 @@ def test_fig14_decentralized_team_predicts_its_plans_from_a_team_that_has_levell
     assert statistics.median(ours) <= 0.0367 and max(ours) <= 2 * 0.0367
 
 
+def test_fig18_setting_decentralized_team_converges_before_it_stops():
+    """Fig. 18a-c's setting offline (5 + 5 agents at 0.4 / 0.8 m/s from the corner; the
+    paper's live alpha-CVT: I^H 0.0375). After a swap of a slow and a fast robot Lloyd's last
+    steps are 1-3 cm per update: counted converged by their step lengths, two teams of five
+    stopped ``coverage-plan`` at I^H 0.09 while it was still falling. A robot is now not
+    converged while the team's metric falls by the paper's epsilon over its last updates."""
+    speeds = np.r_[np.full(5, scenes.SLOW), np.full(5, scenes.FAST)]
+    ours = [lee2024.decentralized(scenes.two_targets(), scenes.corner_cluster(s, 10), speeds)
+            for s in SEEDS]
+    print(f"\nFig. 18a-c setting, decentralized, offline: I^H {np.round(ours, 3).tolist()}")
+    assert statistics.median(ours) <= 0.0375 and max(ours) <= 2 * 0.0375
+
+
 def test_fig4c_targets_of_different_densities_get_the_split_of_equal_masses():
     """Paper: I = 0.22 on Fig. 3's targets with densities 0.4 and 0.9 (masses nearly equal,
     so 5 + 5 agents). From one start of five the dropout ends at 4 + 6 (I 0.22); the move to

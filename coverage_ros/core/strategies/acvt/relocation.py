@@ -11,11 +11,13 @@ shapes of our own, the published rule ended at I = 0.03-0.40 (the paper's Fig. 3
 
 What: once the dropout is off and the team has settled (every agent at its goal), each of the
 few agents of least (normalised) mass j tries moving to the point of each of the heaviest cells
-h farthest from that cell's agent (the part of the cell its owner covers worst) and to the point
-halfway to that agent (:func:`nudge_point`: one target's CVTs differ in how equal their cells
-are, and a step into a heavy neighbour's cell lets the team settle into a nearby, more equal
-one, where a far point rebuilds the same), and the team's iCVT + projection is run forward to
-convergence from there (:func:`settle`). The best of these
+h farthest from that cell's agent (the part of the cell its owner covers worst) and, in a team
+of one reach, to the point halfway to that agent (:func:`nudge_point`: one target's CVTs differ
+in how equal their cells are, and a step into a heavy neighbour's cell lets the team settle
+into a nearby, more equal one, where a far point rebuilds the same; a team of mixed reaches has
+few plans, and live on Fig. 18a-c's setting these steps spent them worse: median I^H 0.040
+against 0.027), and the team's iCVT + projection is run forward to convergence from there
+(:func:`settle`). The best of these
 predictions is taken if it lowers the scenario's metric (I, I^L or I^H) by at least ``margin``;
 otherwise nothing moves. It is the dropout idea one step further: instead of the greedy agents
 stepping aside, an idle one is reinserted where it is missing.
@@ -293,7 +295,8 @@ def best_relocation(cells: MassCells, spec: CellSpec, positions: np.ndarray,
             point = insertion_point(cells, labels, P, h)
             if point is not None:
                 tries.append(((j,), (h,), point[None], slack, False))
-            tries.append(((j,), (h,), nudge_point(cells, P, j, h)[None], slack, False))
+            if reach is None:
+                tries.append(((j,), (h,), nudge_point(cells, P, j, h)[None], slack, False))
     mixed = reach is not None and config.exchanges > 0 and not spec.visibility
     if mixed:
         tries += [(e.agents, e.into, e.points, config.exchange_slack, True)

@@ -30,9 +30,13 @@ from coverage_ros.core.strategies.acvt.exchange import agent_regions, exchanges,
 from coverage_ros.core.strategies.acvt.plans import heard_plan, plan_extras
 from coverage_ros.core.strategies.acvt.relocation import (
     DEFAULT_LEVEL_WINDOW,
+    JUMP_DISTANCE,
+    JUMP_HORIZON,
+    JUMP_TOLERANCE,
     MetricLevel,
     RelocationConfig,
     best_relocation,
+    cvt_step,
     insertion_point,
     movers,
     settle,
@@ -93,14 +97,19 @@ def test_a_light_agent_goes_where_it_is_missing(domain, wrong_split):
 def test_a_balanced_team_is_not_disturbed(domain, wrong_split):
     cells = MassCells(domain)
     P = wrong_split
-    for _ in range(2):  # 9 + 1 -> 8 + 2 -> 7 + 3
-        move = best_relocation(cells, CellSpec(), P, None, RelocationConfig())
+    metrics = [team_metric(cells, CellSpec(), P, None)[2]]
+    # 9 + 1 -> 8 + 2 -> 7 + 3, then a move within the big target to a more equal CVT; then
+    # the team is left alone.
+    while (move := best_relocation(cells, CellSpec(), P, None, RelocationConfig())):
         P = P.copy()
         P[list(move.agents)] = move.points
         P = settle(cells, CellSpec(), P, None, 200, 1e-4)
+        metrics.append(team_metric(cells, CellSpec(), P, None)[2])
+        assert len(metrics) <= 4 and metrics[-1] < metrics[-2]
+        if len(metrics) == 3:
+            assert (_in(scenes.BIG, P), _in(scenes.SMALL, P)) == (7, 3)
     assert (_in(scenes.BIG, P), _in(scenes.SMALL, P)) == (7, 3)
-    assert team_metric(cells, CellSpec(), P, None)[2] < 0.046
-    assert best_relocation(cells, CellSpec(), P, None, RelocationConfig()) is None
+    assert metrics[-1] < 0.046 and len(metrics) >= 3
 
 
 def test_the_centralized_run_relocates_only_when_settled_and_only_as_alpha_cvt(domain,
@@ -113,7 +122,7 @@ def test_the_centralized_run_relocates_only_when_settled_and_only_as_alpha_cvt(d
     kept = published.run(wrong_split)
     assert kept.relocations == 0 and kept.dropout_iterations == 0 and kept.metric[-1] > 0.4
     ours = AlphaCvt(domain, AcvtConfig(dropout=silent)).run(wrong_split)
-    assert ours.relocations == 2 and ours.converged and ours.metric[-1] < 0.046
+    assert 2 <= ours.relocations <= 3 and ours.converged and ours.metric[-1] < 0.046
     assert np.allclose(ours.positions[0], kept.positions[0])  # the same run up to then
     assert (_in(scenes.BIG, ours.final), _in(scenes.SMALL, ours.final)) == (7, 3)
     baseline = AlphaCvt(domain, AcvtConfig(dropout=DropoutConfig(enabled=False)))
@@ -178,6 +187,38 @@ def test_an_exchange_mends_a_balanced_composition_whose_cells_stay_unequal(domai
     assert swaps(cells, labels, masses, P, same, 4) == []
     with pytest.raises(ConfigError, match=r"relocation\.exchanges"):
         RelocationConfig(exchanges=-1)
+
+
+#: Where the decentralized team of Fig. 18a-c's setting (seed 1) stopped with the margin 0.002
+#: and four plans: every Lloyd step 2 cm or less, I^H 0.097.
+CRAWL = np.array([[14.93, 9.97], [13.24, 9.89], [13.8, 13.91], [12.12, 15.29], [16.58, 10.29],
+                  [16.72, 12.79], [5.82, 3.68], [4.15, 5.35], [12.27, 12.32], [15.11, 15.64]])
+
+
+def test_a_crawling_team_of_mixed_reaches_jumps_to_its_cvt(domain):
+    """Lloyd's steps there are below a live robot's goal tolerance, but run on for a hundred
+    steps they lead one agent 2.6 m to a CVT of I^H 0.018: a team of mixed reaches is sent
+    there in one plan (the jump), and a move is weighed against that future, not against the
+    crawl's present metric."""
+    cells = MassCells(domain)
+    P = CRAWL
+    now = team_metric(cells, CellSpec(), P, MIXED)[2]
+    step = np.hypot(*(cvt_step(cells, CellSpec(), P, MIXED) - P).T)
+    assert now > 0.09 and step.max() < 0.025
+    config = RelocationConfig()
+    # At the predictions' tolerance (1 cm per step) the crawl would stop a step in.
+    assert team_metric(cells, CellSpec(), settle(cells, CellSpec(), P, MIXED, JUMP_HORIZON,
+                                                 config.tolerance), MIXED)[2] > 0.09
+    future = settle(cells, CellSpec(), P, MIXED, JUMP_HORIZON,
+                    JUMP_TOLERANCE * config.tolerance)
+    far = np.flatnonzero(np.hypot(*(future - P).T) > JUMP_DISTANCE)
+    assert len(far) >= 1 and team_metric(cells, CellSpec(), future, MIXED)[2] < 0.02
+    move = best_relocation(cells, CellSpec(), P, MIXED, config)
+    assert move.metric_before == pytest.approx(now) and move.metric_after < 0.02
+    assert move.agents == tuple(far.tolist()) and np.allclose(move.points, future[far])
+    # One reach: each robot moves on its own prediction, so no several-robot jump.
+    same = best_relocation(cells, CellSpec(), P, None, RelocationConfig())
+    assert same is None or len(same.agents) == 1
 
 
 def test_a_metric_has_levelled_off_once_it_stops_falling_by_the_margin():

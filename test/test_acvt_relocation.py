@@ -221,6 +221,29 @@ def test_a_crawling_team_of_mixed_reaches_jumps_to_its_cvt(domain):
     assert same is None or len(same.agents) == 1
 
 
+#: A live team of Fig. 18a-c's setting (seed 1) at 190 s: I^H 0.021.
+LIVE_BALANCED = np.array([[13.47, 14.38], [14.26, 16.31], [11.36, 14.23], [12.49, 15.76],
+                          [14.23, 9.62], [16.29, 14.61], [6.25, 4.56], [16.43, 11.39],
+                          [3.75, 4.44], [12.57, 11.78]])
+
+
+def test_a_balanced_team_of_mixed_reaches_is_left_alone(domain):
+    """With the one-reach margin (0.002) the planner of that live team moved a robot for a
+    predicted 0.0201 -> 0.0176, and the team stood at I^H 0.098 twenty seconds later; three
+    more plans followed, the last still under way at the run's end (0.35). A team of mixed
+    reaches needs the larger ``mixed_margin``."""
+    cells = MassCells(domain)
+    P = LIVE_BALANCED
+    assert team_metric(cells, CellSpec(), P, MIXED)[2] < 0.022
+    eager = best_relocation(cells, CellSpec(), P, MIXED,
+                            RelocationConfig(mixed_margin=RelocationConfig().margin))
+    assert eager is not None and eager.metric_after > 0.015
+    assert best_relocation(cells, CellSpec(), P, MIXED, RelocationConfig()) is None
+    assert RelocationConfig().margin_for(None) < RelocationConfig().margin_for(MIXED)
+    with pytest.raises(ConfigError, match=r"relocation\.mixed_margin"):
+        RelocationConfig(mixed_margin=-1.0)
+
+
 def test_a_metric_has_levelled_off_once_it_stops_falling_by_the_margin():
     level = MetricLevel(3, 0.005)
     assert [level.record(v) for v in (0.20, 0.15, 0.12, 0.10, 0.09)] == [False] * 5

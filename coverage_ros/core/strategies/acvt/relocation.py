@@ -19,9 +19,10 @@ few plans, and live on Fig. 18a-c's setting these steps spent them worse: median
 against 0.027), and the team's iCVT + projection is run forward to convergence from there
 (:func:`settle`). The best of these
 predictions is taken if its metric (I, I^L or I^H) is below the team's own future - the CVT
-it reaches without a move - by at least ``margin``; otherwise nothing moves. (Weighed against
-the present metric instead, a live team jittering about its CVT saw gains in moves that
-rebuild the same CVT.) It is the dropout idea one step further: instead of the greedy agents
+it reaches without a move - by at least ``margin`` (``mixed_margin`` in a team of mixed
+reaches); otherwise nothing moves. (Weighed against the present metric instead, a team whose
+live positions jitter about its CVT, or that still crawls towards it, would see a gain in a
+move that only rebuilds it.) It is the dropout idea one step further: instead of the greedy agents
 stepping aside, an idle one is reinserted where it is missing.
 
 In a team of mixed reaches one agent at a time is not enough: the compositions of the targets
@@ -77,6 +78,12 @@ from coverage_ros.errors import ConfigError
 #: ``energy_slack``) the L and disc kept CVTs of I 0.046-0.048 from three starts of five, where
 #: one move reaches one of 0.0435.
 DEFAULT_MARGIN = 0.002
+#: :data:`DEFAULT_MARGIN` in a team of mixed reaches. Its moves are exchanges and swaps of
+#: robots of different speeds, which the live team follows less closely than the prediction:
+#: live on Fig. 18a-c's setting, with 0.002, a team at I^H 0.021 took a move predicted to
+#: reach 0.018 and stood at 0.098 twenty seconds later; three more moves followed, the last
+#: still under way at the run's end (0.35).
+DEFAULT_MIXED_MARGIN = 0.005
 #: Heaviest cells tried for each agent that may move.
 DEFAULT_CANDIDATES = 3
 #: Lightest agents that may move (with mixed speeds the best agent to move is not always the
@@ -114,6 +121,8 @@ class RelocationConfig:
     candidates: int = DEFAULT_CANDIDATES  # heaviest cells tried for each agent that may move
     movers: int = DEFAULT_MOVERS  # lightest agents that may move
     margin: float = DEFAULT_MARGIN  # the predicted metric must fall by at least this
+    #: the same in a team of mixed reaches (see :data:`DEFAULT_MIXED_MARGIN`)
+    mixed_margin: float = DEFAULT_MIXED_MARGIN
     horizon: int = DEFAULT_HORIZON  # iCVT + projection steps of a prediction
     tolerance: float = 0.01  # [m] a prediction has converged when no agent moves farther
     energy_slack: float = 0.002  # share by which Eq. 2's H may rise with a move in a target
@@ -133,7 +142,7 @@ class RelocationConfig:
                 or self.exchanges < 0:
             raise ConfigError.at("relocation.exchanges", "must be an integer >= 0",
                                  self.exchanges)
-        for name in ("margin", "tolerance"):
+        for name in ("margin", "mixed_margin", "tolerance"):
             value = getattr(self, name)
             if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
                 raise ConfigError.at(f"relocation.{name}", "must be a finite number > 0", value)
@@ -142,6 +151,11 @@ class RelocationConfig:
             if not (isinstance(slack, int | float) and math.isfinite(slack) and slack >= 0):
                 raise ConfigError.at(f"relocation.{name}", "must be a finite number >= 0",
                                      slack)
+
+
+    def margin_for(self, reach: np.ndarray | None) -> float:
+        """The margin of a team whose reaches are ``reach`` (None: all equal)."""
+        return self.margin if reach is None else self.mixed_margin
 
 
 @dataclass(frozen=True)
@@ -298,6 +312,7 @@ def best_relocation(cells: MassCells, spec: CellSpec, positions: np.ndarray,
     P = np.asarray(positions, dtype=np.float64)
     if len(P) < 2:
         return None
+    margin = config.margin_for(reach)
     labels, masses, now = team_metric(cells, spec, P, reach)
     # Weighed against the team's own future, the CVT it reaches without a move: live
     # positions jitter about it (a move that rebuilds it would look like a gain over ``now``),
@@ -331,7 +346,7 @@ def best_relocation(cells: MassCells, spec: CellSpec, positions: np.ndarray,
                   for e in swaps(cells, labels, masses, P, reach, swap_count(config))]
     best: Relocation | None = None
     far = np.flatnonzero(np.hypot(*(still - P).T) > JUMP_DISTANCE)
-    if mixed and len(far) and before <= now - config.margin:
+    if mixed and len(far) and before <= now - margin:
         # The jump: on Fig. 18a-c's setting Lloyd's steps shrank to 1-3 cm (below a live
         # robot's goal tolerance) at I^H 0.096 while its CVT, 2.6 m away, has 0.018. A plan
         # (:mod:`.plans`) sends the robots there at once.
@@ -347,7 +362,7 @@ def best_relocation(cells: MassCells, spec: CellSpec, positions: np.ndarray,
             # follows it is part of its prediction (and is found again once it has settled).
             Q, labels_q, after = _best_swap(cells, spec, Q, reach, labels_q, masses_q, after,
                                             config)
-        if after > before - config.margin or (best is not None
+        if after > before - margin or (best is not None
                                               and after >= best.metric_after):
             continue
         # Never at the cost of coverage: a move that only trades the masses' balance for

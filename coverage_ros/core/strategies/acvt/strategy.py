@@ -88,9 +88,8 @@ REACH_TIME = 1.0
 #: A robot within this many convergence tolerances of its goal counts as settled for the
 #: relocation (live robots hover 5-9 cm from goals that move with their neighbours' jitter).
 SETTLED_FACTOR = 3.0
-#: Plans (relocations of a team of mixed reaches, :mod:`.plans`) one robot may make (with four,
-#: Fig. 18a-c's setting ended one start of five at I^H 0.096, its plans spent).
-MAX_PLANS = 6
+#: Plans (relocations of a team of mixed reaches, :mod:`.plans`) one robot may make.
+MAX_PLANS = 4
 
 
 @dataclass(frozen=True)
@@ -393,6 +392,7 @@ class AcvtStrategy(Strategy):
         cfg = self.relocation
         mixed = reach is not None and len(np.unique(reach)) > 1 and cfg.exchanges > 0
         metric = self._prediction_metric(P, reach, own, neighbours, row_ids, mixed)
+        self._level.margin = cfg.margin_for(reach)
         # Predict from a team that has stopped converging on its own (MetricLevel); any update
         # in which this robot may not predict starts the wait over.
         self._levelling = metric is not None and not self._level.record(metric)

@@ -229,8 +229,8 @@ LIVE_BALANCED = np.array([[13.47, 14.38], [14.26, 16.31], [11.36, 14.23], [12.49
 
 def test_a_balanced_team_of_mixed_reaches_is_left_alone(domain):
     """With the one-reach margin (0.002) the planner of that live team moved a robot for a
-    predicted 0.0201 -> 0.0176, and the team stood at I^H 0.098 twenty seconds later; three
-    more plans followed, the last still under way at the run's end (0.35). A team of mixed
+    predicted 0.0201 -> 0.0176, and the team stood at I^H 0.098 twenty seconds later; two
+    more plans followed, the last still under way at the run's end (0.34). A team of mixed
     reaches needs the larger ``mixed_margin``."""
     cells = MassCells(domain)
     P = LIVE_BALANCED

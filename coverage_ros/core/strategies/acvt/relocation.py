@@ -81,8 +81,8 @@ DEFAULT_MARGIN = 0.002
 #: :data:`DEFAULT_MARGIN` in a team of mixed reaches. Its moves are exchanges and swaps of
 #: robots of different speeds, which the live team follows less closely than the prediction:
 #: live on Fig. 18a-c's setting, with 0.002, a team at I^H 0.021 took a move predicted to
-#: reach 0.018 and stood at 0.098 twenty seconds later; three more moves followed, the last
-#: still under way at the run's end (0.35).
+#: reach 0.018 and stood at 0.098 twenty seconds later; two more moves followed, the last
+#: still under way at the run's end (0.34).
 DEFAULT_MIXED_MARGIN = 0.005
 #: Heaviest cells tried for each agent that may move.
 DEFAULT_CANDIDATES = 3

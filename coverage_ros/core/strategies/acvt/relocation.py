@@ -22,8 +22,8 @@ predictions is taken if its metric (I, I^L or I^H) is below the team's own futur
 it reaches without a move - by at least ``margin`` (``mixed_margin`` in a team of mixed
 reaches); otherwise nothing moves. (Weighed against the present metric instead, a team whose
 live positions jitter about its CVT, or that still crawls towards it, would see a gain in a
-move that only rebuilds it.) It is the dropout idea one step further: instead of the greedy agents
-stepping aside, an idle one is reinserted where it is missing.
+move that only rebuilds it.) It is the dropout idea one step further: instead of the greedy
+agents stepping aside, an idle one is reinserted where it is missing.
 
 In a team of mixed reaches one agent at a time is not enough: the compositions of the targets
 that give each its share of sum R^2 can be several single moves apart, each of which raises
@@ -151,7 +151,6 @@ class RelocationConfig:
             if not (isinstance(slack, int | float) and math.isfinite(slack) and slack >= 0):
                 raise ConfigError.at(f"relocation.{name}", "must be a finite number >= 0",
                                      slack)
-
 
     def margin_for(self, reach: np.ndarray | None) -> float:
         """The margin of a team whose reaches are ``reach`` (None: all equal)."""
@@ -362,8 +361,7 @@ def best_relocation(cells: MassCells, spec: CellSpec, positions: np.ndarray,
             # follows it is part of its prediction (and is found again once it has settled).
             Q, labels_q, after = _best_swap(cells, spec, Q, reach, labels_q, masses_q, after,
                                             config)
-        if after > before - margin or (best is not None
-                                              and after >= best.metric_after):
+        if after > before - margin or (best is not None and after >= best.metric_after):
             continue
         # Never at the cost of coverage: a move that only trades the masses' balance for
         # a worse covered area (Eq. 2) is not made (on one connected area with a uniform

@@ -204,11 +204,31 @@ def local_map(memory: ObstacleMemory, position: np.ndarray, half_cells: int,
     else:
         free = np.ones_like(hits)
     free = (free & on_map)[pad:pad + side, pad:pad + side]
+    return LocalMap(r0, c0, free, _reachable_from_centre(free), memory)
+
+
+def without_discs(local: LocalMap, centres: np.ndarray, radii: np.ndarray) -> LocalMap:
+    """``local`` with the cells whose centre lies within ``radii (J,)`` (plus half a cell) of
+    ``centres (J, 2)`` [m] blocked too - teammates as obstacles, for paths round them."""
+    if len(centres) == 0:
+        return local
+    mem = local.memory
+    h, w = local.free.shape
+    rows, cols = np.mgrid[0:h, 0:w]
+    xy = mem.centers((rows + local.row0).ravel(), (cols + local.col0).ravel())
+    d = np.hypot(xy[:, None, 0] - centres[None, :, 0], xy[:, None, 1] - centres[None, :, 1])
+    near = np.any(d <= radii[None, :] + 0.5 * mem.resolution, axis=1).reshape(h, w)
+    free = local.free & ~near
+    return LocalMap(local.row0, local.col0, free, _reachable_from_centre(free), mem)
+
+
+def _reachable_from_centre(free: np.ndarray) -> np.ndarray:
+    """The connected component of ``free`` that holds the window's centre cell (the robot)."""
     # 4-connected components: the graph's diagonals need both side cells free, so they connect
     # exactly what 4-neighbour steps connect.
     labels, _ = ndimage.label(free)
     reachable = np.zeros_like(free)
-    rr = cc = n
+    rr = cc = free.shape[0] // 2
     if not free[rr, cc] and free.any():
         # The robot is inside the inflation (closer than its radius to a remembered hit, e.g.
         # a hit quantised to a cell): start from the nearest free cell.
@@ -216,7 +236,7 @@ def local_map(memory: ObstacleMemory, position: np.ndarray, half_cells: int,
         rr, cc = int(ir[rr, cc]), int(ic[rr, cc])
     if free[rr, cc]:
         reachable = labels == labels[rr, cc]
-    return LocalMap(r0, c0, free, reachable, memory)
+    return reachable
 
 
 def local_maximum_goal(points: np.ndarray, values: np.ndarray, position: np.ndarray,

@@ -63,7 +63,9 @@ from coverage_ros.core.strategies.bvc.guided_map import (
     local_map,
     local_maximum_goal,
     navigation_function,
+    without_discs,
 )
+from coverage_ros.core.strategies.bvc.peaks import density_peaks, unattended_peak
 from coverage_ros.errors import ConfigError
 
 #: [m] lidar points this close to a neighbour's body are the neighbour, not a wall: they are
@@ -96,10 +98,13 @@ class BvcParams:
     #: [m] uniform density: the shadows of obstacles narrower than this (pillars, teammates)
     #: count as seen free (0: only what the beams reached); see guided_map.bridge_shadows
     bridge_width: float = 0.5
+    #: a robot with no peak of its own in range heads for one no robot attends (.peaks)
+    seek_peaks: bool = True
 
     def __post_init__(self) -> None:
-        if not isinstance(self.guided, bool):
-            raise ConfigError.at("bvc.guided", "must be true or false", self.guided)
+        for flag in ("guided", "seek_peaks"):
+            if not isinstance(getattr(self, flag), bool):
+                raise ConfigError.at(f"bvc.{flag}", "must be true or false", getattr(self, flag))
         for name in ("gamma", "period", "converged_speed", "grid_resolution", "u_max",
                      "nf_radius", "bridge_width"):
             value = getattr(self, name)
@@ -155,7 +160,10 @@ class BvcStrategy(Strategy):
         self.graph = WindowGraph(2 * self.nf_cells + 1, self.params.grid_resolution)
         self.clock = ControlPeriod(self.params.period)
         self._goal: np.ndarray | None = None
+        self._peaks: np.ndarray | None = None  # the density's peaks, found at first use
         self._last_step: np.ndarray | None = None  # centroid - position at the last update
+        self._extended = False  # the last navigation goal lay beyond the centroid
+        self._overshot = False  # ... and the centroid then turned back: no more until moving
 
     # ------------------------------------------------------------------ interface
     def shared_state(self, obs: Observation) -> SharedState:
@@ -177,7 +185,7 @@ class BvcStrategy(Strategy):
         nodes, xy, wdA = self._samples(cell)
         phi, mode, field = wdA, "plain", None
         if self.params.guided:
-            field = self._guided_field(p, xy, cell, obs)
+            field = self._guided_field(p, xy, cell, obs, (nb, nb_r))
             if field is not None:
                 phi, mode = field.phi, "guided"
         total = float(phi.sum())
@@ -214,14 +222,20 @@ class BvcStrategy(Strategy):
         the navigation's arrival tolerance while the centroid keeps moving ahead of the robot
         (the same direction as last update - a cell face that recedes as the robot follows
         it): then a point of the cell that far along, so that the robot keeps following Eq.
-        3 instead of parking. A centroid that turned back (overshoot) is sent as it is."""
+        3 instead of parking. A centroid that turned back (overshoot) is sent as it is, and
+        after an extended goal was overshot there is no other until the centroid lies a
+        tolerance away again: near a balance (two robots sharing a peak) extending would make
+        the robots hunt around it for ever."""
         tol = self.context.convergence_tolerance
         last, self._last_step = self._last_step, step.copy()
-        if not (1e-3 < dist < tol) or last is None or float(step @ last) <= 0.0:
+        ahead_again = last is not None and float(step @ last) > 0.0
+        self._overshot = dist < tol and (self._overshot or (self._extended and not ahead_again))
+        self._extended = False
+        if not (1e-3 < dist < tol) or not ahead_again or self._overshot:
             return target
         ahead = p + step * (EXTEND_FACTOR * tol / dist)
-        inside = points_in_polygon(ahead[None], cell.polygon)[0]
-        return ahead if inside else target
+        self._extended = bool(points_in_polygon(ahead[None], cell.polygon)[0])
+        return ahead if self._extended else target
 
     def _stay(self, p: np.ndarray, reason: str, cell: BufferedCell | None = None) -> Decision:
         return Decision(goal=p.copy(), velocity=None, cell=np.zeros(0, np.int64),
@@ -258,28 +272,43 @@ class BvcStrategy(Strategy):
         xy = domain.to_map(domain.node_centers(nodes))
         return nodes, xy, domain.mass_element.ravel()[nodes]
 
+    def _unattended_peak(self, p: np.ndarray, nb: np.ndarray) -> np.ndarray | None:
+        """The peak to head for when none in range is this robot's (:mod:`.peaks`)."""
+        if not self.params.seek_peaks:
+            return None
+        if self._peaks is None:
+            self._peaks = density_peaks(self.context.domain, self.sensor_radius)
+        return unattended_peak(p, self._peaks, nb, self.sensor_radius)
+
     def _speed(self, step: np.ndarray, dt: float) -> float:
         """|u| of Eq. 3 towards a target ``step`` away: ``|step| / dt`` capped at ``u_max``."""
         return min(self.u_max, float(np.hypot(*step)) / dt)
 
     def _guided_field(self, p: np.ndarray, xy: np.ndarray, cell: BufferedCell,
-                      obs: Observation) -> _GuidedField | None:
+                      obs: Observation, team: tuple[np.ndarray, np.ndarray]
+                      ) -> _GuidedField | None:
         """Eq. 8 at the cell samples ``xy``, or None when no goal can be reached (the caller
-        falls back to the importance density)."""
+        falls back to the importance density). ``team``: the neighbours' positions and
+        radii."""
         local = local_map(self.memory, p, self.nf_cells, self.radius)
         nodes, cand = self._window(p, self.sensor_radius)
         # Candidates: inside the own (unbuffered) Voronoi region - the region this robot is
-        # tasked with - and reachable in what it has seen.
+        # tasked with - and reachable in what it has seen. A robot heading for a peak nobody
+        # attends goes where it is nearest that peak, round its neighbours: its bisector with
+        # a neighbour between it and the peak would hold it behind that neighbour.
+        peak = self._unattended_peak(p, team[0])
         rp = cell.robot_planes
-        own = np.all(cand @ rp.a.T <= rp.b[None, :], axis=1) if len(rp) else \
-            np.ones(len(cand), dtype=bool)
+        own = np.all(cand @ rp.a.T <= rp.b[None, :], axis=1) if len(rp) and peak is None \
+            else np.ones(len(cand), dtype=bool)
+        if peak is not None:
+            local = without_discs(local, team[0], team[1] + self.radius)
         domain = self.context.domain
         ok = own & local.is_reachable(cand) & domain.free.ravel()[nodes]
         if not ok.any():
             return None
         values = domain.density.ravel()[nodes[ok]]
         cand = cand[ok]
-        if values.max() <= values.min() * (1.0 + FLAT_DENSITY):
+        if peak is None and values.max() <= values.min() * (1.0 + FLAT_DENSITY):
             # No peak to be guided to (a uniform density): every candidate ties, and the
             # nearest - the robot's own spot - would hold the robot in place. Be guided to the
             # middle of what is its own instead: the candidate nearest to the centroid of the
@@ -299,8 +328,9 @@ class BvcStrategy(Strategy):
                 cand = cand[seen]
             k = int(np.argmin(np.hypot(*(cand - cand.mean(axis=0)).T)))
         else:
-            k = local_maximum_goal(cand, values, p, self._goal,
-                                   match_radius=domain.resolution)
+            if peak is not None:  # (closer to the peak is higher; the same hysteresis)
+                values = np.exp(-np.hypot(*(cand - peak).T) / self.sensor_radius)
+            k = local_maximum_goal(cand, values, p, self._goal, match_radius=domain.resolution)
         if k is None:
             return None
         self._goal = cand[k].copy()

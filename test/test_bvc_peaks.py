@@ -20,6 +20,7 @@ from coverage_ros.core.strategies import (
     make_strategy,
     strategy_choice,
 )
+from coverage_ros.core.strategies.bvc.guided_map import ObstacleMemory, local_map, without_discs
 from coverage_ros.core.strategies.bvc.peaks import density_peaks, unattended_peak
 from coverage_ros.core.world import LidarSpec, RobotSpec, load_world, parse_world
 from coverage_ros.errors import ConfigError
@@ -131,3 +132,22 @@ def test_a_plateau_is_not_a_peak():
                                     "polygons": [[[1, 1], [4, 1], [4, 4], [1, 4]]]}})
     domain = CoverageDomain.from_grid(spec.grid, 0.105, spec.density)
     assert len(density_peaks(domain, 3.0)) == 0
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_teammates_block_the_cells_within_their_discs_as_a_whole_window_check_does(seed):
+    rng = np.random.default_rng(seed)
+    memory = ObstacleMemory.covering((0.0, 0.0, 16.0, 16.0), 0.1)
+    memory.add(rng.uniform(0, 16, (300, 2)))
+    local = local_map(memory, np.array([8.0, 8.0]), 60, 0.05)
+    centres = rng.uniform(-1, 17, (15, 2))  # some off the window, some off the map
+    radii = rng.uniform(0.1, 0.5, 15)
+    h, w = local.free.shape
+    rows, cols = np.mgrid[0:h, 0:w]
+    xy = memory.centers((rows + local.row0).ravel(), (cols + local.col0).ravel())
+    d = np.hypot(xy[:, None, 0] - centres[None, :, 0], xy[:, None, 1] - centres[None, :, 1])
+    near = np.any(d <= radii[None, :] + 0.05, axis=1).reshape(h, w)
+    blocked = without_discs(local, centres, radii)
+    assert np.array_equal(blocked.free, local.free & ~near)
+    assert not (blocked.reachable & ~blocked.free).any()
+    assert np.array_equal(without_discs(local, np.zeros((0, 2)), np.zeros(0)).free, local.free)

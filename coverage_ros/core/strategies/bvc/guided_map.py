@@ -210,15 +210,20 @@ def local_map(memory: ObstacleMemory, position: np.ndarray, half_cells: int,
 def without_discs(local: LocalMap, centres: np.ndarray, radii: np.ndarray) -> LocalMap:
     """``local`` with the cells whose centre lies within ``radii (J,)`` (plus half a cell) of
     ``centres (J, 2)`` [m] blocked too - teammates as obstacles, for paths round them."""
-    if len(centres) == 0:
-        return local
     mem = local.memory
     h, w = local.free.shape
-    rows, cols = np.mgrid[0:h, 0:w]
-    xy = mem.centers((rows + local.row0).ravel(), (cols + local.col0).ravel())
-    d = np.hypot(xy[:, None, 0] - centres[None, :, 0], xy[:, None, 1] - centres[None, :, 1])
-    near = np.any(d <= radii[None, :] + 0.5 * mem.resolution, axis=1).reshape(h, w)
-    free = local.free & ~near
+    free = local.free.copy()
+    centres = np.asarray(centres, np.float64).reshape(-1, 2)
+    cells = mem.cells(centres) - np.array([local.row0, local.col0])
+    reaches = np.asarray(radii, np.float64) + 0.5 * mem.resolution
+    for centre, (r, c), reach in zip(centres, cells, reaches, strict=True):
+        k = int(math.ceil(reach / mem.resolution)) + 1  # only the disc's box is looked at
+        r0, r1, c0, c1 = max(r - k, 0), min(r + k + 1, h), max(c - k, 0), min(c + k + 1, w)
+        if r0 >= r1 or c0 >= c1:
+            continue  # off the window
+        rows, cols = np.mgrid[r0:r1, c0:c1]
+        xy = mem.centers(rows + local.row0, cols + local.col0)
+        free[r0:r1, c0:c1] &= np.hypot(xy[..., 0] - centre[0], xy[..., 1] - centre[1]) > reach
     return LocalMap(local.row0, local.col0, free, _reachable_from_centre(free), mem)
 
 

@@ -137,3 +137,19 @@ def test_a_mixed_team_from_a_team_file(tmp_path, sandbox):
     assert min(area[0], area[1]) > max(area[2], area[3]) > 0.0, (area, final)
     assert min(area[2], area[3]) > math.pi * 0.16 ** 2, (area, final)
     assert summary["metrics"]["H"] <= 0.6 * summary["metrics"]["H_start"]
+
+
+def test_bvc_robots_at_one_area_of_interest_send_one_to_the_other(tmp_path):
+    """The field's two areas of interest, three map-free bvc robots starting by the second:
+    the robot left without a peak of its own drives round the shed to the first, which nobody
+    attends (seek_peaks), and the other two stay at the second."""
+    starts = "14.0,7.5,0;14.6,8.4,0;15.0,7.0,0"
+    summary = run_team(tmp_path / "team", "--world", "field", "--robots", "3", "--map-free",
+                       "--strategy", "bvc", "--starts", starts, "--duration", "100",
+                       "--rtf", "2", offset=20)
+    final = np.array([r["final"][:2] for r in summary["robots"]])
+    areas = np.array([[4.0, 9.5], [13.0, 6.0]])  # the field's Gaussian means
+    gap = np.hypot(*(final[:, None] - areas[None]).transpose(2, 0, 1))
+    assert (gap[:, 0] < 1.0).sum() == 1 and (gap[:, 1] < 1.5).sum() == 2, \
+        team_diagnosis(summary, tmp_path / "team")
+    assert all(r["collisions"] == 0 for r in summary["robots"]), summary["robots"]

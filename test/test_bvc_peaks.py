@@ -21,7 +21,7 @@ from coverage_ros.core.strategies import (
     strategy_choice,
 )
 from coverage_ros.core.strategies.bvc.guided_map import ObstacleMemory, local_map, without_discs
-from coverage_ros.core.strategies.bvc.peaks import density_peaks, unattended_peak
+from coverage_ros.core.strategies.bvc.peaks import density_peaks, peak_role
 from coverage_ros.core.world import LidarSpec, RobotSpec, load_world, parse_world
 from coverage_ros.errors import ConfigError
 
@@ -59,13 +59,18 @@ def test_the_peaks_are_the_tops_of_the_bumps_and_a_flat_map_has_none():
 
 def test_the_owner_keeps_its_peak_and_the_robot_beside_it_takes_the_open_one():
     owner, beside = np.array([2.2, 3.0]), np.array([1.6, 3.0])
-    assert unattended_peak(owner, TWO_PEAKS, beside[None], 3.0) is None
-    assert np.array_equal(unattended_peak(beside, TWO_PEAKS, owner[None], 3.0), TWO_PEAKS[1])
-    # Both peaks attended: nobody moves on.
+    role = peak_role(owner, TWO_PEAKS, beside[None], 3.0)
+    assert role.owns and role.target is None and not role.peakless
+    role = peak_role(beside, TWO_PEAKS, owner[None], 3.0)
+    assert not role.owns and np.array_equal(role.target, TWO_PEAKS[1])
+    # Both peaks attended: the robot beside an owner owns none and seeks none.
     third = np.array([9.0, 3.0])
-    assert unattended_peak(beside, TWO_PEAKS, np.array([owner, third]), 3.0) is None
-    # No peaks at all.
-    assert unattended_peak(beside, np.zeros((0, 2)), owner[None], 3.0) is None
+    assert peak_role(beside, TWO_PEAKS, np.array([owner, third]), 3.0).peakless
+    # One open peak, two robots without one: the nearer goes, the other covers.
+    far = np.array([1.0, 5.0])
+    assert np.array_equal(peak_role(beside, TWO_PEAKS, np.array([owner, far]), 3.0).target,
+                          TWO_PEAKS[1])
+    assert peak_role(far, TWO_PEAKS, np.array([owner, beside]), 3.0).peakless
 
 
 def test_the_matching_does_not_leave_a_far_robot_the_farthest_peak():
@@ -74,16 +79,20 @@ def test_the_matching_does_not_leave_a_far_robot_the_farthest_peak():
     # robot 1 to peak 0 (6.8 m) and robot 0 to peak 1 (7.7 m).
     peaks = np.array([[12.5, 2.5], [6.2, 7.2], [4.7, 1.5]])
     team = np.array([[1.8, 13.6], [10.3, 8.9], [1.1, 2.5]])
-    got = [unattended_peak(team[i], peaks, np.delete(team, i, axis=0), 3.0) for i in range(3)]
+    got = [_target(team, i, peaks, 3.0) for i in range(3)]
     assert np.array_equal(got[0], peaks[1]) and np.array_equal(got[1], peaks[0])
     assert np.array_equal(got[2], peaks[2])
+
+
+def _target(team: np.ndarray, i: int, peaks: np.ndarray, reach: float) -> np.ndarray | None:
+    return peak_role(team[i], peaks, np.delete(team, i, axis=0), reach).target
 
 
 @pytest.mark.parametrize("seed", range(5))
 def test_every_robot_computes_the_same_matching(seed):
     rng = np.random.default_rng(seed)
     peaks, team = rng.uniform(0, 20, (4, 2)), rng.uniform(0, 20, (6, 2))
-    got = [unattended_peak(team[i], peaks, np.delete(team, i, axis=0), 2.0) for i in range(6)]
+    got = [_target(team, i, peaks, 2.0) for i in range(6)]
     chosen = [tuple(g) for g in got if g is not None]
     assert len(chosen) == len(set(chosen))  # no open peak sent two robots
     d = np.hypot(*(peaks[:, None] - team[None]).transpose(2, 0, 1))
@@ -151,3 +160,26 @@ def test_teammates_block_the_cells_within_their_discs_as_a_whole_window_check_do
     assert np.array_equal(blocked.free, local.free & ~near)
     assert not (blocked.reachable & ~blocked.free).any()
     assert np.array_equal(without_discs(local, np.zeros((0, 2)), np.zeros(0)).free, local.free)
+
+
+def test_a_robot_without_a_peak_to_keep_or_seek_covers_round_the_owner():
+    # Both peaks attended (an owner at each): the robot beside the first owner moves to the
+    # centroid of its cell under the importance density (Lloyd), not up against the owner.
+    domain = _two_peak_domain()
+    ctx = StrategyContext(domain=domain, robot=RobotSpec(sensor_radius=3.5,
+                                                         lidar=LidarSpec(range_max=3.5)))
+    owner, beside, other = np.array([2.2, 3.0]), np.array([1.6, 3.0]), np.array([10.0, 3.0])
+    pose = np.array([*beside, 0.0])
+    scan = simulate_scan(domain.geometry, pose, LidarSpec(range_max=3.5),
+                         np.array([owner, other]), np.array([0.105, 0.105]))
+    nbrs = [Neighbour(1, SharedState(owner)), Neighbour(2, SharedState(other))]
+    d = make_strategy("bvc", ctx).update(Observation(0, pose, 0.0, scan), nbrs)
+    assert d.mode == "plain" and d.details.guide_goal is None
+    # The density-weighted centroid of its cell: left of the bisector (x = 1.9), by the peak.
+    cell_nodes = d.cell
+    xy = domain.to_map(domain.node_centers(cell_nodes))
+    w = domain.mass_element.ravel()[cell_nodes]
+    assert np.allclose(d.target, (xy * w[:, None]).sum(axis=0) / w.sum(), atol=1e-9)
+    staying = make_strategy(strategy_choice("bvc", {"seek_peaks": False}), ctx)
+    d = staying.update(Observation(0, pose, 0.0, scan), nbrs)
+    assert d.mode == "guided" and d.details.guide_goal[0] > 1.7  # at the bisector, by the owner

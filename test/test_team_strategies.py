@@ -141,8 +141,9 @@ def test_a_mixed_team_from_a_team_file(tmp_path, sandbox):
 
 def test_bvc_robots_at_one_area_of_interest_send_one_to_the_other(tmp_path):
     """The field's two areas of interest, three map-free bvc robots starting by the second:
-    the robot left without a peak of its own drives round the shed to the first, which nobody
-    attends (seek_peaks), and the other two stay at the second."""
+    a robot without a peak of its own drives round the shed to the first, which nobody attends
+    (seek_peaks), one keeps the second and the third covers round it (with seek_peaks false
+    all three stayed at the second: H 2081 -> 1666; with it 284)."""
     starts = "14.0,7.5,0;14.6,8.4,0;15.0,7.0,0"
     summary = run_team(tmp_path / "team", "--world", "field", "--robots", "3", "--map-free",
                        "--strategy", "bvc", "--starts", starts, "--duration", "100",
@@ -150,6 +151,8 @@ def test_bvc_robots_at_one_area_of_interest_send_one_to_the_other(tmp_path):
     final = np.array([r["final"][:2] for r in summary["robots"]])
     areas = np.array([[4.0, 9.5], [13.0, 6.0]])  # the field's Gaussian means
     gap = np.hypot(*(final[:, None] - areas[None]).transpose(2, 0, 1))
-    assert (gap[:, 0] < 1.0).sum() == 1 and (gap[:, 1] < 1.5).sum() == 2, \
+    ok = (gap[:, 0] < 1.0).sum() == 1 and (gap[:, 1] < 1.0).sum() == 1 \
+        and (gap.min(axis=1) < 3.5).all()  # the third within sensing range of the second
+    assert ok and summary["metrics"]["H"] <= 0.3 * summary["metrics"]["H_start"], \
         team_diagnosis(summary, tmp_path / "team")
     assert all(r["collisions"] == 0 for r in summary["robots"]), summary["robots"]

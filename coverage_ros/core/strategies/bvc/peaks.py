@@ -7,9 +7,10 @@ settles at the border of its region nearest to it - beside its neighbour, while 
 both robots' sensing ranges stays uncovered (in our re-drawn Table I, 3 robots on 3 peaks, the
 peak missed in most failed trials). The density is the map's prior ("GIS prior"), known to
 every robot, and so are its neighbours' positions: a robot with no peak of its own in range
-heads for the nearest peak that no robot is within sensing range of. Every robot decides from
-the same positions, so two robots left without a peak may head for the same one; the nearer
-then owns it and the other looks for the next.
+is matched to one that no robot is within sensing range of (:func:`peak_role`; every robot
+computes the same matching from the same positions), and a robot left with neither a peak to
+keep nor one to seek covers round the others, with Lloyd's centroid under the importance
+density instead of a guide to the border of its region.
 
 A *peak* is a free cell whose density is the largest within a square window of one sensing
 radius on each side and strictly above the smallest of the free cells there (the top of a
@@ -20,6 +21,7 @@ of a tail); a few tied cells are one peak, many (a plateau, an area of equal imp
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 from scipy import ndimage
@@ -62,19 +64,29 @@ def density_peaks(domain: CoverageDomain, radius: float) -> np.ndarray:
     return sums[small] / cells[small, None]
 
 
-def unattended_peak(position: np.ndarray, peaks: np.ndarray, neighbours: np.ndarray,
-                    reach: float) -> np.ndarray | None:
-    """The peak of ``peaks (K, 2)`` that the robot at ``position`` should head for, or None.
+@dataclass(frozen=True)
+class PeakRole:
+    """What a robot does about the density's peaks (:func:`peak_role`)."""
+
+    owns: bool  # it is the nearest robot to an attended peak: it keeps it
+    target: np.ndarray | None  # (2,) [m] the unattended peak it is matched to, if any
+
+    @property
+    def peakless(self) -> bool:
+        """Neither owner nor matched: it covers around the others (Lloyd in its cell)."""
+        return not self.owns and self.target is None
+
+
+def peak_role(position: np.ndarray, peaks: np.ndarray, neighbours: np.ndarray,
+              reach: float) -> PeakRole:
+    """The robot at ``position``'s role among ``peaks (K, 2)``, ``K >= 1``.
 
     A peak is attended when the robot nearest to it (its Voronoi owner among the robot and
     ``neighbours (J, 2)``) is within ``reach`` [m]; the owners of attended peaks keep them.
     The other robots are matched to the unattended peaks so that the summed straight-line
     distance is least (scipy's ``linear_sum_assignment``: the same matching on every robot,
     which all see the same positions) - a far robot is not left the farthest peak because a
-    nearer one took the closest pair first - and this robot's peak is returned (None if it
-    owns an attended peak or is matched to none)."""
-    if len(peaks) == 0:
-        return None
+    nearer one took the closest pair first."""
     team = np.vstack([np.asarray(position, np.float64)[None, :], neighbours.reshape(-1, 2)])
     d = np.hypot(peaks[:, None, 0] - team[None, :, 0], peaks[:, None, 1] - team[None, :, 1])
     owner = np.argmin(d, axis=1)
@@ -82,8 +94,8 @@ def unattended_peak(position: np.ndarray, peaks: np.ndarray, neighbours: np.ndar
     busy = np.zeros(len(team), dtype=bool)
     busy[owner[attended]] = True
     if busy[0] or attended.all():
-        return None
+        return PeakRole(bool(busy[0]), None)
     open_peaks, idle = np.flatnonzero(~attended), np.flatnonzero(~busy)
     rows, cols = linear_sum_assignment(d[np.ix_(open_peaks, idle)])
     mine = rows[idle[cols] == 0]
-    return peaks[open_peaks[mine[0]]].copy() if len(mine) else None
+    return PeakRole(False, peaks[open_peaks[mine[0]]].copy() if len(mine) else None)

@@ -10,7 +10,9 @@ Every control period the robot
 2. in guided mode (default) remembers the lidar hits, picks the highest-density point it can
    reach within sensing range and inside its own Voronoi region as goal, and replaces the
    density by ``phi = exp(-gamma M_go)`` with ``M_go`` the cost-to-go to that goal over what it
-   has seen (Eq. 8, :mod:`.guided_map`); in plain mode it keeps the importance density (the classic
+   has seen (Eq. 8, :mod:`.guided_map`); with ``seek_peaks`` a robot whose neighbour keeps the
+   peak heads for a peak nobody attends, or covers round the others if none is left
+   (:mod:`.peaks`); in plain mode it keeps the importance density (the classic
    move-to-centroid policy, which stalls behind non-convex obstacles);
 3. moves towards the centroid ``C`` of its cell under that density (Eq. 3). The decision's
    goal is ``C`` itself: it lies in the convex cell, so the straight move there is
@@ -65,7 +67,7 @@ from coverage_ros.core.strategies.bvc.guided_map import (
     navigation_function,
     without_discs,
 )
-from coverage_ros.core.strategies.bvc.peaks import density_peaks, unattended_peak
+from coverage_ros.core.strategies.bvc.peaks import PeakRole, density_peaks, peak_role
 from coverage_ros.errors import ConfigError
 
 #: [m] lidar points this close to a neighbour's body are the neighbour, not a wall: they are
@@ -272,13 +274,14 @@ class BvcStrategy(Strategy):
         xy = domain.to_map(domain.node_centers(nodes))
         return nodes, xy, domain.mass_element.ravel()[nodes]
 
-    def _unattended_peak(self, p: np.ndarray, nb: np.ndarray) -> np.ndarray | None:
-        """The peak to head for when none in range is this robot's (:mod:`.peaks`)."""
+    def _peak_role(self, p: np.ndarray, nb: np.ndarray) -> PeakRole | None:
+        """This robot's role among the density's peaks (:mod:`.peaks`); None without
+        ``seek_peaks`` or peaks."""
         if not self.params.seek_peaks:
             return None
         if self._peaks is None:
             self._peaks = density_peaks(self.context.domain, self.sensor_radius)
-        return unattended_peak(p, self._peaks, nb, self.sensor_radius)
+        return peak_role(p, self._peaks, nb, self.sensor_radius) if len(self._peaks) else None
 
     def _speed(self, step: np.ndarray, dt: float) -> float:
         """|u| of Eq. 3 towards a target ``step`` away: ``|step| / dt`` capped at ``u_max``."""
@@ -296,7 +299,10 @@ class BvcStrategy(Strategy):
         # tasked with - and reachable in what it has seen. A robot heading for a peak nobody
         # attends goes where it is nearest that peak, round its neighbours: its bisector with
         # a neighbour between it and the peak would hold it behind that neighbour.
-        peak = self._unattended_peak(p, team[0])
+        role = self._peak_role(p, team[0])
+        if role is not None and role.peakless:
+            return None  # every peak kept or sought by others: cover round them (Lloyd)
+        peak = None if role is None else role.target
         rp = cell.robot_planes
         own = np.all(cand @ rp.a.T <= rp.b[None, :], axis=1) if len(rp) and peak is None \
             else np.ones(len(cand), dtype=bool)

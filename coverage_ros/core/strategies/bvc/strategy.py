@@ -100,7 +100,8 @@ class BvcParams:
     #: [m] uniform density: the shadows of obstacles narrower than this (pillars, teammates)
     #: count as seen free (0: only what the beams reached); see guided_map.bridge_shadows
     bridge_width: float = 0.5
-    #: a robot with no peak of its own in range heads for one no robot attends (.peaks)
+    #: a robot with no peak of its own in range heads for one no robot attends, or covers
+    #: round the owners (Lloyd) if none is left (.peaks)
     seek_peaks: bool = True
 
     def __post_init__(self) -> None:

@@ -298,7 +298,13 @@ class RerunBridge(Node):
 
     # ------------------------------------------------------------------ per-robot topics
     def _on_ground_truth(self, robot_id: int, msg: Odometry) -> None:
-        self.team.pose(robot_id, self._map_frame(msg.header), conv.odometry_to_pose(msg))
+        view = self.team.robots.get(robot_id)
+        first = view is not None and view.poses.latest_time is None
+        t, pose = self._map_frame(msg.header), conv.odometry_to_pose(msg)
+        self.team.pose(robot_id, t, pose)
+        if first:  # "joined" said its topics exist; this says it is on the map now
+            self.get_logger().info(f"robot {robot_id}: first pose ({pose[0]:.2f}, {pose[1]:.2f}) "
+                                   f"at t={t:.2f} s")
 
     def _on_scan(self, robot_id: int, msg: LaserScan) -> None:
         # The scan frame is the robot's body frame (lidar at the centre, x forward).

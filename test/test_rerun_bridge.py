@@ -334,9 +334,9 @@ def run(tmp_path_factory):
             # Robot 1 leaves only once the bridge has it on the map, and 2 s of sim time later
             # (scans every 0.2 s): a loaded machine had removed it before the world's ground
             # truth reached the bridge.
-            client.spin_until(lambda: all(f"robot {rid}: first pose" in bridge.output()
-                                          for rid in (0, 1)),
-                              60.0, "the bridge to have both robots' first pose")
+            client.spin_until(lambda: all(f"robot {rid}: first {what}" in bridge.output()
+                                          for rid in (0, 1) for what in ("pose", "scan")),
+                              60.0, "the bridge to have both robots' first pose and scan")
             since = conv.from_time_msg(client.wait_for("/clock", Clock).clock)
             now = client.wait_for("/clock", Clock,
                                   lambda m: conv.from_time_msg(m.clock) > since + 2.0, 30.0).clock
@@ -365,9 +365,11 @@ def run(tmp_path_factory):
             client.publisher("/world/spawn", String).publish(String(data="{id: 5}"))
             client.spin_until(lambda: truth[5], 30.0, "robot 5's ground truth")
             client.spin_until(lambda: "robot 1 left" in bridge.output()
-                              and "robot 5 joined" in bridge.output(), 30.0,
+                              and "robot 5: first pose" in bridge.output(), 60.0,
                               "the bridge to notice robot 1 leaving and robot 5 joining")
-            client.spin_for(1.5)  # robot 0 brakes (cmd_vel timeout) and rests
+            since = conv.from_time_msg(client.wait_for("/clock", Clock).clock)
+            client.wait_for("/clock", Clock,  # robot 0 brakes (cmd_vel timeout) and rests, and
+                            lambda m: conv.from_time_msg(m.clock) > since + 3.0, 30.0)  # metrics
             last = {rid: tuple(truth[rid][-1]) for rid in (0, 5)}
         finally:
             client.close()

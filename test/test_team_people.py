@@ -96,7 +96,10 @@ def test_a_human_driven_robot_is_covered_around_and_rejoins(tmp_path):
             Clock, "/clock", lambda m: clock.update(t=m.clock.sec + 1e-9 * m.clock.nanosec), 10)
         poses: dict[int, np.ndarray] = {}
 
+        statuses = {"n": 0}  # /world/robots messages so far
+
         def on_status(msg) -> None:
+            statuses["n"] += 1
             for st in msg.status:
                 v = {kv.key: kv.value for kv in st.values}
                 if "id" in v:
@@ -137,9 +140,27 @@ def test_a_human_driven_robot_is_covered_around_and_rejoins(tmp_path):
             return future.result()
 
         assert call("/team/pause", True).success
-        client.spin_for(1.5)  # the robots brake
-        frozen = {i: p.copy() for i, p in poses.items()}
-        client.spin_until(lambda: clock["t"] - t0 > HOLD_UNTIL + 5.0, 30, "sim time")
+        def log_of(i: int) -> str:
+            path = out / "logs" / f"robot_{i}.log"
+            return path.read_text(errors="replace") if path.exists() else ""
+
+        def fresh_statuses(k: int) -> None:
+            n = statuses["n"]
+            client.spin_until(lambda: statuses["n"] >= n + k, 30, f"{k} world statuses")
+
+        def at_rest() -> bool:  # no robot moved over two world statuses
+            before = {i: p.copy() for i, p in poses.items()}
+            fresh_statuses(2)
+            return all(np.hypot(*(poses[i] - before[i])) < 0.002 for i in range(4))
+
+        # The launcher's reply means the requests are out: every robot says it paused, brakes,
+        # and stays put for 5 s of sim time.
+        client.spin_until(lambda: all(f"robot {i}: paused" in log_of(i) for i in range(4)),
+                          60, "every robot's 'paused'")
+        client.spin_until(at_rest, 60, "the paused robots to brake")
+        frozen, t_frozen = {i: p.copy() for i, p in poses.items()}, clock["t"]
+        client.spin_until(lambda: clock["t"] > t_frozen + 5.0, 60, "sim time")
+        fresh_statuses(1)
         assert all(np.hypot(*(poses[i] - frozen[i])) < 0.02 for i in range(4)), (frozen, poses)
         assert call("/team/pause", False).success
 

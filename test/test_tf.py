@@ -4,6 +4,7 @@ world node's REP 105 chain per robot, and robots that take their pose from it.""
 from __future__ import annotations
 
 import math
+import time
 
 import numpy as np
 import pytest
@@ -84,11 +85,23 @@ def test_the_world_publishes_each_robots_chain_consistent_with_ground_truth():
                    for i in (0, 1)}
             drive = Twist()
             drive.linear.x, drive.angular.z = 0.2, 0.4
-            for _ in range(60):
+            # The world is up and listens before the drive (a slow start ate the commands).
+            client.spin_until(lambda: all(truth.values())
+                              and all(p.get_subscription_count() > 0 for p in cmd.values()),
+                              60, "the world's ground truth and cmd_vel subscriptions")
+            start = {i: conv.odometry_to_pose(truth[i][-1])[:2] for i in (0, 1)}
+
+            def driven(i: int) -> float:
+                return float(np.hypot(*(np.subtract(conv.odometry_to_pose(truth[i][-1])[:2],
+                                                    start[i]))))
+
+            deadline = time.monotonic() + 60.0
+            while min(driven(i) for i in (0, 1)) < 0.3 and time.monotonic() < deadline:
                 for pub in cmd.values():
                     pub.publish(drive)
                 client.spin_for(0.1)
-            client.spin_until(lambda: static and all(truth.values()), 10, "tf_static")
+            assert min(driven(i) for i in (0, 1)) >= 0.3, "the robots did not drive 0.3 m"
+            client.spin_until(lambda: static, 10, "tf_static")
         finally:
             client.close()
         assert world.alive()

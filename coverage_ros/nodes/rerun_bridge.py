@@ -197,6 +197,7 @@ class RerunBridge(Node):
                                                      cfg.robot_radius)
         self.subs: dict[int, dict] = {}  # robot id -> {topic kind: Subscription}
         self._idle: dict[int, int] = {}  # robot id -> graph looks without a publisher
+        self._scanned: set[int] = set()  # robots whose first scan was logged
         self._topic_re = re.compile(rf"^/{re.escape(cfg.robot_prefix)}(\d+)/(\w+)$")
         self.create_subscription(Clock, "/clock", self._guard("/clock", self._on_clock),
                                  CLOCK_QOS)
@@ -263,6 +264,7 @@ class RerunBridge(Node):
                 for sub in self.subs.pop(robot_id).values():
                     self.destroy_subscription(sub)
                 self.team.remove_robot(robot_id)
+                self._scanned.discard(robot_id)
                 self.get_logger().info(f"robot {robot_id} left")
 
     # ------------------------------------------------------------------ global topics
@@ -309,6 +311,9 @@ class RerunBridge(Node):
     def _on_scan(self, robot_id: int, msg: LaserScan) -> None:
         # The scan frame is the robot's body frame (lidar at the centre, x forward).
         t = conv.from_time_msg(msg.header.stamp)
+        if robot_id not in self._scanned:
+            self._scanned.add(robot_id)
+            self.get_logger().info(f"robot {robot_id}: first scan at t={t:.2f} s")
         if not self.team.scan(robot_id, t, lambda pose: conv.scan_to_points(msg, pose)):
             self._warn(f"scanpose{robot_id}", f"robot {robot_id}: scan at t={t:.2f} s dropped: "
                        "no ground_truth pose near that time")

@@ -272,7 +272,9 @@ def test_a_restarted_robot_rejoins_and_the_team_reconverges(tmp_path):
     log = (out / "logs" / "robot_1.log").read_text()
     assert log.count("robot 1: strategy geodesic") == 2  # two processes, one log
     updates = [int(n) for n in re.findall(r"(\d+) coverage updates", log)]
-    assert len(updates) == 1 and updates[0] >= 20  # the second one covered until the end
+    # The second one covered until the end (at most 2 updates a second over the ~30 s left;
+    # a slow machine's updates, capped at a tenth of a core, make fewer).
+    assert len(updates) == 1 and updates[0] >= 10
     m = summary["metrics"]
     assert m["H"] <= 0.5 * m["H_start"], team_diagnosis(summary, out)
     assert all(r["collisions"] == 0 for r in robots.values())

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import math
 import signal
 import subprocess
@@ -247,9 +248,17 @@ def test_coverage_teleop_takes_the_robot_over_and_hands_it_back(team, end):
                           30, "the robot to be taken over")
         os.write(master, b"\x1b[D\x1b[D")
         cmds.clear()
-        client.spin_for(2.0)
-        turning = [(m.linear.x, m.angular.z) for m in cmds[-5:]]
-        assert all(v == 0.0 and w == pytest.approx(2 * 2.84 / 5) for v, w in turning), turning
+
+        def turning() -> list[tuple[float, float]]:
+            return [(m.linear.x, m.angular.z) for m in cmds[-5:]]
+
+        def turns_left() -> bool:  # the last five commands: on the spot, two steps to the left
+            return len(cmds) >= 5 and all(v == 0.0 and abs(w - 2 * 2.84 / 5) < 1e-6
+                                          for v, w in turning())
+
+        with contextlib.suppress(TimeoutError):
+            client.spin_until(turns_left, 15, "two left steps")
+        assert turns_left(), turning()
         mark = len(robot.output())
         if end == "q":
             os.write(master, b"q")

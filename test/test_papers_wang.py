@@ -233,9 +233,24 @@ def _fake_outcome(n: int, collided: bool = False) -> TrialOutcome:
                         np.zeros((2, n, 2)), np.full(5, 0.01 * n))
 
 
+@pytest.mark.parametrize("k", range(3))
+def test_scaling_starts_keep_the_papers_margin_from_obstacles_and_each_other(k):
+    """With ``margin`` the starts are that far from every obstacle and from each other's
+    bodies - the team's minimum distance then measures the method, not the draw."""
+    margin = wang.MIN_DISTANCE_PAPER * R
+    size, count = wang.SCALING_WORLDS["28 m arena, dense"]
+    setup = wang.scenario(10_000 * 16 + k, 16, count, size, margin=margin)
+    starts = setup.starts[:, :2]
+    assert world_clearance(setup.world)(starts).min() >= margin
+    gaps = np.hypot(*(starts[:, None] - starts[None]).transpose(2, 0, 1))
+    assert gaps[~np.eye(16, dtype=bool)].min() - R >= margin
+    plain = wang.scenario(k).starts[:, :2]  # Table I's draw is unchanged
+    assert world_clearance(wang.scenario(k).world)(plain).min() >= wang.START_CLEARANCE
+
+
 def test_every_metric_of_the_experiments_is_what_a_run_returns(monkeypatch):
     """A run's keys are the metrics' names (a typo would leave a row without values)."""
-    monkeypatch.setattr(wang, "scenario", lambda k, robots=3, obstacles=0, size=0.0: robots)
+    monkeypatch.setattr(wang, "scenario", lambda k, robots=3, obstacles=0, size=0.0, margin=None: robots)
     monkeypatch.setattr(wang, "trial", lambda name, n, **kw: _fake_outcome(n))
     table, scaling = wang.experiments()
     assert table.key == "wang2024/table1" and table.redrawn and table.seeds >= 5

@@ -299,12 +299,13 @@ def cluttered_trial(rng: np.random.Generator, size: float = 10.0, obstacles: int
                     peak_spacing: float = 3.0, resolution: float = 0.1,
                     robot_radius: float = 0.105, start_clearance: float = 0.3,
                     circle_share: float = 0.5,
-                    circle_radius: tuple[float, float] = (0.2, 0.6)) -> TrialSetup:
+                    circle_radius: tuple[float, float] = (0.2, 0.6),
+                    start_spacing: float | None = None) -> TrialSetup:
     """A ``size x size`` [m] arena with ``obstacles`` random boxes and discs (a disc with
     probability ``circle_share``, of a radius drawn from ``circle_radius`` [m]), a Gaussian
     mixture of ``peaks`` peaks (spread ``sigma`` [m], ``peak_spacing`` [m] apart) in free
     space, and ``robots`` random starts at least ``start_clearance`` [m] from every obstacle and
-    ``4 r`` apart."""
+    ``start_spacing`` [m] apart (None: ``4 r``)."""
     if size <= 4 * start_clearance or obstacles < 0 or robots < 1 or peaks < 1:
         raise ConfigError.at("cluttered_trial", "need size > 4 start_clearance, obstacles >= 0,"
                              " robots >= 1, peaks >= 1", (size, obstacles, robots, peaks))
@@ -330,7 +331,8 @@ def cluttered_trial(rng: np.random.Generator, size: float = 10.0, obstacles: int
     density = {"type": "gaussian_mixture", "components": [
         {"mean": q.round(3).tolist(), "sigma": sigma} for q in peak_xy]}
     spec = parse_world({**base, "density": density})
-    starts = _free_points(rng, clear, size, robots, 4.0 * robot_radius, start_clearance)
+    spacing = 4.0 * robot_radius if start_spacing is None else start_spacing
+    starts = _free_points(rng, clear, size, robots, spacing, start_clearance)
     domain = CoverageDomain.from_grid(spec.grid, robot_radius, spec.density)
     yaw = rng.uniform(-math.pi, math.pi, (robots, 1))
     return TrialSetup(spec, domain, np.hstack([starts, yaw]), peak_xy)

@@ -250,7 +250,8 @@ def test_scaling_starts_keep_the_papers_margin_from_obstacles_and_each_other(k):
 
 def test_every_metric_of_the_experiments_is_what_a_run_returns(monkeypatch):
     """A run's keys are the metrics' names (a typo would leave a row without values)."""
-    monkeypatch.setattr(wang, "scenario", lambda k, robots=3, obstacles=0, size=0.0, margin=None: robots)
+    monkeypatch.setattr(wang, "scenario",
+                        lambda k, robots=3, obstacles=0, size=0.0, margin=None: robots)
     monkeypatch.setattr(wang, "trial", lambda name, n, **kw: _fake_outcome(n))
     table, scaling = wang.experiments()
     assert table.key == "wang2024/table1" and table.redrawn and table.seeds >= 5

@@ -1,6 +1,8 @@
 """Where a robot node's goals go: ``goal_pose`` for the viewers every coverage update, and with
 ``drive: false`` the robot's own navigator on ``goal_topic``, only when the goal moved
-(:class:`~coverage_ros.core.control.goal_relay.GoalRelay`)."""
+(:class:`~coverage_ros.core.control.goal_relay.GoalRelay`); the last goal sent goes out again
+when a subscriber appeared since: a navigator started after the robot node (or restarted) has
+not seen it, and a robot whose goal no longer moves would otherwise wait for ever."""
 
 from __future__ import annotations
 
@@ -18,6 +20,7 @@ class GoalOutput:
         self.shown = publisher(PoseStamped, "goal_pose")
         self.relay = None if drive else GoalRelay(resend_distance)
         self.navigator = None
+        self._listening = 0  # subscriptions to the navigator's topic at the last goal
         if not drive:
             self.navigator = self.shown if goal_topic == "goal_pose" else \
                 publisher(PoseStamped, goal_topic)
@@ -25,7 +28,12 @@ class GoalOutput:
     def publish(self, stamp: Time, goal: np.ndarray | None, pose: np.ndarray) -> None:
         """The strategy's goal (None: none this update) seen from the robot's ``pose``."""
         if self.relay is not None:
-            # An external navigator replans on every goal: send only those that moved.
+            # An external navigator replans on every goal: send only those that moved, and the
+            # last one again to a navigator that subscribed since (module docstring).
+            listening = self.navigator.get_subscription_count()
+            if listening > self._listening and self.relay.sent is not None:
+                self.navigator.publish(conv.pose_stamped_msg(stamp, *self.relay.sent))
+            self._listening = listening
             sent = None if goal is None else self.relay.offer(goal, pose)
             if sent is not None:
                 self.navigator.publish(conv.pose_stamped_msg(stamp, *sent))

@@ -141,41 +141,57 @@ bootstrap_tools() {
         _apt_install "for the web viewer test" chromium chromium-driver
 }
 
-bootstrap_interfaces() {
-    # tf2_msgs (for /tf and /tf_static) is not on PyPI: build it from interfaces/tf2_msgs with
-    # the rosidl generators and ament_cmake wheels, gcc and cmake, and install it into the venv
-    # (no sourcing needed afterwards). Without it the world node publishes no /tf.
-    local want
-    want="$(cd "$COVERAGE_ROS_ROOT" && _hash_of requirements-interfaces.txt \
-        interfaces/tf2_msgs/package.xml interfaces/tf2_msgs/CMakeLists.txt \
-        interfaces/tf2_msgs/msg/*.msg interfaces/cmake/*.cmake)"
-    if _stamp_ok interfaces "$want" && "$VENV/bin/python" -c "import tf2_msgs.msg" 2>/dev/null; then
-        return 0
-    fi
-    if ! command -v cmake >/dev/null 2>&1 || ! command -v g++ >/dev/null 2>&1; then
-        if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
-            _say "installing cmake and g++ (Debian packages, to build tf2_msgs)"
-            timeout 900 apt-get install -y -q cmake g++ >/dev/null 2>&1 || true
-        fi
-    fi
-    _say "building tf2_msgs into .venv (first run: about 30 s)"
-    local build="$COVERAGE_ROS_ROOT/build/interfaces/tf2_msgs"
+_build_interface() {  # _build_interface NAME: interfaces/NAME into the venv
+    local name="$1"
+    local build="$COVERAGE_ROS_ROOT/build/interfaces/$name"
+    rm -rf "$build"
+    mkdir -p "$(dirname "$build")"
     (
         set -e
-        "$VENV/bin/python" -m pip install --disable-pip-version-check -q \
-            -r "$COVERAGE_ROS_ROOT/requirements-interfaces.txt"
-        rm -rf "$build"
-        mkdir -p "$(dirname "$build")"
         export PATH="$VENV/bin:$PATH" CMAKE_PREFIX_PATH="$VENV" AMENT_PREFIX_PATH="$VENV"
-        cmake -S "$COVERAGE_ROS_ROOT/interfaces/tf2_msgs" -B "$build" -DCMAKE_BUILD_TYPE=Release \
+        cmake -S "$COVERAGE_ROS_ROOT/interfaces/$name" -B "$build" -DCMAKE_BUILD_TYPE=Release \
             -DBUILD_TESTING=OFF -DCMAKE_INSTALL_PREFIX="$VENV" \
             -DPython3_EXECUTABLE="$VENV/bin/python" \
             -DCMAKE_PROJECT_INCLUDE="$COVERAGE_ROS_ROOT/interfaces/cmake/drop_missing_include_dirs.cmake" \
             > "$build.configure.log" 2>&1
         cmake --build "$build" -j2 > "$build.build.log" 2>&1
         cmake --install "$build" > "$build.install.log" 2>&1
-    ) && "$VENV/bin/python" -c "import tf2_msgs.msg" 2>/dev/null && _stamp_set interfaces "$want" \
-        || _say "warning: building tf2_msgs failed (logs: $build.*.log); the world node will publish no /tf"
+    ) && "$VENV/bin/python" -c "import $name.msg" 2>/dev/null
+}
+
+bootstrap_interfaces() {
+    # The interface packages in interfaces/, built with the rosidl generators and ament_cmake
+    # wheels, gcc and cmake, and installed into the venv (no sourcing needed afterwards):
+    # coverage_msgs (the stack's own messages; required) and tf2_msgs (/tf and /tf_static; not
+    # on PyPI - without it the world node publishes no /tf).
+    local want
+    want="$(cd "$COVERAGE_ROS_ROOT" && _hash_of requirements-interfaces.txt \
+        interfaces/*/package.xml interfaces/*/CMakeLists.txt interfaces/*/msg/*.msg \
+        interfaces/cmake/*.cmake)"
+    if _stamp_ok interfaces "$want" && "$VENV/bin/python" -c "import tf2_msgs.msg, coverage_msgs.msg" 2>/dev/null; then
+        return 0
+    fi
+    if ! command -v cmake >/dev/null 2>&1 || ! command -v g++ >/dev/null 2>&1; then
+        if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
+            _say "installing cmake and g++ (Debian packages, to build the interface packages)"
+            timeout 900 apt-get install -y -q cmake g++ >/dev/null 2>&1 || true
+        fi
+    fi
+    _say "building coverage_msgs and tf2_msgs into .venv (first run: about a minute)"
+    if ! "$VENV/bin/python" -m pip install --disable-pip-version-check -q \
+        -r "$COVERAGE_ROS_ROOT/requirements-interfaces.txt"; then
+        _say "error: installing the interface build tools failed (network?)"
+        return 1
+    fi
+    if ! _build_interface coverage_msgs; then
+        _say "error: building coverage_msgs failed (logs: build/interfaces/coverage_msgs.*.log)"
+        return 1
+    fi
+    if ! _build_interface tf2_msgs; then
+        _say "warning: building tf2_msgs failed (logs: build/interfaces/tf2_msgs.*.log); the world node will publish no /tf"
+        return 0
+    fi
+    _stamp_set interfaces "$want"
 }
 
 bootstrap_all() {

@@ -11,7 +11,12 @@ QoS (one table for the whole team; README "Nodes, topics and parameters" lists i
   ``cmd_vel``, ``goal_pose``, ``plan``, ``cell``, odometry, ``/world/...``);
 * ``STREAM_QOS`` - best effort, depth 5: what an observer (the rerun bridge) reads of
   high-rate streams; it matches reliable and best-effort publishers alike;
-* ``CLOCK_QOS`` - best effort, depth 1: an observer only needs the newest ``/clock``.
+* ``CLOCK_QOS`` - best effort, depth 1: an observer only needs the newest ``/clock``;
+* lock-step (README "Lock-step simulation": nothing the world's barrier waits for may be lost):
+  ``TICK_QOS`` (``/world/tick``, scans) reliable, depth 10; ``REPORT_QOS``
+  (``/world/tick_report``, every member's answers on one topic) reliable, depth 1000;
+  ``LOCKSTEP_STATE_QOS`` (``coverage_state``) reliable and transient local, depth 10, so that a
+  robot that subscribes late still gets the states of the ticks it waits for.
 
 Threads. rclpy's executor runs every callback of a node on one thread (the *executor thread*).
 A robot's coverage update can take longer than its tracking period, so it runs on the
@@ -58,6 +63,10 @@ SCAN_QOS = qos_profile_sensor_data
 TEAM_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 STREAM_QOS = QoSProfile(depth=5, reliability=ReliabilityPolicy.BEST_EFFORT)
 CLOCK_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
+TICK_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+REPORT_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
+LOCKSTEP_STATE_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
+                                durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 #: [s] wall time between two warnings of the same kind.
 WARN_PERIOD = 5.0

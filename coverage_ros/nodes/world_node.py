@@ -1,8 +1,10 @@
 """world_node: the pymunk world simulator as a ROS 2 node (topics and parameters: README).
 
 It owns the simulation clock: it steps :class:`~coverage_ros.sim.world.World` at a fixed physics
-rate, paced against *wall* time by ``real_time_factor`` (0: as fast as possible), and publishes
-``/clock`` so that every other node runs with ``use_sim_time``. Per robot ``<id>`` in namespace
+rate, paced against *wall* time by ``real_time_factor`` (0: as fast as possible) - or, with
+``lockstep: true``, one ``lockstep_period`` at a time when every robot has answered the last
+(:mod:`~coverage_ros.nodes.world_lockstep`) - and publishes ``/clock`` so that every other node
+runs with ``use_sim_time``. Per robot ``<id>`` in namespace
 ``/robot_<id>`` it subscribes ``cmd_vel`` and publishes ``odom``, ``ground_truth`` and ``scan``.
 Robots are added and removed at run time through ``/world/spawn`` and ``/world/remove``.
 """
@@ -29,11 +31,13 @@ from coverage_ros.nodes.plumbing import (
     MAP_QOS,
     SCAN_QOS,
     TEAM_QOS,
+    TICK_QOS,
     WarnThrottle,
     quiet_publisher,
 )
 from coverage_ros.nodes.runner import declare_parameters, run_node
 from coverage_ros.nodes.tf_output import TfOutput
+from coverage_ros.nodes.world_lockstep import LockstepConfig, WorldLockstep
 from coverage_ros.sim.world import Scan, SimConfig, World
 from coverage_ros.worlds import resolve_world_path
 
@@ -58,6 +62,7 @@ class WorldNodeConfig:
     publish_map: bool = True
     publish_tf: bool = True
     sim: SimConfig = field(default_factory=SimConfig)
+    lockstep: LockstepConfig | None = None  # None: paced by the wall clock
 
     def __post_init__(self) -> None:
         if self.num_robots < -1:
@@ -101,6 +106,18 @@ _PARAMETERS = {  # name: (default, description)
                     "map)"),
     "publish_tf": (True, "publish /tf (map -> odom -> base_link per robot) and /tf_static "
                    "(base_link -> base_scan)"),
+    "lockstep": (False, "lock-step: sim time advances one lockstep_period only when every robot "
+                 "(robot_node lockstep: true) and observer has answered the last tick; odom, "
+                 "ground truth and /clock go out every tick, /world/robots every "
+                 "status_rate_hz of sim time, and real_time_factor > 0 caps the pace"),
+    "lockstep_period": (0.1, "[s] sim time per lock-step tick (a whole number of physics "
+                        "steps; the robots track and send commands once per tick)"),
+    "lockstep_timeout": (10.0, "[s] wall time a silent lock-step member is waited for before "
+                         "the world goes on without it"),
+    "lockstep_start_timeout": (120.0, "[s] wall time the first lock-step tick waits for the "
+                               "robot of every body (and the lockstep_observers) to join"),
+    "lockstep_observers": ("", "comma-separated names of observer members the first tick "
+                           "waits for (coverage-team's monitor: coverage_team)"),
 }
 
 
@@ -126,12 +143,17 @@ class WorldNode(Node):
         scan_noise = p.pop("scan_noise_std")
         starts_text = p.pop("starts")
         team_path = p.pop("team")
+        lockstep = LockstepConfig(
+            p.pop("lockstep_period"), p.pop("lockstep_timeout"), p.pop("lockstep_start_timeout"),
+            tuple(n.strip() for n in p.pop("lockstep_observers").split(",") if n.strip()))
+        if not p.pop("lockstep"):
+            lockstep = None
         sim = SimConfig(seed=p.pop("seed"), physics_rate_hz=p.pop("physics_rate_hz"),
                         cmd_timeout=p.pop("cmd_timeout"),
                         odom_noise_trans=p.pop("odom_noise_trans"),
                         odom_noise_rot=p.pop("odom_noise_rot"),
                         scan_noise_std=scan_noise if scan_noise >= 0 else None)
-        self.config = WorldNodeConfig(sim=sim, **p)
+        self.config = WorldNodeConfig(sim=sim, lockstep=lockstep, **p)
         self.spec = load_planar_world(resolve_world_path(self.config.world), "world")
         self.sim = World(self.spec, self.config.sim)
         count = self.config.num_robots
@@ -166,19 +188,26 @@ class WorldNode(Node):
         if self.config.publish_map:
             self.map_pub.publish(conv.grid_to_occupancy_grid(self.spec.grid,
                                                              conv.to_time_msg(0.0)))
-        self._publish_clock()
+        self.publish_clock()
         dt = self.config.sim.dt
         self._next_odom = 0.0
         self._next_clock = 0.0
         rtf = self.config.real_time_factor
         self._anchor = (time.monotonic(), self.sim.time)  # (wall, sim) pacing reference
         self._rate_ref = self._anchor
-        period = min(max(dt / rtf, 0.001), 0.02) if rtf > 0 else 0.0005
-        self.create_timer(period, self._on_tick)
-        self.create_timer(1.0 / self.config.status_rate_hz, self._publish_status)
+        mode = f"real_time_factor {rtf:g}"
+        self.lockstep = None
+        if self.config.lockstep is not None:
+            self.lockstep = WorldLockstep(self, self.config.lockstep)
+            mode = (f"lock-step every {self.config.lockstep.period:g} s"
+                    + (f", at most {rtf:g}x real time" if rtf > 0 else ""))
+        else:
+            period = min(max(dt / rtf, 0.001), 0.02) if rtf > 0 else 0.0005
+            self.create_timer(period, self._on_tick)
+            self.create_timer(1.0 / self.config.status_rate_hz, self.publish_status)
         self.get_logger().info(
             f"world '{self.spec.name}' ({self.config.world}) with {len(self.sim.robots)} robots, "
-            f"physics {self.config.sim.physics_rate_hz:g} Hz, real_time_factor {rtf:g}")
+            f"physics {self.config.sim.physics_rate_hz:g} Hz, {mode}")
 
     # ------------------------------------------------------------------ helpers
     def _warn(self, key: str, text: str) -> None:
@@ -203,7 +232,8 @@ class WorldNode(Node):
                                   event_callbacks=quiet_publisher()),
             self.create_publisher(Odometry, frames.topic("ground_truth"), TEAM_QOS,
                                   event_callbacks=quiet_publisher()),
-            self.create_publisher(LaserScan, frames.topic("scan"), SCAN_QOS,
+            self.create_publisher(LaserScan, frames.topic("scan"),
+                                  SCAN_QOS if self.config.lockstep is None else TICK_QOS,
                                   event_callbacks=quiet_publisher()))
         if self.tf is not None:
             self.tf.set_robot(robot_id, frames, conv.to_time_msg(self.sim.time))
@@ -237,7 +267,7 @@ class WorldNode(Node):
         self._open_io(robot_id)
         x, y, yaw = robot.pose()
         self.get_logger().info(f"spawned robot {robot_id} at ({x:.2f}, {y:.2f}, {yaw:.2f})")
-        self._publish_status()
+        self.publish_status()
 
     def _on_remove(self, msg: Int32) -> None:
         try:
@@ -247,7 +277,10 @@ class WorldNode(Node):
             return
         self._close_io(msg.data)
         self.get_logger().info(f"removed robot {msg.data}")
-        self._publish_status()
+        if self.lockstep is not None:
+            self.lockstep.robot_removed(msg.data)
+        else:
+            self.publish_status()
 
     # ------------------------------------------------------------------ stepping
     def _on_tick(self) -> None:
@@ -274,24 +307,27 @@ class WorldNode(Node):
         scans = self.sim.step()
         t = self.sim.time
         if t + 1e-9 >= self._next_clock:
-            self._publish_clock()
+            self.publish_clock()
             if self.config.clock_rate_hz > 0:
                 self._next_clock = max(self._next_clock + 1.0 / self.config.clock_rate_hz, t)
         if t + 1e-9 >= self._next_odom:
-            self._publish_odometry()
+            self.publish_odometry()
             self._next_odom = max(self._next_odom + 1.0 / self.config.odom_rate_hz, t)
         for scan in scans:
-            self._publish_scan(scan)
+            self.publish_scan(scan)
+        self.log_contacts()
+
+    def log_contacts(self) -> None:
         for c in self.sim.take_contacts():
             self.get_logger().warning(
                 f"robot {c.robot_id} touched {'a wall' if c.kind == 'wall' else 'a robot'} at "
                 f"({c.position[0]:.2f}, {c.position[1]:.2f}), sim time {c.time:.2f} s")
 
     # ------------------------------------------------------------------ publishing
-    def _publish_clock(self) -> None:
+    def publish_clock(self) -> None:
         self.clock_pub.publish(conv.clock_msg(self.sim.time))
 
-    def _publish_odometry(self) -> None:
+    def publish_odometry(self) -> None:
         stamp = conv.to_time_msg(self.sim.time)
         for robot_id, robot in self.sim.robots.items():
             io = self.io[robot_id]
@@ -311,14 +347,18 @@ class WorldNode(Node):
             self.tf.publish(stamp, {rid: ((r.odom.x, r.odom.y, r.odom.yaw), r.pose())
                                     for rid, r in self.sim.robots.items()})
 
-    def _publish_scan(self, scan: Scan) -> None:
+    def publish_scan(self, scan: Scan):
+        """Publish ``scan``; ``(publisher, message)``, or None for a robot gone meanwhile."""
         io = self.io.get(scan.robot_id)
         robot = self.sim.robots.get(scan.robot_id)
-        if io is not None and robot is not None:
-            io.scan_pub.publish(conv.laser_scan_msg(
-                scan.ranges, robot.spec.lidar, conv.to_time_msg(scan.stamp), io.frames.base_scan))
+        if io is None or robot is None:
+            return None
+        msg = conv.laser_scan_msg(scan.ranges, robot.spec.lidar, conv.to_time_msg(scan.stamp),
+                                  io.frames.base_scan)
+        io.scan_pub.publish(msg)
+        return io.scan_pub, msg
 
-    def _publish_status(self) -> None:
+    def publish_status(self) -> DiagnosticArray:
         now = time.monotonic()
         wall0, sim0 = self._rate_ref
         rtf = (self.sim.time - sim0) / (now - wall0) if now > wall0 else 0.0
@@ -341,6 +381,7 @@ class WorldNode(Node):
                     "lidar_range_max": robot.spec.lidar.range_max},
                 hardware_id=str(robot_id)))
         self.status_pub.publish(msg)
+        return msg
 
 
 def main(args=None) -> int:

@@ -30,14 +30,17 @@ Conventions (REP 103 / REP 105 / REP 117)
   ``x``, ``y`` (the cell centre [m], ``map`` frame), ``hits``, ``misses`` (the sender's counts);
   see :mod:`.evidence`.
 
+* Lock-step (``/world/tick``, ``/world/tick_report``): ``coverage_msgs/LockstepTick`` and
+  ``LockstepReport``; stamps compared as integer nanoseconds; see :mod:`.lockstep`.
+
 * Transforms (``/tf``, ``/tf_static``): ``tf2_msgs/TFMessage`` of planar ``TransformStamped``;
   see :mod:`.tf`.
 * RViz markers (``/coverage/markers``): one marker per robot and kind, id = robot id, namespace =
   kind; see :mod:`.markers`.
 
 The conversions are grouped by topic kind in :mod:`.basics`, :mod:`.grids`, :mod:`.motion`,
-:mod:`.team`, :mod:`.evidence`, :mod:`.markers` and :mod:`.tf`, and all re-exported here: nodes use
-``conv.<name>``.
+:mod:`.team`, :mod:`.evidence`, :mod:`.lockstep`, :mod:`.markers` and :mod:`.tf`, and all
+re-exported here: nodes use ``conv.<name>``.
 
 Arrays cross the message boundary with ``array.array`` (``tobytes``/``np.frombuffer``): element-
 wise assignment of a numpy array to a message sequence is ~60x slower.
@@ -56,6 +59,13 @@ from coverage_ros.nodes.conversions.basics import (
 )
 from coverage_ros.nodes.conversions.evidence import evidence_from_msg, evidence_msg
 from coverage_ros.nodes.conversions.grids import grid_to_occupancy_grid, occupancy_grid_to_grid
+from coverage_ros.nodes.conversions.lockstep import (
+    ns_time_msg,
+    report_msg,
+    stamp_ns,
+    tick_from_msg,
+    tick_msg,
+)
 from coverage_ros.nodes.conversions.markers import (
     MARKER_KINDS,
     RobotMarkers,
@@ -112,6 +122,7 @@ __all__ = [
     "grid_to_occupancy_grid",
     "laser_scan_msg",
     "laser_scan_to_ranges",
+    "ns_time_msg",
     "occupancy_grid_to_grid",
     "odometry_msg",
     "odometry_to_pose",
@@ -124,11 +135,15 @@ __all__ = [
     "pose_stamped_to_pose",
     "quaternion_problem",
     "quaternion_to_yaw",
+    "report_msg",
     "robot_markers",
     "scan_to_points",
+    "stamp_ns",
     "stamp_problem",
     "team_markers",
     "tf_message",
+    "tick_from_msg",
+    "tick_msg",
     "to_time_msg",
     "transform_msg",
     "transforms_of",

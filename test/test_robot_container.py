@@ -39,13 +39,8 @@ from coverage_ros.nodes.plumbing import (
     UpdateTurns,
     UpdateWorker,
 )
-from coverage_ros.nodes.robot_shared import (
-    SLOW_LOOKS,
-    GraphLooks,
-    SharedInputs,
-    grid_digest,
-    state_topics,
-)
+from coverage_ros.nodes.robot_graph import SLOW_LOOKS, GraphLooks
+from coverage_ros.nodes.robot_shared import SharedInputs, grid_digest, state_topics
 
 
 def _params(ids, **extra):

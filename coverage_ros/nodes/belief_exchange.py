@@ -16,14 +16,17 @@ No map server and no merge node: every robot fuses what it hears itself.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 from nav_msgs.msg import OccupancyGrid
 from rclpy.node import Node
 from sensor_msgs.msg import PointCloud2
 
-from coverage_ros.core.exploration.belief import Belief
+from coverage_ros.core.exploration.belief import Belief, Evidence, joined
 from coverage_ros.errors import CoverageError
 from coverage_ros.nodes import conversions as conv
 from coverage_ros.nodes.plumbing import (
+    LOCKSTEP_STATE_QOS,
     MAP_QOS,
     TEAM_QOS,
     WarnThrottle,
@@ -40,16 +43,22 @@ class BeliefExchange:
     """The ``observations`` and ``map`` topics of one exploring robot node."""
 
     def __init__(self, node: Node, belief: Belief, io: ExploreIO, throttle: WarnThrottle,
-                 now) -> None:
+                 now, lockstep: Callable[[int, int, Evidence], None] | None = None) -> None:
+        """``lockstep(sender, stamp [ns], evidence)`` takes the evidence heard instead of the
+        belief (lock-step: merged at the tick it belongs to), and the robot's ticks publish its
+        own (one message each time: :meth:`publish_observations` with ``joined``)."""
         self.node, self.belief, self.io = node, belief, io
         self._throttle = throttle
         self._now = now  # () -> sim time [s]
+        self._lockstep = lockstep
+        self._qos = TEAM_QOS if lockstep is None else LOCKSTEP_STATE_QOS
         self.heard: dict[int, object] = {}  # robot id -> subscription
         self.sent_cells = 0
-        self.pub = node.create_publisher(PointCloud2, OBSERVATIONS, TEAM_QOS,
+        self.pub = node.create_publisher(PointCloud2, OBSERVATIONS, self._qos,
                                          event_callbacks=quiet_publisher())
         self.map_pub = node.create_publisher(OccupancyGrid, "map", MAP_QOS)
-        node.create_timer(1.0 / io.observation_rate, self.publish_observations)
+        if lockstep is None:
+            node.create_timer(1.0 / io.observation_rate, self.publish_observations)
         node.create_timer(1.0 / io.belief_rate, self.publish_map)
 
     def listen(self, robot_id: int, topic: str) -> None:
@@ -58,7 +67,7 @@ class BeliefExchange:
             return
         self.heard[robot_id] = self.node.create_subscription(
             PointCloud2, topic, lambda msg, rid=robot_id: self._on_observations(rid, msg),
-            TEAM_QOS, event_callbacks=quiet_subscription())
+            self._qos, event_callbacks=quiet_subscription())
 
     def _on_observations(self, robot_id: int, msg: PointCloud2) -> None:
         try:
@@ -67,15 +76,24 @@ class BeliefExchange:
             self._throttle.warn(f"obs{robot_id}", f"dropped observations of robot {robot_id}: "
                                 f"{exc}")
             return
-        self.belief.merge(evidence)
+        if self._lockstep is not None:
+            self._lockstep(robot_id, conv.stamp_ns(msg.header.stamp), evidence)
+        else:
+            self.belief.merge(evidence)
 
-    def publish_observations(self) -> None:
+    def publish_observations(self, joined_up: bool = False) -> bool:
+        """The own changes and the next refresh chunk (``joined_up``: in one message); whether
+        anything was sent."""
         stamp = conv.to_time_msg(self._now())
-        for evidence in (self.belief.take_changes(self.io.observation_cells),
-                         self.belief.refresh_chunk(self.io.refresh_cells)):
-            if evidence is not None and len(evidence.cells):
-                self.pub.publish(conv.evidence_msg(evidence, self.belief.lattice, stamp))
-                self.sent_cells += len(evidence.cells)
+        parts = [e for e in (self.belief.take_changes(self.io.observation_cells),
+                             self.belief.refresh_chunk(self.io.refresh_cells))
+                 if e is not None and len(e.cells)]
+        if joined_up and len(parts) > 1:
+            parts = [joined(*parts)]
+        for evidence in parts:
+            self.pub.publish(conv.evidence_msg(evidence, self.belief.lattice, stamp))
+            self.sent_cells += len(evidence.cells)
+        return bool(parts)
 
     def publish_map(self) -> None:
         grid = self.belief.lattice.with_occupancy(self.belief.occupancy_percent())

@@ -1,17 +1,19 @@
 """The region of interest as every node of a team takes it (README "Using it on your robots").
 
-``/coverage/region`` (``geometry_msgs/PolygonStamped``, ``map`` frame) adds a polygon to the
-region; a polygon with no points clears it, as does any message on ``/coverage/region/clear``
-(``std_msgs/Empty``). The region topic is transient local with a depth of
-:data:`REGION_HISTORY`, so a node that starts late still gets the region (clear with an empty
-polygon, not the clear topic, when nodes may join later). A malformed polygon is dropped with a
-warning and changes nothing.
+A node may start with a region (robot_node's ``region`` parameter). ``/coverage/region``
+(``geometry_msgs/PolygonStamped``, ``map`` frame) adds a polygon to the region (one it already
+holds changes nothing); a polygon with no points clears it, as does any message on
+``/coverage/region/clear`` (``std_msgs/Empty``). The region topic is transient local with a
+depth of :data:`REGION_HISTORY`, so a node that starts late still gets the region (clear with an
+empty polygon, not the clear topic, when nodes may join later). A malformed polygon is dropped
+with a warning and changes nothing.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
 
+import numpy as np
 from geometry_msgs.msg import PolygonStamped
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
@@ -33,8 +35,8 @@ class RegionInput:
     CoverageError refuses it: the region stays as it was)."""
 
     def __init__(self, node: Node, apply: Callable[[Region], None],
-                 warn: Callable[[str, str], None]) -> None:
-        self.region = Region()
+                 warn: Callable[[str, str], None], initial: Region | None = None) -> None:
+        self.region = initial or Region()
         self._apply, self._warn, self._log = apply, warn, node.get_logger()
         node.create_subscription(PolygonStamped, REGION_TOPIC, self._on_polygon, REGION_QOS)
         node.create_subscription(Empty, CLEAR_TOPIC, lambda _: self._set(Region(), "cleared"),
@@ -54,6 +56,8 @@ class RegionInput:
         except CoverageError as exc:
             self._warn("region", f"dropped a polygon on {REGION_TOPIC}: {exc}")
             return
+        if any(np.array_equal(region.polygons[-1], p) for p in self.region.polygons):
+            return  # held already (e.g. the start region, published for the viewers too)
         self._set(region, "now")
 
     def _set(self, region: Region, what: str) -> None:

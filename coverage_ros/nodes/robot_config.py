@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 import re
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -26,6 +26,7 @@ from coverage_ros.core.strategies import STRATEGIES, strategy_choice
 from coverage_ros.core.world import load_planar_world
 from coverage_ros.core.world.density import Density, parse_density
 from coverage_ros.core.world.grid import GridMap
+from coverage_ros.core.world.region import Region, parse_region_text
 from coverage_ros.core.world.robot import TB3_RADIUS, RobotSpec
 from coverage_ros.core.world.spec import WorldSpec
 from coverage_ros.core.world.yaml_io import yaml_mapping
@@ -112,6 +113,13 @@ PARAMETERS: dict[str, tuple[Any, str]] = {  # name: (default, description)
                    "navigator (Nav2 listens on goal_pose)"),
     "goal_resend_distance": (0.25, "[m] drive: false: a goal is sent again only when it moved "
                              "farther than this"),
+    "region": ("", "region of interest at start 'x,y;x,y;...' [m], polygons separated by '|' "
+               "(the importance density is kept inside it; /coverage/region changes it at run "
+               "time); '': everywhere"),
+    "lockstep": (False, "follow the world's lock-step ticks (world_node lockstep: true) instead "
+                 "of timers: each tick uses exactly the pose, scans and neighbours' states of "
+                 "that tick, updates every control_rate and tracks every tick of sim time, and "
+                 "the world waits for the robot's answer"),
 }
 
 
@@ -140,6 +148,8 @@ class RobotNodeConfig:
     drive: bool = True  # False: goals for an external navigator, no cmd_vel
     goal_topic: str = "goal_pose"
     goal_resend_distance: float = 0.25  # [m]
+    lockstep: bool = False  # driven by the world's ticks instead of timers
+    region: Region = field(default_factory=Region)  # of interest at start (empty: everywhere)
 
     def __post_init__(self) -> None:
         for name in ("control_rate", "tracking_rate", "state_rate"):
@@ -167,6 +177,9 @@ class RobotNodeConfig:
         if not (math.isfinite(self.goal_resend_distance) and self.goal_resend_distance >= 0):
             raise ConfigError.at("goal_resend_distance", "must be a number >= 0 [m]",
                                  self.goal_resend_distance)
+        if not self.region.everywhere and self.explore is not None:
+            raise ConfigError.at("region", "does not apply while exploring (the density is the "
+                                 "belief's entropy)", self.region.describe())
         if self.connectivity not in (8, 16):
             raise ConfigError.at("connectivity", "must be 8 or 16", self.connectivity)
         if self.team_size < 0:
@@ -302,7 +315,9 @@ def load_robot_inputs(values: dict[str, Any], namespace: str,
         map_free=map_free,
         manual=bool(values["manual"]), teleop_topic=values["teleop_topic"],
         drive=bool(values["drive"]), goal_topic=values["goal_topic"],
-        goal_resend_distance=values["goal_resend_distance"])
+        goal_resend_distance=values["goal_resend_distance"], lockstep=bool(values["lockstep"]),
+        region=Region(tuple(parse_region_text(t, "region")
+                            for t in values["region"].split("|") if t.strip())))
     density = world.density if world is not None else None
     if values["density"]:
         density = parse_density(yaml_mapping(values["density"], "density"), "density")

@@ -26,6 +26,7 @@ from rclpy.parameter import Parameter
 from rclpy.utilities import remove_ros_args
 
 from coverage_ros.errors import ConfigError
+from coverage_ros.nodes.lockstep_member import LockstepDriver
 from coverage_ros.nodes.plumbing import WarnThrottle
 from coverage_ros.nodes.robot_node import DISCOVERY_PERIOD, RobotNode
 from coverage_ros.nodes.robot_shared import SharedInputs, StateHub
@@ -57,8 +58,15 @@ class ContainerNode(Node):
                          parameter_overrides=[Parameter("use_sim_time", value=bool(sim))])
         throttle = WarnThrottle(self.get_logger().warning)
         self.hub = StateHub(self, robots, prefix, throttle.warn)
-        self.create_timer(DISCOVERY_PERIOD, self.hub.discover,
-                          clock=Clock(clock_type=ClockType.STEADY_TIME))
+        self.driver = None
+        lockstep = [r.lockstep for r in robots if r.lockstep is not None]
+        if lockstep:  # one driver answers the ticks for them all; neighbours from the ticks
+            self.driver = LockstepDriver(self, lockstep, throttle.warn, self.hub.roster)
+            for member in lockstep:
+                member.driver = self.driver
+        if len(lockstep) < len(robots):
+            self.create_timer(DISCOVERY_PERIOD, self.hub.discover,
+                              clock=Clock(clock_type=ClockType.STEADY_TIME))
         shared = sum(self._share_clock(r) for r in sim)
         self.get_logger().info(f"{len(robots)} robots in one process: "
                                f"{', '.join(r.get_namespace() for r in robots)}"
@@ -87,13 +95,17 @@ def _make_nodes(args: argparse.Namespace) -> list[Node]:
                                     shared=shared, hub=True))
         except STARTUP_ERRORS as exc:  # say which robot's parameters are wrong
             raise ConfigError(f"robot {rid}: {exc}") from None
-    return [*robots, ContainerNode(robots, args.prefix)]
+    # The container first: its clean-up stops the lock-step driver before the robots stop.
+    return [ContainerNode(robots, args.prefix), *robots]
 
 
 def _stop(node: Node) -> None:
     if isinstance(node, RobotNode):
         node.stop()
     elif isinstance(node, ContainerNode):
+        if node.driver is not None:
+            node.driver.close()
+            node.get_logger().info(node.driver.summary())
         node.get_logger().info(f"{node.hub.received} states received, "
                                f"{node.hub.delivered} delivered to local robots")
 

@@ -12,6 +12,8 @@ to the robot's own navigator (Nav2's ``goal_pose``), only when it moved
 Coverage updates run on a worker thread, so that tracking, the safety filter and incoming
 messages never wait for them; they cost in proportion to the own cell (large in a team still
 bunched up) and are spaced out to keep within ``update_load`` of a core (container: pooled).
+With ``lockstep: true`` the world's ticks drive the robot instead of its timers, and every
+input is used at the tick it belongs to (:mod:`~coverage_ros.nodes.robot_lockstep`).
 
     ros2 run coverage_ros robot_node --ros-args -r __ns:=/robot_3 -p robot_id:=3 \\
         -p use_sim_time:=true -p strategy:=geodesic
@@ -20,43 +22,43 @@ bunched up) and are spaced out to keep within ``update_load`` of a core (contain
 from __future__ import annotations
 
 import math
-import re
 import sys
 import time
-from collections import deque
 
 from geometry_msgs.msg import PolygonStamped, Twist, TwistStamped
 from nav_msgs.msg import OccupancyGrid, Odometry, Path
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
-from sensor_msgs.msg import JointState, LaserScan
+from sensor_msgs.msg import JointState
 from std_srvs.srv import SetBool
 
 from coverage_ros.core.control.controller import RobotController
 from coverage_ros.core.control.listening import TeamListening
 from coverage_ros.core.control.pose_history import PoseHistory
 from coverage_ros.core.exploration.belief import Belief
-from coverage_ros.core.strategies import Scan
 from coverage_ros.errors import ConfigError, CoverageError
 from coverage_ros.nodes import conversions as conv
-from coverage_ros.nodes.belief_exchange import OBSERVATIONS, OBSERVATIONS_TYPE, BeliefExchange
+from coverage_ros.nodes.belief_exchange import BeliefExchange
 from coverage_ros.nodes.goal_output import GoalOutput
+from coverage_ros.nodes.lockstep_member import LockstepDriver
+from coverage_ros.nodes.neighbour_input import NeighbourInput
 from coverage_ros.nodes.plumbing import (
     LAST_WORDS,
+    LOCKSTEP_STATE_QOS,
     MAP_QOS,
-    SCAN_QOS,
     TEAM_QOS,
     ClockGuard,
     UpdateWorker,
     WarnThrottle,
     quiet_publisher,
-    quiet_subscription,
 )
 from coverage_ros.nodes.region_input import RegionInput
 from coverage_ros.nodes.robot_config import PARAMETERS, load_robot_inputs
+from coverage_ros.nodes.robot_lockstep import RobotLockstep
 from coverage_ros.nodes.robot_requests import RobotRequests
-from coverage_ros.nodes.robot_shared import GraphLooks, SharedInputs, state_topics
+from coverage_ros.nodes.robot_shared import SharedInputs
 from coverage_ros.nodes.runner import FatalConfigError, declare_parameters, run_node
+from coverage_ros.nodes.scan_input import ScanInput
 from coverage_ros.nodes.tf_input import TfPoseInput
 
 DISCOVERY_PERIOD = 1.0  # [s] wall time between looks at the ROS graph for new neighbours
@@ -64,8 +66,6 @@ DISCOVERY_PERIOD = 1.0  # [s] wall time between looks at the ROS graph for new n
 #: (one look at the ROS graph and their states), so that it does not start with the whole map;
 #: with team_size until it heard them all (core/control/listening.py).
 LISTEN_FIRST = DISCOVERY_PERIOD + 0.5
-#: Scans that wait for the pose after their stamp (a second of a 5 Hz lidar).
-PENDING_SCANS = 5
 
 
 class RobotNode(RobotRequests, Node):
@@ -78,7 +78,6 @@ class RobotNode(RobotRequests, Node):
         process's :class:`StateHub` delivers the neighbours' states (no subscriptions here)."""
         super().__init__("coverage_robot", cli_args=cli_args)
         self.shared = shared if shared is not None else SharedInputs()
-        self._own_states = not hub
         inputs = load_robot_inputs(declare_parameters(self, PARAMETERS), self.get_namespace(),
                                    self.shared.world)
         self.config = inputs.config
@@ -89,15 +88,18 @@ class RobotNode(RobotRequests, Node):
         self._world = inputs.world
         self._throttle = WarnThrottle(self.get_logger().warning)
         self._warn = self._throttle.warn  # (key, text)
-        self._subs: dict[int, object] = {}
         self._last_tick = None
         # Before the first update: listen for the team (wall time, as discovery runs).
         team = self.config.team_size
         self._listen = TeamListening(LISTEN_FIRST, team, self.config.listen_timeout)
-        self._looks = GraphLooks(team)  # when to look at the graph for new neighbours
         self._pose_stamp = -math.inf  # [s] stamp of the last pose taken from pose_topic
         self._last_state = -math.inf
         self._paused = False  # asked before the map came: applied when the controller is built
+        self.tick_time: float | None = None  # [s] lock-step: the tick being worked on
+        self.lockstep = RobotLockstep(self) if self.config.lockstep else None
+        self.neighbours = NeighbourInput(self, self.config.robot_prefix, team, not hub,
+                                         self._on_state, lambda: self.exchange,
+                                         self.lockstep is not None)
 
         def publisher(msg_type, topic):
             return self.create_publisher(msg_type, topic, TEAM_QOS,
@@ -110,7 +112,9 @@ class RobotNode(RobotRequests, Node):
                                 self.config.goal_resend_distance)
         self.plan_pub, self.cell_pub = publisher(Path, "plan"), publisher(OccupancyGrid, "cell")
         self.polygon_pub = publisher(PolygonStamped, "cell_polygon")
-        self.state_pub = publisher(JointState, "coverage_state")
+        self.state_pub = self.create_publisher(
+            JointState, "coverage_state", TEAM_QOS if self.lockstep is None else
+            LOCKSTEP_STATE_QOS, event_callbacks=quiet_publisher())
         if self.config.pose_source == "tf":  # map -> base_link, as AMCL or slam_toolbox give it
             self.tf_input = TfPoseInput(self, self.frames, self._take_pose, self._warn)
         else:
@@ -119,11 +123,10 @@ class RobotNode(RobotRequests, Node):
             self.create_subscription(Twist, self.config.teleop_topic, self._on_teleop, TEAM_QOS)
         self.create_service(SetBool, "set_manual", self._on_set_manual)
         self.create_service(SetBool, "pause", self._on_pause)
-        self.regions = RegionInput(self, self._set_region, self._warn)
-        self._scan_sub = None
+        self.regions = RegionInput(self, self._set_region, self._warn, self.config.region)
+        self.scans: ScanInput | None = None  # the lidar, once the controller needs it
         self.exchange: BeliefExchange | None = None
-        self._poses = PoseHistory()  # scans are placed from these (safety, belief)
-        self._pending_scans: deque[tuple[float, Scan]] = deque(maxlen=PENDING_SCANS)
+        self.poses = PoseHistory()  # scans are placed from these (safety, belief)
         if self.config.explore is not None:
             self._build(self.config.explore.lattice, Belief(self.config.explore.lattice,
                                                             cc.robot_id))
@@ -134,16 +137,21 @@ class RobotNode(RobotRequests, Node):
         else:
             self._build(inputs.world.grid)
         wall = Clock(clock_type=ClockType.STEADY_TIME)
-        self.create_timer(DISCOVERY_PERIOD, self._discover, clock=wall)
         if self.get_parameter("use_sim_time").value:
             self._clock_guard = ClockGuard()
             self.create_timer(1.0, self._check_clock, clock=wall)
-        self._worker = UpdateWorker(
-            self._update, self.config.update_load, slots=self.shared.update_slots,
-            pool=self.shared.update_pool, clock=self._now,
-            on_error=lambda exc: self._warn("update", f"coverage update failed: {exc!r}"))
-        self.create_timer(1.0 / self.config.control_rate, self._on_control)
-        self.create_timer(1.0 / self.config.tracking_rate, self._on_tracking)
+        self._worker = None
+        if self.lockstep is not None:  # the ticks drive it; neighbours come with the ticks
+            if not hub:
+                self.lockstep.driver = LockstepDriver(self, [self.lockstep], self._warn)
+        else:
+            self.create_timer(DISCOVERY_PERIOD, self.neighbours.discover, clock=wall)
+            self._worker = UpdateWorker(
+                self._update, self.config.update_load, slots=self.shared.update_slots,
+                pool=self.shared.update_pool, clock=self._now,
+                on_error=lambda exc: self._warn("update", f"coverage update failed: {exc!r}"))
+            self.create_timer(1.0 / self.config.control_rate, self._on_control)
+            self.create_timer(1.0 / self.config.tracking_rate, self._on_tracking)
         source = ("exploring (no map)" if self.config.explore is not None
                   else "map-free (lidar only)" if self.config.map_free is not None
                   else f"map from {self.config.map_topic or self.config.world}")
@@ -151,6 +159,8 @@ class RobotNode(RobotRequests, Node):
             source += f"; manual, driven by {self.config.teleop_topic}"
         if self.config.pose_source == "tf":
             source += f"; pose from /tf ({conv.MAP_FRAME} -> {self.frames.base_link})"
+        if self.lockstep is not None:
+            source += "; lock-step"
         self.get_logger().info(f"robot {cc.robot_id}: strategy {cc.strategy.name}, {source}; "
                                f"{cc.robot.describe()}")
 
@@ -169,13 +179,11 @@ class RobotNode(RobotRequests, Node):
         if not self.regions.region.everywhere:
             self._set_region(self.regions.region)  # heard before the map came
         if belief is not None:
-            self.exchange = BeliefExchange(self, belief, self.config.explore, self._throttle,
-                                           self._now)
-        if (self.config.use_scan or self.controller.needs_scan) and self._scan_sub is None:
-            # Best effort and volatile: compatible with every publisher, no QoS events to watch.
-            self._scan_sub = self.create_subscription(
-                LaserScan, self.config.scan_topic, self._on_scan, SCAN_QOS,
-                event_callbacks=quiet_subscription())
+            self.exchange = BeliefExchange(
+                self, belief, self.config.explore, self._throttle, self._now,
+                None if self.lockstep is None else self.lockstep.put_evidence)
+        if (self.config.use_scan or self.controller.needs_scan) and self.scans is None:
+            self.scans = ScanInput(self, self.config.scan_topic)
         self.get_logger().info(f"map {grid.width} x {grid.height} cells at "
                                f"{grid.resolution:g} m ready in {time.perf_counter() - t0:.2f} s")
 
@@ -217,73 +225,22 @@ class RobotNode(RobotRequests, Node):
         """The robot's pose in the map frame at ``stamp`` [s] (from pose_topic or /tf)."""
         if self.controller is None:
             return
+        if self.lockstep is not None:
+            self.lockstep.put_pose(round(stamp * 1e9), pose)
+            return
         self.controller.set_pose(pose, stamp)
         self._listen.pose(time.monotonic())
-        self._poses.add(stamp, pose)
-        if self.exchange is not None:
-            self._map_pending_scans()
+        self.poses.add(stamp, pose)
+        if self.exchange is not None and self.scans is not None:
+            self.scans.map_waiting()
 
-    def _on_scan(self, msg: LaserScan) -> None:
-        c = self.controller
-        if c is None or c.pose is None:
-            return
-        _, ranges = conv.laser_scan_to_ranges(msg)
-        if len(ranges) == 0 or not math.isfinite(msg.angle_increment):
-            self._warn("scan", "dropped an empty or malformed scan")
-            return
-        scan = Scan(ranges=ranges, angle_min=float(msg.angle_min),
-                    angle_increment=float(msg.angle_increment), range_min=float(msg.range_min),
-                    range_max=float(msg.range_max))
-        # Safety's obstacles from the pose at the scan's stamp (the newest pose rotates a scan
-        # taken while turning by degrees), kept near the robot across scans (ScanMemory).
-        stamp = conv.from_time_msg(msg.header.stamp)
-        pose = self._poses.at(stamp) or tuple(c.pose)
-        c.set_scan(scan, conv.scan_to_points(msg, pose), pose)
-        if self.exchange is not None:
-            self._pending_scans.append((stamp, scan))
-            self._map_pending_scans()
-
-    def _map_pending_scans(self) -> None:
-        """Add the waiting scans to the belief, each from the pose at its stamp (a scan newer
-        than the newest pose waits for the next one; one older than the pose history is
-        dropped - a map drawn from a wrong pose is worse than a scan less)."""
-        while self._pending_scans:
-            stamp, scan = self._pending_scans[0]
-            newest = self._poses.latest_time
-            if newest is None or stamp > newest:
-                return
-            self._pending_scans.popleft()
-            pose = self._poses.at(stamp)
-            if pose is None:
-                self._warn("scanpose", f"dropped a scan at t={stamp:.2f} s: no pose near it")
-                continue
-            self.controller.integrate_scan(scan, pose, self._now())
+    @property
+    def uses_scan(self) -> bool:
+        return self.scans is not None
 
     @property
     def robot_id(self) -> int:
         return self.config.controller.robot_id
-
-    def _discover(self) -> None:
-        """Subscribe to every new /<prefix><k>/coverage_state (k != own id; unless the hub
-        does) and, exploring, /<prefix><k>/observations; seldom once all are heard."""
-        if (not self._own_states and self.exchange is None) or \
-                not self._looks.due(len(self._subs) if self.exchange is None else -1):
-            return
-        names = self.get_topic_names_and_types()
-        if self.exchange is not None:
-            evidence = re.compile(rf"/{re.escape(self.config.robot_prefix)}(\d+)/{OBSERVATIONS}")
-            for name, types in names:
-                m = evidence.fullmatch(name)
-                if m and OBSERVATIONS_TYPE in types and int(m.group(1)) != self.robot_id:
-                    self.exchange.listen(int(m.group(1)), name)
-        for rid, name in state_topics(names, self.config.robot_prefix) if self._own_states \
-                else ():
-            if rid == self.robot_id or rid in self._subs or self.count_publishers(name) == 0:
-                continue  # (no publisher: only subscribers so far, e.g. a monitor)
-            self._subs[rid] = self.create_subscription(
-                JointState, name, lambda msg, rid=rid: self._on_state(rid, msg), TEAM_QOS,
-                event_callbacks=quiet_subscription())
-            self.get_logger().info(f"neighbour {rid} found on {name}")
 
     def _on_state(self, robot_id: int, msg: JointState) -> None:
         try:
@@ -291,12 +248,15 @@ class RobotNode(RobotRequests, Node):
         except ValueError as exc:
             self._warn(f"state{robot_id}", f"dropped coverage_state of robot {robot_id}: {exc}")
             return
-        self.take_state(robot_id, values)
+        self.take_state(robot_id, values, stamp=conv.stamp_ns(msg.header.stamp))
 
     def take_state(self, robot_id: int, values: dict[str, float],
-                   parsed: dict | None = None) -> None:
-        """A neighbour's coverage_state (from this node's subscription or the hub, which
-        passes its ``parsed``: see ``NeighbourTable.receive``)."""
+                   parsed: dict | None = None, stamp: int = 0) -> None:
+        """A neighbour's coverage_state stamped ``stamp`` [ns] (from this node's subscription
+        or the hub, which passes its ``parsed``: see ``NeighbourTable.receive``)."""
+        if self.lockstep is not None:
+            self.lockstep.put_state(robot_id, stamp, values)
+            return
         if self.controller is None:
             return
         why = self.controller.neighbours.receive(robot_id, values, self._now(), parsed)
@@ -312,6 +272,8 @@ class RobotNode(RobotRequests, Node):
             raise FatalConfigError(f"robot {self.config.controller.robot_id}: {error}")
 
     def _now(self) -> float:
+        if self.tick_time is not None:
+            return self.tick_time
         return self.get_clock().now().nanoseconds * 1e-9
 
     def _on_control(self) -> None:
@@ -377,13 +339,20 @@ class RobotNode(RobotRequests, Node):
             v, w = c.command(now, dt)
             self._publish_cmd(v, w, now)
         if now - self._last_state >= 0.999 / self.config.state_rate:
-            # The position and velocity fresh for neighbours' safety filters between updates
-            # (drive: false: the velocity from the poses); before the first update, presence.
             self._last_state = now
-            state = dict(c.last.state) if c.last is not None else c.presence_state()
-            motion = c.motion_state() if self.config.drive else self._poses.velocity()
-            state.update(x=float(c.pose[0]), y=float(c.pose[1]), **motion)
-            self.state_pub.publish(conv.coverage_state_msg(conv.to_time_msg(now), state))
+            self.publish_state(now, conv.to_time_msg(now))
+
+    def publish_state(self, now: float, stamp, extra: dict[str, float] | None = None) -> None:
+        """The last update's values with the position and velocity fresh for neighbours'
+        safety filters (drive: false: the velocity from the poses); before the first update,
+        presence."""
+        c = self.controller
+        if c is None or c.pose is None:
+            return
+        state = dict(c.last.state) if c.last is not None else c.presence_state()
+        motion = c.motion_state() if self.config.drive else self.poses.velocity()
+        state.update(x=float(c.pose[0]), y=float(c.pose[1]), **motion, **(extra or {}))
+        self.state_pub.publish(conv.coverage_state_msg(stamp, state))
 
     def _publish_cmd(self, v: float, w: float, now: float, last: bool = False) -> None:
         if self.cmd_pub is None:
@@ -400,8 +369,13 @@ class RobotNode(RobotRequests, Node):
 
     def stop(self) -> None:
         """Best effort: finish the running update, leave the robot standing."""
-        self._worker.close()
-        self.get_logger().info(self._worker.summary())
+        if self._worker is not None:
+            self._worker.close()
+            self.get_logger().info(self._worker.summary())
+        driver = None if self.lockstep is None else self.lockstep.driver
+        if driver is not None and driver.robots == [self.lockstep]:  # (a container's: its own)
+            driver.close()
+            self.get_logger().info(driver.summary())
         for text in self.controller.describe() if self.controller is not None else ():
             self.get_logger().info(text)
         if self.exchange is not None:

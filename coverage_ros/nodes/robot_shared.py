@@ -26,7 +26,6 @@ thread.
 from __future__ import annotations
 
 import hashlib
-import re
 import threading
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
@@ -39,7 +38,14 @@ from coverage_ros.core.world.grid import GridMap
 from coverage_ros.core.world.metric import zeta_on_grid
 from coverage_ros.core.world.spec import WorldSpec
 from coverage_ros.nodes import conversions as conv
-from coverage_ros.nodes.plumbing import TEAM_QOS, UpdatePool, UpdateTurns, quiet_subscription
+from coverage_ros.nodes.plumbing import (
+    LOCKSTEP_STATE_QOS,
+    TEAM_QOS,
+    UpdatePool,
+    UpdateTurns,
+    quiet_subscription,
+)
+from coverage_ros.nodes.robot_graph import robot_topics
 from coverage_ros.worlds import resolve_world_path
 
 STATE_TYPE = "sensor_msgs/msg/JointState"
@@ -48,34 +54,7 @@ STATE_TYPE = "sensor_msgs/msg/JointState"
 def state_topics(names_and_types: Iterable[tuple[str, list[str]]],
                  prefix: str) -> Iterator[tuple[int, str]]:
     """``(robot id, topic)`` of every ``/<prefix><id>/coverage_state`` of the right type."""
-    pattern = re.compile(rf"/{re.escape(prefix)}(\d+)/coverage_state")
-    for name, types in names_and_types:
-        m = pattern.fullmatch(name)
-        if m and STATE_TYPE in types:
-            yield int(m.group(1)), name
-
-
-#: Once a robot hears its whole team, it looks at the ROS graph for new neighbours only every
-#: this many discovery periods: a look at the graph of 32 robot processes costs ~9 ms, and one
-#: a second in each was a sixth of a robot process's CPU (its restarts keep their topic names:
-#: the subscription stays, no look needed).
-SLOW_LOOKS = 10
-
-
-class GraphLooks:
-    """Whether a robot looks at the ROS graph this discovery period: every period while it
-    knows fewer than ``team_size - 1`` neighbours (or ``team_size`` is 0: unknown), else every
-    :data:`SLOW_LOOKS`-th."""
-
-    def __init__(self, team_size: int) -> None:
-        self.team_size = team_size
-        self.periods = 0
-
-    def due(self, known: int) -> bool:
-        """``known``: neighbours found so far (< 0: always look)."""
-        self.periods += 1
-        whole = 0 < self.team_size - 1 <= known
-        return not whole or self.periods % SLOW_LOOKS == 0
+    return robot_topics(names_and_types, prefix, "coverage_state", STATE_TYPE)
 
 
 def grid_digest(grid: GridMap) -> bytes:
@@ -147,10 +126,19 @@ class StateHub:
         for rid, name in state_topics(self.node.get_topic_names_and_types(), self.prefix):
             if rid in self.subscriptions or self.node.count_publishers(name) == 0:
                 continue  # only subscribers so far (e.g. a monitor): not a robot yet
-            self.subscriptions[rid] = self.node.create_subscription(
-                JointState, name, lambda msg, rid=rid: self.on_state(rid, msg), TEAM_QOS,
-                event_callbacks=quiet_subscription())
+            self._subscribe(rid, name, TEAM_QOS)
             self.node.get_logger().info(f"robot {rid} found on {name}")
+
+    def roster(self, tick) -> None:
+        """Lock-step: subscribe to the state of every robot the tick lists."""
+        for rid in sorted(tick.robots):
+            if rid not in self.subscriptions:
+                self._subscribe(rid, f"/{self.prefix}{rid}/coverage_state", LOCKSTEP_STATE_QOS)
+
+    def _subscribe(self, rid: int, name: str, qos) -> None:
+        self.subscriptions[rid] = self.node.create_subscription(
+            JointState, name, lambda msg, rid=rid: self.on_state(rid, msg), qos,
+            event_callbacks=quiet_subscription())
 
     def on_state(self, sender: int, msg) -> None:
         self.received += 1
@@ -160,7 +148,8 @@ class StateHub:
             self._warn(f"state{sender}", f"dropped coverage_state of robot {sender}: {exc}")
             return
         parsed: dict = {}  # checked and built once per map extent, for every robot
+        stamp = conv.stamp_ns(msg.header.stamp)
         for robot in self.robots:
             if robot.robot_id != sender:
-                robot.take_state(sender, values, parsed)
+                robot.take_state(sender, values, parsed, stamp)
                 self.delivered += 1

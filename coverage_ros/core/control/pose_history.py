@@ -82,3 +82,30 @@ class PoseHistory:
         if t1 - t0 < MIN_VELOCITY_SPAN:
             return {}
         return {"vx": (x1 - x0) / (t1 - t0), "vy": (y1 - y0) / (t1 - t0)}
+
+
+#: Scans that wait for the pose after their stamp (a second of a 5 Hz lidar).
+PENDING_SCANS = 5
+
+
+class ScanPairing:
+    """Scans waiting for their pose: a scan is placed from the pose at its own stamp, so one
+    newer than the newest pose waits for the next pose; one older than the history is dropped
+    (a map drawn from a wrong pose is worse than a scan less). At most ``keep`` wait."""
+
+    def __init__(self, poses: PoseHistory, keep: int = PENDING_SCANS) -> None:
+        self.poses = poses
+        self._waiting: deque[tuple[float, object]] = deque(maxlen=keep)
+
+    def add(self, stamp: float, scan: object) -> None:
+        self._waiting.append((stamp, scan))
+
+    def ready(self) -> list[tuple[float, object, tuple[float, float, float] | None]]:
+        """``(stamp, scan, pose at the stamp or None)`` of every scan whose pose is known now,
+        oldest first (None: no pose near its stamp - drop it)."""
+        out = []
+        newest = self.poses.latest_time
+        while self._waiting and newest is not None and self._waiting[0][0] <= newest:
+            stamp, scan = self._waiting.popleft()
+            out.append((stamp, scan, self.poses.at(stamp)))
+        return out

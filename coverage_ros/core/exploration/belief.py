@@ -134,6 +134,13 @@ class Evidence:
     misses: np.ndarray  # uint16
 
 
+def joined(*parts: Evidence) -> Evidence:
+    """Several pieces of one source's evidence as one (a cell in two holds the same counts)."""
+    return Evidence(parts[0].source, np.concatenate([p.cells for p in parts]),
+                    np.concatenate([p.hits for p in parts]),
+                    np.concatenate([p.misses for p in parts]))
+
+
 @dataclass(frozen=True, eq=False)
 class BeliefSnapshot:
     """A copy of a belief at one moment (what a strategy plans on). Maps derived from it

@@ -283,7 +283,7 @@ def test_a_restarted_robot_rejoins_and_the_team_reconverges(tmp_path):
 
 
 def test_faults_are_checked_before_anything_starts():
-    from coverage_ros.cli.team import _faults
+    from coverage_ros.cli.team_options import parse_faults as _faults
 
     assert _faults(["0@5"], ["1@3", "0@2"], 2) == [(2.0, 0, "restart"), (3.0, 1, "restart"),
                                                     (5.0, 0, "kill")]

@@ -23,7 +23,8 @@ from pathlib import Path
 
 from coverage_ros.cli.domains import acquire_domain
 from coverage_ros.cli.processes import ProcessSet, executable, ros_args
-from coverage_ros.cli.team_metrics import TeamTracker, summary_table
+from coverage_ros.cli.team_lockstep import OBSERVER
+from coverage_ros.cli.team_metrics import TeamTracker
 from coverage_ros.cli.team_network import (
     check_reach,
     discovery_advice,
@@ -33,6 +34,7 @@ from coverage_ros.cli.team_network import (
     start_discovery_server,
     write_remote_script,
 )
+from coverage_ros.cli.team_options import attach_values, build_parser, parse_faults
 from coverage_ros.cli.team_robots import (
     default_robots_per_process,
     plan_processes,
@@ -41,13 +43,14 @@ from coverage_ros.cli.team_robots import (
     team_rates,
 )
 from coverage_ros.cli.team_setup import build_team
+from coverage_ros.cli.team_summary import summary_table
 from coverage_ros.core.geodesic.domain import CoverageDomain
-from coverage_ros.core.strategies import EXPLORERS, STRATEGIES, strategy_choice
+from coverage_ros.core.strategies import strategy_choice
 from coverage_ros.core.world import load_planar_world, write_team
 from coverage_ros.core.world.region import Region, parse_region_text
 from coverage_ros.core.world.yaml_io import yaml_mapping
 from coverage_ros.errors import ConfigError, CoverageError
-from coverage_ros.nodes.runner import EXECUTOR_ENV, EXECUTORS, executor_kind
+from coverage_ros.nodes.runner import EXECUTOR_ENV, executor_kind
 from coverage_ros.worlds import resolve_world_path
 
 #: [s] wall time the children get to stop cleanly after an interrupt before SIGTERM, then SIGKILL
@@ -63,120 +66,8 @@ PROGRESS_PERIOD = 0.5  # [s] wall time between progress refreshes
 METRICS_PERIOD = 10.0
 
 
-def build_parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(prog="coverage-team", description=__doc__.split("\n")[0])
-    ap.add_argument("--robots", type=int, default=None,
-                    help="team size (default 4, or the team file's)")
-    ap.add_argument("--team", type=Path, metavar="TEAM.yaml",
-                    help="the robots: id, start, spec fields and role of each (see "
-                    "config/teams/); values not given come from the world")
-    ap.add_argument("--human", type=int, action="append", default=[], metavar="ID",
-                    help="robot ID is driven by a person (its teleop topic) from the start; "
-                    "repeatable")
-    ap.add_argument("--world", default="office",
-                    help="package world YAML, map_server YAML or a shipped world name")
-    ap.add_argument("--strategy", default="geodesic",
-                    choices=sorted(set(STRATEGIES) | set(EXPLORERS)),
-                    help="coverage strategy; exploring: geodesic or frontier")
-    ap.add_argument("--strategy-params", default="",
-                    help="YAML mapping of strategy settings for every robot, e.g. "
-                    "'{variant: nearest}' (robot_node's strategy_params)")
-    ap.add_argument("--explore", action="store_true",
-                    help="the robots start with no map and explore (the world's true map is "
-                    "only simulated and used for scoring)")
-    ap.add_argument("--map-free", action="store_true",
-                    help="the robots get no map (strategies that need none: bvc); the world "
-                    "node still simulates the world's")
-    ap.add_argument("--until-explored", type=float, default=None, metavar="F",
-                    help="with --explore: end the run once the team has explored this share "
-                    "of the reachable free area")
-    ap.add_argument("--duration", type=float, default=60.0, help="[s] simulated time to run")
-    ap.add_argument("--seed", type=int, default=0, help="start cluster and simulator seed")
-    ap.add_argument("--starts", help="start poses 'x,y,yaw;...' (default: the world's start "
-                    "poses if it lists one per robot, else a compact seeded cluster, so the "
-                    "robots must spread)")
-    ap.add_argument("--rtf", type=float, default=1.0,
-                    help="real-time factor of the simulation (0: as fast as possible)")
-    ap.add_argument("--out", type=Path, help="output folder (default out/team-<time>)")
-    ap.add_argument("--record", action="store_true", help="write <out>/recording.rrd")
-    ap.add_argument("--viewer", action="store_true", help="stream to a spawned rerun viewer")
-    ap.add_argument("--serve-web", action="store_true",
-                    help="serve the rerun web viewer on 127.0.0.1")
-    ap.add_argument("--domain-id", type=int, help="ROS_DOMAIN_ID (default: a fresh one)")
-    ap.add_argument("--control-rate", type=float, default=2.0, help="[Hz] coverage updates")
-    ap.add_argument("--update-load", type=float, default=None,
-                    help="robot_node update_load: CPU share of one core each robot may spend "
-                    "on coverage updates (default: the team's fair share of 15 %% of the "
-                    "machine's cores, 50 %% with several robots per process, at most 0.1)")
-    ap.add_argument("--state-rate", type=float, default=None,
-                    help="[Hz] robot_node state_rate (default: 2.5, lower for robots that run "
-                    "alone in a big team: each then handles at most 40 states a second)")
-    ap.add_argument("--clock-rate", type=float, default=10.0,
-                    help="[Hz, sim time] /clock rate; every message wakes every robot process "
-                    "(0: every physics step)")
-    ap.add_argument("--odom-rate", type=float, default=10.0,
-                    help="[Hz, sim time] odom and ground_truth rate (Stage's 10 Hz)")
-    ap.add_argument("--sensor-radius", type=float, default=None,
-                    help="[m] every robot's sensing radius (coverage_ratio, sensor-based "
-                    "strategies); default: each robot's from the world (TurtleBot3: 3.5)")
-    ap.add_argument("--robot-param", action="append", default=[], metavar="NAME:=VALUE",
-                    help="extra robot_node parameter (repeatable), e.g. strategy_params:={...}")
-    ap.add_argument("--robots-per-process", type=int, default=None, metavar="K",
-                    help="robots sharing one process (robot_container; default: 1 up to "
-                    "8 robots per core, beyond that as many as make 2 processes per core)")
-    ap.add_argument("--kill", action="append", default=[], metavar="ID@SECONDS",
-                    help="kill robot ID's process at that sim time (robot loss experiments)")
-    ap.add_argument("--region", action="append", default=[], metavar="x,y;x,y;...",
-                    help="region of interest [m] (repeatable: a union of polygons): the "
-                         "importance density is kept inside it; changeable at run time on "
-                         "/coverage/region")
-    ap.add_argument("--no-markers", action="store_true",
-                    help="do not start marker_node (RViz markers on /coverage/markers)")
-    ap.add_argument("--restart", action="append", default=[], metavar="ID@SECONDS",
-                    help="kill robot ID's process at that sim time and start it again at once "
-                         "(its body stays): a crashed node that comes back")
-    ap.add_argument("--stats", action="store_true",
-                    help="sample CPU and memory of every process into summary.json")
-    ap.add_argument("--remote-robots", metavar="ID,ID,...",
-                    help="robots whose processes run on other hosts: the world simulates them, "
-                    "the launcher prints (and writes to <out>/remote/) the command for each "
-                    "host and waits for them to join")
-    ap.add_argument("--discovery-server", nargs="?", const="127.0.0.1", metavar="IPV4[:PORT]",
-                    help="run a Fast DDS discovery server on this address (default "
-                    "127.0.0.1:11811) and make every process a client of it "
-                    "(ROS_DISCOVERY_SERVER) instead of simple discovery")
-    ap.add_argument("--executor", choices=EXECUTORS, default=None,
-                    help="rclpy executor of every node process (COVERAGE_ROS_EXECUTOR; default "
-                    "events: rclpy's EventsExecutor, a fraction of the CPU per message; "
-                    "single: SingleThreadedExecutor)")
-    ap.add_argument("--quiet", action="store_true", help="no progress display")
-    return ap
-
-
-def _faults(kills: list[str], restarts: list[str], n: int) -> list[tuple[float, int, str]]:
-    """``--kill`` and ``--restart`` ``ID@SECONDS`` items, sorted by time."""
-    out = []
-    for option, action, specs in (("--kill", "kill", kills), ("--restart", "restart", restarts)):
-        for spec in specs:
-            try:
-                rid, t = spec.split("@")
-                out.append((float(t), int(rid), action))
-            except ValueError:
-                raise ConfigError.at(option, "must be ID@SECONDS", spec) from None
-            if not 0 <= out[-1][1] < n:
-                raise ConfigError.at(option, f"robot id out of range 0..{n - 1}", spec)
-            if not (math.isfinite(out[-1][0]) and out[-1][0] >= 0):
-                raise ConfigError.at(option, "needs a time >= 0 [s]", spec)
-    killed = {rid: t for t, rid, action in out if action == "kill"}
-    for t, rid, action in out:
-        if action == "restart" and killed.get(rid, math.inf) <= t:
-            raise ConfigError.at("--restart", f"robot {rid} is killed (--kill) before that",
-                                 f"{rid}@{t:g}")
-    return sorted(out)
-
-
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    args = build_parser().parse_args(attach_values(sys.argv[1:] if argv is None else argv))
     try:
         return run(args)
     except CoverageError as exc:
@@ -193,6 +84,8 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError.at("--clock-rate", "must be >= 0 [Hz]", args.clock_rate)
     if not (math.isfinite(args.odom_rate) and args.odom_rate > 0):
         raise ConfigError.at("--odom-rate", "must be > 0 [Hz]", args.odom_rate)
+    if args.rtf is None:
+        args.rtf = 0.0 if args.lockstep else 1.0  # lock-step: as fast as the robots answer
     if not (math.isfinite(args.rtf) and args.rtf >= 0):
         raise ConfigError.at("--rtf", "must be >= 0 (0: as fast as possible)", args.rtf)
     # The strategy and its settings are checked here, before any process starts.
@@ -212,7 +105,7 @@ def run(args: argparse.Namespace) -> int:
     args.robots = len(team)
     specs = [m.spec for m in team]
     radius = max(s.radius for s in specs)
-    faults = _faults(args.kill, args.restart, args.robots)
+    faults = parse_faults(args.kill, args.restart, args.robots)
     remote = parse_remote_robots(args.remote_robots, args.robots)
     if any(rid in remote for _, rid, _ in faults):
         raise ConfigError.at("--kill/--restart", "cannot reach a robot on another host",
@@ -264,7 +157,8 @@ def run(args: argparse.Namespace) -> int:
                      "explore": bool(args.explore),
                      "strategy_params": args.strategy_params,
                      "manual": m.role == "human", "map_free": bool(args.map_free),
-                     "team_size": len(team),
+                     "team_size": len(team), "lockstep": bool(args.lockstep),
+                     "region": "|".join(args.region),
                      **spec_parameters(m.spec), **extra} for m in team}
     processes = plan_processes(params, per_process, {rid for _, rid, _ in faults} |
                                set(remote), out / "params")
@@ -275,7 +169,8 @@ def run(args: argparse.Namespace) -> int:
     if (advice := discovery_advice(participants, discovery is not None)) is not None:
         print(f"coverage-team: {advice}", file=sys.stderr, flush=True)
     cores = os.cpu_count() or 1
-    if args.robots > REAL_TIME_ROBOTS_PER_CORE * cores and args.rtf >= 1.0:
+    if args.robots > REAL_TIME_ROBOTS_PER_CORE * cores and args.rtf >= 1.0 and \
+            not args.lockstep:
         print(f"coverage-team: warning: {args.robots} robots on {cores} cores: beyond the "
               f"{REAL_TIME_ROBOTS_PER_CORE} per core measured at real time (scripts/bench_team)"
               "; the run may fall behind and robots lag their commands (--rtf below 1 keeps "
@@ -307,16 +202,17 @@ def run(args: argparse.Namespace) -> int:
                       f"{remote_command(env, proc.cmd)}", file=sys.stderr, flush=True)
             else:
                 procs.start(proc.name, proc.cmd)
+        startup = REMOTE_STARTUP_TIMEOUT if remote else STARTUP_TIMEOUT
         procs.start("world", executable("world_node") + ros_args(
             world=str(world_path), team=str((out / "team.yaml").resolve()), seed=args.seed,
             real_time_factor=float(args.rtf), clock_rate_hz=float(args.clock_rate),
             odom_rate_hz=float(args.odom_rate), status_rate_hz=2.0,
-            publish_map=not args.explore))
+            publish_map=not args.explore, lockstep=bool(args.lockstep),
+            lockstep_observers=OBSERVER, lockstep_start_timeout=startup + 30.0))
         viewer = _start_viz(args, procs, out, radius, world_path, say)
         if not args.no_markers:
             procs.start("markers", executable("marker_node") + ros_args(use_sim_time=True))
-        tracker.run(REMOTE_STARTUP_TIMEOUT if remote else STARTUP_TIMEOUT, PROGRESS_PERIOD,
-                    METRICS_PERIOD)
+        tracker.run(startup, PROGRESS_PERIOD, METRICS_PERIOD)
     except KeyboardInterrupt:
         interrupted = True
     except RuntimeError as exc:

@@ -16,6 +16,7 @@ At the end the merged belief is written as a map_server map, ``explored_map.yaml
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -30,7 +31,7 @@ from coverage_ros.core.world.map_server import write_map_yaml
 from coverage_ros.core.world.spec import WorldSpec
 from coverage_ros.errors import CoverageError
 from coverage_ros.nodes import conversions as conv
-from coverage_ros.nodes.plumbing import TEAM_QOS, quiet_subscription
+from coverage_ros.nodes.plumbing import LOCKSTEP_STATE_QOS, TEAM_QOS, quiet_subscription
 
 #: Source id of the launcher's own (merged) belief: no robot has it.
 TEAM_SOURCE = -1
@@ -40,23 +41,33 @@ class TeamExploration:
     """See module docstring."""
 
     def __init__(self, node: Node, world: WorldSpec, starts: np.ndarray, robot_ids: list[int],
-                 radius: float, prefix: str = "robot_") -> None:
+                 radius: float, prefix: str = "robot_",
+                 lockstep: Callable[[int, int, object], None] | None = None) -> None:
+        """``lockstep(sender, stamp [ns], evidence)`` takes the evidence heard instead of the
+        merged belief (lock-step: the monitor merges it at the ticks it samples)."""
         grid = world.grid
         lattice = GridMap(np.full(grid.shape, -1, np.int8), grid.resolution, grid.origin)
         self.belief = Belief(lattice, TEAM_SOURCE)
         self.scorer = ExplorationScorer(grid, starts, radius, world.solid)
         self.series: list[tuple[float, float, float]] = []
         self.dropped = 0
+        self._lockstep = lockstep
         self.subs = [node.create_subscription(
             PointCloud2, f"/{prefix}{i}/observations",
-            lambda msg, i=i: self._on_observations(i, msg), TEAM_QOS,
+            lambda msg, i=i: self._on_observations(i, msg),
+            TEAM_QOS if lockstep is None else LOCKSTEP_STATE_QOS,
             event_callbacks=quiet_subscription()) for i in robot_ids]
 
     def _on_observations(self, robot_id: int, msg: PointCloud2) -> None:
         try:
-            self.belief.merge(conv.evidence_from_msg(msg, robot_id, self.belief.lattice))
+            evidence = conv.evidence_from_msg(msg, robot_id, self.belief.lattice)
         except (CoverageError, ValueError):
             self.dropped += 1  # the robots warn about bad clouds themselves
+            return
+        if self._lockstep is not None:
+            self._lockstep(robot_id, conv.stamp_ns(msg.header.stamp), evidence)
+        else:
+            self.belief.merge(evidence)
 
     def sample(self, t: float) -> float:
         """Score the merged belief at run time ``t`` [s]; the explored fraction."""

@@ -39,6 +39,8 @@ from std_srvs.srv import SetBool
 
 from coverage_ros.cli.processes import ProcessStats
 from coverage_ros.cli.team_exploration import TeamExploration
+from coverage_ros.cli.team_lockstep import LockstepObserver, run_lockstep
+from coverage_ros.cli.team_summary import converged_at
 from coverage_ros.core.geodesic.tessellation import Generator, fast_tessellate
 from coverage_ros.core.metrics import coverage_ratio, mass_deviation
 from coverage_ros.core.world.region import Region
@@ -47,7 +49,6 @@ from coverage_ros.nodes import conversions as conv
 from coverage_ros.nodes.plumbing import ClockGuard, quiet_subscription
 from coverage_ros.nodes.region_input import REGION_QOS, REGION_TOPIC, RegionInput
 
-CONVERGED_BAND = 0.02  # H within 2 % of its final value counts as converged
 EXPLORE_PERIOD = 1.0  # [s] wall time between scores of an exploring team's merged belief
 #: Share of one core the launcher spends on H samples at most, up to METRICS_LONGEST periods
 #: between samples: a tessellation of 64 robots on depot takes 0.4-2 s on two busy cores, CPU
@@ -107,10 +108,14 @@ class TeamTracker:
         self.region_pub = self.node.create_publisher(PolygonStamped, REGION_TOPIC, REGION_QOS)
         for poly in (region or Region()).polygons:
             self.region_pub.publish(conv.polygon_msg(conv.to_time_msg(0.0), poly))
+        self.observer = None
+        if args.lockstep:
+            self.observer = LockstepObserver(self.node, list(range(n)), evidence=args.explore)
         self.exploration = None
         if getattr(args, "explore", False):
-            self.exploration = TeamExploration(self.node, world, self.starts, list(range(n)),
-                                               max(m.spec.radius for m in team))
+            self.exploration = TeamExploration(
+                self.node, world, self.starts, list(range(n)), max(m.spec.radius for m in team),
+                lockstep=None if self.observer is None else self.observer.inbox.put_evidence)
 
     # ------------------------------------------------------------------ inputs
     def _set_region(self, region: Region) -> None:
@@ -125,6 +130,9 @@ class TeamTracker:
         self.sim_time = max(self.sim_time, t)
 
     def _on_status(self, msg: DiagnosticArray) -> None:
+        if self.observer is not None:
+            self.observer.status_stamp = max(self.observer.status_stamp,
+                                             conv.stamp_ns(msg.header.stamp))
         for st in msg.status:
             values = conv.diagnostic_values(st)
             if "id" not in values:
@@ -166,25 +174,26 @@ class TeamTracker:
         t0 = time.monotonic()
         if getattr(self.args, "stats", False):
             self.proc_stats = ProcessStats(self.procs)
+        if self.observer is not None:
+            try:
+                run_lockstep(self, self.observer, startup_timeout, progress_period)
+            finally:
+                self.run_span = (self.sim_time - getattr(self, "sim_start", self.sim_time),
+                                 time.monotonic() - getattr(self, "wall_start", time.monotonic()))
+            self.H_samples.append((self.sim_time, self.cost()))
+            self.progress(self.ready_at + self.args.duration, final=True)
+            return
         self.say("  waiting for the world and the robots ...")
         while self.ready_at is None:
             rclpy.spin_once(self.node, timeout_sec=0.1)
-            self._check_children(starting=True)
+            self.check_children(starting=True)
             if len(self.states_seen) == n and len(self.poses) == n:
                 self.ready_at = self.sim_time
             elif time.monotonic() - t0 > startup_timeout:
                 missing = sorted(set(range(n)) - self.states_seen)
                 raise RuntimeError(f"robots {missing} did not start within "
                                    f"{startup_timeout:g} s (see their logs)")
-        # Both anchors of the run's real-time factor are taken now, before the first cost
-        # evaluation (which takes a while on big maps and would leave sim_start stale).
-        self.wall_start = time.monotonic()
-        self.sim_start = self.sim_time
-        for sub in self.state_subs:
-            self.node.destroy_subscription(sub)
-        self.say(f"  team ready at sim time {self.ready_at:.1f} s after "
-                 f"{self.wall_start - t0:.1f} s wall")
-        self.H_samples.append((self.ready_at, self._cost()))
+        self.team_ready(t0)
         end = self.ready_at + self.args.duration
         last_progress = last_metrics = last_explored = 0.0
         metrics_wait = metrics_period
@@ -193,7 +202,7 @@ class TeamTracker:
         try:
             while self.sim_time < end:
                 rclpy.spin_once(self.node, timeout_sec=0.05)
-                self._check_children()
+                self.check_children()
                 if self.sim_time > advanced[0]:
                     advanced = (self.sim_time, time.monotonic())
                 elif time.monotonic() - advanced[1] > CLOCK_STALL:
@@ -203,13 +212,13 @@ class TeamTracker:
                         "logs/world.log)")
                 while self.faults and self.sim_time - self.ready_at >= self.faults[0][0]:
                     _, rid, action = self.faults.pop(0)
-                    self._kill(rid) if action == "kill" else self._restart(rid)
+                    self.kill(rid) if action == "kill" else self.restart(rid)
                 now = time.monotonic()
                 if self.proc_stats is not None:
                     self.proc_stats.sample(now)
                 if now - last_metrics >= metrics_wait:
                     last_metrics = now
-                    self.H_samples.append((self.sim_time, self._cost()))
+                    self.H_samples.append((self.sim_time, self.cost()))
                     took = time.monotonic() - now
                     metrics_wait = min(METRICS_LONGEST * metrics_period,
                                        max(metrics_period, took / METRICS_SHARE))
@@ -222,15 +231,28 @@ class TeamTracker:
                         break
                 if now - last_progress >= progress_period:
                     last_progress = now
-                    self._progress(end)
+                    self.progress(end)
         finally:
             # The run's real-time factor is measured over the run only: not start-up, and not
             # the shutdown of the processes that follows.
             self.run_span = (self.sim_time - self.sim_start, time.monotonic() - self.wall_start)
-        self.H_samples.append((self.sim_time, self._cost()))
-        self._progress(end, final=True)
+        self.H_samples.append((self.sim_time, self.cost()))
+        self.progress(end, final=True)
 
-    def _check_children(self, starting: bool = False) -> None:
+    def team_ready(self, t0: float) -> None:
+        """Every robot is up (``t0``: wall time the launcher began waiting)."""
+        self.ready_at = self.sim_time
+        # Both anchors of the run's real-time factor are taken now, before the first cost
+        # evaluation (which takes a while on big maps and would leave sim_start stale).
+        self.wall_start = time.monotonic()
+        self.sim_start = self.sim_time
+        for sub in self.state_subs:
+            self.node.destroy_subscription(sub)
+        self.say(f"  team ready at sim time {self.ready_at:.1f} s after "
+                 f"{self.wall_start - t0:.1f} s wall")
+        self.H_samples.append((self.ready_at, self.cost()))
+
+    def check_children(self, starting: bool = False) -> None:
         now = time.monotonic()
         if now - self._clock_checked >= 1.0:  # a graph query: once a second is enough
             self._clock_checked = now
@@ -252,7 +274,7 @@ class TeamTracker:
                          f"{self.procs.tail(child)}")
                 self.lost[i] = self.sim_time
 
-    def _restart(self, rid: int) -> None:
+    def restart(self, rid: int) -> None:
         """The robot's process dies (SIGKILL) and starts again at once with the same id and
         parameters; its body stays where it is, as a robot whose software crashed would."""
         t = self.sim_time - self.ready_at
@@ -263,7 +285,7 @@ class TeamTracker:
         self.relaunch(rid)
         self.restarted.setdefault(rid, []).append(round(t, 2))
 
-    def _kill(self, rid: int) -> None:
+    def kill(self, rid: int) -> None:
         self.say(f"\n  killing robot {rid} at sim time {self.sim_time:.1f} s")
         self.procs.signal(f"robot_{rid}", signal.SIGKILL)
         self.remove_pub.publish(Int32(data=rid))
@@ -278,14 +300,14 @@ class TeamTracker:
         return [Generator(p, self.team[i].spec.power_weight)
                 for i, p in zip(ids, positions, strict=True)]
 
-    def _cost(self) -> float:
+    def cost(self) -> float:
         ids = self._present()
         if not ids:
             return math.nan
         P = np.array([self.poses[i][:2] for i in ids])
         return float(fast_tessellate(self.domain, self._generators(ids, P)).cost)
 
-    def _progress(self, end: float, final: bool = False) -> None:
+    def progress(self, end: float, final: bool = False) -> None:
         if self.args.quiet:
             return
         span = end - self.ready_at
@@ -342,7 +364,7 @@ class TeamTracker:
                 "mass_deviation_I": mass_deviation(tess.masses) if tess is not None else None,
                 "coverage_ratio": coverage_ratio(self.world.grid, P, sensing),
                 "min_separation": self.min_sep if math.isfinite(self.min_sep) else None,
-                "converged_at": self._converged_at(H),
+                "converged_at": converged_at(self.H_samples, H, self.ready_at),
                 "H_series": [[round(t - (self.ready_at or 0.0), 2), round(h, 6)]
                              for t, h in self.H_samples if math.isfinite(h)],
             },
@@ -372,49 +394,6 @@ class TeamTracker:
         """The simulated body's spec as the world node reports it (empty if it never did)."""
         return {k: float(status[k]) for k in NUMBER_FIELDS if k in status}
 
-    def _converged_at(self, H_final: float) -> float | None:
-        if not self.H_samples or not math.isfinite(H_final):
-            return None
-        t_conv = None
-        for t, h in reversed(self.H_samples):
-            if not abs(h - H_final) <= CONVERGED_BAND * H_final:
-                break
-            t_conv = t
-        return None if t_conv is None else round(t_conv - (self.ready_at or 0.0), 3)
-
     def close(self) -> None:
         self.node.destroy_node()
         rclpy.try_shutdown()
-
-
-def summary_table(summary: dict) -> str:
-    """A short human-readable table of a summary."""
-    m = summary["metrics"]
-
-    def xy(p) -> str:
-        return "-" if p is None else f"({p[0]:.2f}, {p[1]:.2f})"
-
-    def num(v, digits: int = 3) -> str:
-        return "-" if v is None else f"{v:.{digits}g}"
-
-    lines = [f"{'robot':>5} {'start (x, y)':>16} {'final (x, y)':>16} {'path [m]':>9} "
-             f"{'collisions':>10}"]
-    for r in summary["robots"]:
-        final = "lost" if r.get("lost_at") is not None else xy(r["final"])
-        lines.append(f"{r['id']:>5} {xy(r['start']):>16} {final:>16} {r['path_length']:>9.2f} "
-                     f"{r['collisions']:>10d}")
-    drop = 100.0 * (1.0 - m["H"] / m["H_start"]) if m["H_start"] else math.nan
-    conv_at = "-" if m["converged_at"] is None else f"{m['converged_at']:.1f} s"
-    lines.append(f"H {num(m['H'], 4)} (start {num(m['H_start'], 4)}, {drop:.0f} % lower), "
-                 f"I {num(m['mass_deviation_I'])}, coverage {100 * m['coverage_ratio']:.0f} %, "
-                 f"min separation {num(m['min_separation'])} m, converged at {conv_at}")
-    ex = summary.get("exploration")
-    if ex is not None:
-        at = ", ".join(f"{k}: {'-' if v is None else f'{v:g} s'}"
-                       for k, v in ex["explored_at"].items())
-        lines.append(f"explored {100 * ex['explored_fraction']:.1f} % (reached {at}); false "
-                     f"free {100 * ex['false_free']:.2f} %")
-    lines.append(f"real-time factor {summary['rtf']:.2f} over the run; sim time "
-                 f"{summary['sim_time']:.1f} s in {summary['wall_time']:.1f} s wall with start-up "
-                 "and shutdown")
-    return "\n".join(lines)

@@ -1,0 +1,196 @@
+"""The launcher's monitor as a lock-step observer (``coverage-team --lockstep``).
+
+The monitor is a member of the world's barrier (observer ``coverage_team``): it answers every
+tick, and the world waits for it, so whatever it measures at a tick - the robots' poses,
+collisions and path lengths in the world's status of that tick, the coverage cost from them,
+the explored share of the map from the evidence published up to the tick before - belongs to
+that tick exactly, and the run ends at an exact tick: the same seed gives the same summary.
+"""
+
+from __future__ import annotations
+
+import time
+from collections import deque
+
+from coverage_msgs.msg import LockstepReport, LockstepTick
+from sensor_msgs.msg import JointState
+
+from coverage_ros.core.lockstep import Inbox, Tick
+from coverage_ros.core.lockstep.barrier import DONE, JOIN, WORKING
+from coverage_ros.nodes import conversions as conv
+from coverage_ros.nodes.plumbing import (
+    LOCKSTEP_STATE_QOS,
+    REPORT_QOS,
+    TICK_QOS,
+    quiet_subscription,
+)
+
+#: The monitor's member name (world_node's lockstep_observers).
+OBSERVER = "coverage_team"
+#: [s] wall time between the monitor's JOIN or WORKING reports.
+BEAT = 0.5
+
+
+class LockstepObserver:
+    """The monitor's side of the barrier. ``evidence``: an exploring team, whose evidence the
+    monitor merges at the ticks it samples (``put_evidence(sender, stamp, evidence)`` of the
+    monitor's exploration gets the messages; :meth:`inputs_missing` waits for them)."""
+
+    def __init__(self, node, robot_ids: list[int], prefix: str = "robot_",
+                 evidence: bool = False) -> None:
+        self.node = node
+        self.report_pub = node.create_publisher(LockstepReport, "/world/tick_report",
+                                                REPORT_QOS)
+        node.create_subscription(LockstepTick, "/world/tick", self._on_tick, TICK_QOS)
+        self._pending: deque[Tick] = deque()
+        self.handled = -1  # newest tick answered
+        self.listed = False  # the world lists the monitor
+        self.status_stamp = -1  # [ns] of the newest /world/robots received
+        self._beat = 0.0
+        self.inbox = Inbox(-1) if evidence else None
+        if evidence:
+            for rid in robot_ids:
+                node.create_subscription(
+                    JointState, f"/{prefix}{rid}/coverage_state",
+                    lambda msg, rid=rid: self._on_state(rid, msg), LOCKSTEP_STATE_QOS,
+                    event_callbacks=quiet_subscription())
+
+    def _on_state(self, rid: int, msg: JointState) -> None:
+        try:
+            values = conv.coverage_state_values(msg)
+        except ValueError:
+            return  # the robots warn about bad states themselves
+        self.inbox.put_state(rid, conv.stamp_ns(msg.header.stamp), values)
+
+    def _on_tick(self, msg: LockstepTick) -> None:
+        tick = conv.tick_from_msg(msg)
+        self.listed = OBSERVER in tick.observers
+        if tick.index <= self.handled:
+            if tick.index == self.handled and self.listed:
+                self._report(DONE, tick.index)  # the answer may have been lost
+            return
+        if self._pending and self._pending[-1].index == tick.index:
+            self._pending[-1] = tick  # the same tick again (members joined): the newest list
+        else:
+            self._pending.append(tick)
+
+    def _report(self, kind: int, tick: int) -> None:
+        self.report_pub.publish(conv.report_msg(kind, tick, observer=OBSERVER))
+
+    def beat(self) -> None:
+        """JOIN until listed; then WORKING while a tick is held (call often)."""
+        now = time.monotonic()
+        if now - self._beat < BEAT:
+            return
+        self._beat = now
+        newest = self._pending[-1].index if self._pending else max(self.handled, 0)
+        if not self.listed:
+            self._report(JOIN, newest)
+        elif self._pending:
+            self._report(WORKING, self._pending[0].index)
+
+    def next_tick(self) -> Tick | None:
+        """The oldest tick not answered yet whose status (when it has one) has arrived."""
+        if not self._pending or not self.listed:
+            return None
+        tick = self._pending[0]
+        if tick.status and self.status_stamp < tick.stamp:
+            return None
+        return tick
+
+    def inputs_missing(self, tick: Tick) -> list[str]:
+        """Exploring: what the evidence of the tick before ``tick`` still waits for."""
+        if self.inbox is None:
+            return []
+        return self.inbox.missing(tick, pose=False, states=True, evidence=True)
+
+    def take_evidence(self, tick: Tick) -> list:
+        """The evidence stamped up to the tick before ``tick`` (exploring)."""
+        if self.inbox is None:
+            return []
+        return [e for _, _, e in self.inbox.take(tick, evidence=True).evidence]
+
+    def answer(self, tick: Tick) -> None:
+        """``tick`` is handled: DONE, and on to the next."""
+        if self._pending and self._pending[0].index == tick.index:
+            self._pending.popleft()
+        self.handled = tick.index
+        self._report(DONE, tick.index)
+
+
+#: [s] sim time between the coverage cost samples of a lock-step run (H_series).
+METRICS_PERIOD = 5.0
+#: [s] sim time between scores of an exploring team's merged belief.
+EXPLORE_PERIOD = 1.0
+#: [s] wall time the monitor waits for the evidence of a sampled tick before scoring without.
+EVIDENCE_TIMEOUT = 10.0
+
+
+def run_lockstep(tracker, observer: LockstepObserver, startup_timeout: float,
+                 progress_period: float) -> None:
+    """:meth:`~coverage_ros.cli.team_metrics.TeamTracker.run` of a lock-step team: every
+    sample at a tick of its own (module docstring); returns at the end tick, unanswered, so
+    the world stands still at it while the launcher stops the team."""
+    import rclpy
+
+    t0 = time.monotonic()
+    tracker.say("  waiting for the world and the robots (lock-step) ...")
+    end = next_metrics = next_explore = None
+    last_progress = 0.0
+    until = tracker.args.until_explored
+    while True:
+        rclpy.spin_once(tracker.node, timeout_sec=0.02)
+        observer.beat()
+        tracker.check_children(starting=tracker.ready_at is None)
+        tick = observer.next_tick()
+        if tick is None:
+            if tracker.ready_at is None and time.monotonic() - t0 > startup_timeout:
+                raise RuntimeError(f"the world's lock-step did not list robots "
+                                   f"{sorted(set(tracker.alive()))} within "
+                                   f"{startup_timeout:g} s (see their logs)")
+            continue
+        tracker.sim_time = max(tracker.sim_time, tick.time)
+        if tracker.ready_at is None:
+            if not set(tracker.alive()) <= tick.robots:
+                observer.answer(tick)  # tick 0 while the team joins
+                continue
+            tracker.team_ready(t0)
+            end = tracker.ready_at + tracker.args.duration
+            next_metrics = tracker.ready_at + METRICS_PERIOD
+            next_explore = tracker.ready_at
+        t = tick.time
+        while tracker.faults and t - tracker.ready_at >= tracker.faults[0][0] - 1e-9:
+            _, rid, action = tracker.faults.pop(0)
+            tracker.kill(rid) if action == "kill" else tracker.restart(rid)
+        if tick.status and t >= next_metrics - 1e-9:
+            next_metrics += METRICS_PERIOD
+            tracker.H_samples.append((t, tracker.cost()))
+        if tracker.exploration is not None and tick.status and t >= next_explore - 1e-9:
+            next_explore += EXPLORE_PERIOD
+            _wait_evidence(tracker, observer, tick)
+            for evidence in observer.take_evidence(tick):
+                tracker.exploration.belief.merge(evidence)
+            fraction = tracker.exploration.sample(t - tracker.ready_at)
+            if until is not None and fraction >= until:
+                tracker.say(f"\n  explored {100 * fraction:.1f} % at sim time "
+                            f"{t - tracker.ready_at:.1f} s: stopping")
+                return
+        if tick.status and t >= end - 1e-9:
+            return  # the end: not answered, the world holds still here
+        observer.answer(tick)
+        now = time.monotonic()
+        if now - last_progress >= progress_period:
+            last_progress = now
+            tracker.progress(end)
+
+
+def _wait_evidence(tracker, observer: LockstepObserver, tick: Tick) -> None:
+    import rclpy
+
+    t0 = time.monotonic()
+    while missing := observer.inputs_missing(tick):
+        if time.monotonic() - t0 > EVIDENCE_TIMEOUT:
+            tracker.say(f"\n  tick {tick.index}: scoring without {', '.join(missing[:3])}")
+            return
+        rclpy.spin_once(tracker.node, timeout_sec=0.02)
+        observer.beat()

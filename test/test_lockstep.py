@@ -178,6 +178,17 @@ def test_evidence_is_waited_for_up_to_the_stamp_the_sender_names_and_no_further(
     assert box.missing(t4, evidence=True) == [] and box.take(t4, evidence=True).evidence == []
 
 
+def test_states_of_the_first_tick_that_come_before_it_is_worked_on_are_kept_for_the_next():
+    box = Inbox(own_id=2)
+    t0 = tick(0)  # (its previous tick is itself)
+    box.put_pose(0, "p0")
+    box.put_state(0, 0, {"x": 0.0})  # robot 0 answered tick 0 before robot 2 took it
+    box.take(t0)
+    box.put_pose(100 * MS, "p1")
+    t1 = tick(1, answered=(0, 2))
+    assert box.missing(t1) == [] and box.take(t1).states == {0: {"x": 0.0}}
+
+
 @pytest.mark.parametrize(("period", "tick_s", "every"), [(0.5, 0.1, 5), (0.1, 0.1, 1),
                                                           (0.05, 0.1, 1), (1 / 3, 0.1, 3)])
 def test_rates_become_whole_numbers_of_ticks(period, tick_s, every):

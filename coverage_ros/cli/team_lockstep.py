@@ -143,6 +143,9 @@ def run_lockstep(tracker, observer: LockstepObserver, startup_timeout: float,
         observer.beat()
         tracker.check_children(starting=tracker.ready_at is None)
         tick = observer.next_tick()
+        if tick is not None and tracker.ready_at is None and tick.index > 0:
+            raise RuntimeError(f"the world started without robots "
+                               f"{sorted(set(tracker.alive()) - tick.robots)}")
         if tick is None:
             if tracker.ready_at is None and time.monotonic() - t0 > startup_timeout:
                 raise RuntimeError(f"the world's lock-step did not list robots "
@@ -152,8 +155,7 @@ def run_lockstep(tracker, observer: LockstepObserver, startup_timeout: float,
         tracker.sim_time = max(tracker.sim_time, tick.time)
         if tracker.ready_at is None:
             if not set(tracker.alive()) <= tick.robots:
-                observer.answer(tick)  # tick 0 while the team joins
-                continue
+                continue  # tick 0 while the team joins: unanswered, the world does not start
             tracker.team_ready(t0)
             end = tracker.ready_at + tracker.args.duration
             next_metrics = tracker.ready_at + METRICS_PERIOD

@@ -134,8 +134,7 @@ class Inbox:
         """Hand out the inputs of ``tick`` (whatever of them arrived) and forget older ones."""
         with self._lock:
             got = TickInputs(pose=self._poses.get(tick.stamp))
-            self._poses = {s: p for s, p in self._poses.items()
-                           if s > tick.stamp and s - tick.stamp < 10 * KEEP}
+            self._poses = {s: p for s, p in self._poses.items() if s > tick.stamp}
             keep = []
             for s, scan in sorted(self._scans, key=lambda item: item[0]):
                 if s <= tick.stamp:
@@ -148,8 +147,8 @@ class Inbox:
                 values = self._states.get(rid, {}).get(tick.previous)
                 if values is not None:
                     got.states[rid] = values
-            for rid in list(self._states):
-                newer = {s: v for s, v in self._states[rid].items() if s > tick.previous}
+            for rid in list(self._states):  # (those of this tick are due at the next)
+                newer = {s: v for s, v in self._states[rid].items() if s >= tick.stamp}
                 if newer:
                     self._states[rid] = newer
                 else:

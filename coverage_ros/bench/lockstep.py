@@ -47,18 +47,18 @@ SCENARIOS: dict[str, list[str]] = {
 }
 
 
-def _diff(a, b, path: str = "") -> list[str]:
+def differences(a, b, path: str = "") -> list[str]:
     """Where two JSON values differ (paths), at most a few."""
     if type(a) is not type(b):
         return [f"{path}: {a!r} / {b!r}"]
     if isinstance(a, dict):
-        return [d for k in sorted(set(a) | set(b)) for d in _diff(a.get(k), b.get(k),
+        return [d for k in sorted(set(a) | set(b)) for d in differences(a.get(k), b.get(k),
                                                                   f"{path}.{k}")][:5]
     if isinstance(a, list):
         if len(a) != len(b):
             return [f"{path}: {len(a)} / {len(b)} items"]
         return [d for i, (x, y) in enumerate(zip(a, b, strict=True))
-                for d in _diff(x, y, f"{path}[{i}]")][:5]
+                for d in differences(x, y, f"{path}[{i}]")][:5]
     return [] if a == b else [f"{path}: {a!r} / {b!r}"]
 
 
@@ -108,7 +108,7 @@ def main(argv: list[str] | None = None) -> int:
             first = run_team(cmd, outs[0])
             with cpu_hogs(args.hogs):
                 second = run_team(cmd, outs[1])
-            diff = _diff(deterministic_part(first), deterministic_part(second))
+            diff = differences(deterministic_part(first), deterministic_part(second))
             row = {"scenario": name, "identical": not diff, "differences": diff,
                    "rtf": first["rtf"], "rtf_beside_hogs": second["rtf"],
                    "H": first["metrics"]["H"], "H_start": first["metrics"]["H_start"],

@@ -180,7 +180,8 @@ class TeamTracker:
             finally:
                 self.run_span = (self.sim_time - getattr(self, "sim_start", self.sim_time),
                                  time.monotonic() - getattr(self, "wall_start", time.monotonic()))
-            self.H_samples.append((self.sim_time, self.cost()))
+            if not self.H_samples or self.H_samples[-1][0] != self.sim_time:
+                self.H_samples.append((self.sim_time, self.cost()))
             self.progress(self.ready_at + self.args.duration, final=True)
             return
         self.say("  waiting for the world and the robots ...")

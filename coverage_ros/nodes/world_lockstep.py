@@ -92,9 +92,13 @@ class WorldLockstep:
         return conv.stamp_ns(conv.to_time_msg(self.node.sim.time))
 
     def _log(self, text: str, warn: bool = False) -> None:
-        if text:
-            logger = self.node.get_logger()
-            (logger.warning if warn else logger.info)(text)
+        if not text:
+            return
+        # (two call sites: rclpy refuses one call site logging at two severities)
+        if warn:
+            self.node.get_logger().warning(text)
+        else:
+            self.node.get_logger().info(text)
 
     # ------------------------------------------------------------------ reports
     def _on_report(self, msg: LockstepReport) -> None:

@@ -1,0 +1,99 @@
+"""Lock-step simulation with the real processes over DDS: one command and seed give the same
+summary however busy the machine is; robots started by hand join the barrier, and a robot that
+dies leaves it after the timeout instead of freezing the team."""
+
+from __future__ import annotations
+
+import json
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+from conftest import REPO, shared_map
+from rosutil import NodeProcess, RosClient, domain_id
+
+from coverage_ros.bench.lockstep import cpu_hogs, differences
+from coverage_ros.cli.team_summary import WALL_CLOCK_KEYS, deterministic_part
+
+pytestmark = [pytest.mark.integration, pytest.mark.slow]
+
+TEAM = [str(REPO / ".venv" / "bin" / "coverage-team"), "--quiet", "--lockstep"]
+
+
+def test_one_command_and_seed_give_the_same_summary_beside_a_cpu_hog(tmp_path):
+    """Four geodesic robots, two per process (their shared search cache, their one driver
+    thread), with a region of interest: run twice, the second time beside two busy
+    processes; everything but the wall-clock figures is the same."""
+    sandbox = shared_map("tb3_sandbox")
+    args = ["--world", str(sandbox), "--robots", "4", "--duration", "30", "--seed", "3",
+            "--robots-per-process", "2", "--region", "-1.8,-1.8;1.0,-1.8;1.0,1.0;-1.8,1.0"]
+    summaries = []
+    for k in range(2):
+        out = tmp_path / f"run{k}"
+        cmd = TEAM + ["--out", str(out), "--domain-id", str(domain_id(22 + k)), *args]
+        with cpu_hogs(2 if k else 0):
+            proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+        assert proc.returncode == 0, proc.stderr[-3000:]
+        summaries.append(json.loads((out / "summary.json").read_text()))
+        assert "going on without" not in "".join(
+            p.read_text() for p in (out / "logs").glob("robots_*.log"))
+    first, second = summaries
+    print(f"rtf {first['rtf']} alone, {second['rtf']} beside two CPU hogs")
+    assert set(WALL_CLOCK_KEYS) & set(first) == {"wall_time", "rtf"}
+    assert differences(deterministic_part(first), deterministic_part(second)) == []
+    assert len(first["metrics"]["H_series"]) == 7  # every 5 s of sim time, and the end
+    assert first["metrics"]["H"] < 0.5 * first["metrics"]["H_start"]
+
+
+def test_robots_started_by_hand_join_and_a_dead_one_leaves_after_the_timeout():
+    """world_node lock-step with three bodies and a short start timeout; robots 0 and 1 start
+    (ros2 run style), the world begins with them; robot 2 starts later and joins from the next
+    tick; robot 1 is killed (SIGKILL: no goodbye) and the world goes on without it after
+    lockstep_timeout, with one warning."""
+    from rosgraph_msgs.msg import Clock
+
+    from coverage_ros.nodes import conversions as conv
+
+    domain = domain_id(24)
+
+    def robot(rid: int) -> NodeProcess:
+        return NodeProcess([sys.executable, "-m", "coverage_ros.nodes.robot_node", "--ros-args",
+                            "-r", f"__ns:=/robot_{rid}", "-p", "use_sim_time:=true",
+                            "-p", "world:=l_shape", "-p", "lockstep:=true"], domain)
+
+    with NodeProcess.world_node(domain, "world:=l_shape", "num_robots:=3", "lockstep:=true",
+                                "lockstep_start_timeout:=8.0", "lockstep_timeout:=3.0",
+                                "real_time_factor:=4.0") as world, robot(0) as r0, \
+            robot(1) as r1:
+        client = RosClient(domain)
+        try:
+            def sim_time() -> float:
+                return conv.from_time_msg(client.wait_for("/clock", Clock, timeout=30.0).clock)
+
+            client.spin_until(lambda: "lock-step: first tick with robots [0, 1]"
+                              in world.output(), 60.0, "the first tick")
+            t0 = sim_time()
+            with robot(2) as r2:
+                client.spin_until(lambda: "robot 2 joined: listed from tick" in world.output(),
+                                  60.0, "robot 2 to join")
+                assert sim_time() > t0
+                r1.signal(signal.SIGKILL)
+                killed = time.monotonic()
+                try:
+                    client.spin_until(lambda: "robot 1 silent for" in world.output(), 30.0,
+                                      "the world to give up on robot 1")
+                except TimeoutError:
+                    print(world.output()[-3000:], r0.output()[-2000:], r2.output()[-2000:])
+                    raise
+                gave_up = time.monotonic() - killed
+                t1 = sim_time()
+                client.spin_for(2.0)
+                assert sim_time() > t1 + 1.0  # the team goes on (at most 4x real time)
+                assert r0.alive() and r2.alive(), r0.output() + r2.output()
+        finally:
+            client.close()
+        print(f"the world gave up on the dead robot {gave_up:.1f} s after it died")
+        assert 3.0 <= gave_up <= 10.0
+        assert world.output().count("robot 1 silent for") == 1

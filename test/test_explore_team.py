@@ -19,7 +19,7 @@ from coverage_ros.core.world.map_server import load_map_yaml
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
-TEAM = [str(REPO / ".venv" / "bin" / "coverage-team"), "--quiet", "--explore"]
+TEAM = [str(REPO / ".venv" / "bin" / "coverage-team"), "--quiet", "--explore", "--lockstep"]
 
 
 def explore(tmp_path, world, *args: str, offset: int) -> tuple[dict, object]:
@@ -50,21 +50,20 @@ def check_explored(summary: dict, out, world_path) -> None:
 
 def test_four_robots_explore_the_office_and_settle_into_coverage(tmp_path):
     world = WORLDS / "office.yaml"
-    # At twice real time (runs at rtf 2.0: 95 % explored at 120-149 s of sim time against
-    # 108-112 s at real time, settled at 180-240 s; 160 s of wall time instead of 254 s at 240 s
-    # of real time).
-    summary, out = explore(tmp_path, world, "--robots", "4", "--duration", "300", "--rtf", "2",
-                           "--record", offset=20)
+    summary, out = explore(tmp_path, world, "--robots", "4", "--duration", "220", "--record",
+                           offset=20)
     check_explored(summary, out, world)
     m = summary["metrics"]
+    print(f"explored at {summary['exploration']['explored_at']}, converged at "
+          f"{m['converged_at']}, H {m['H']:.1f} from {m['H_start']:.1f}")
     # Then they settle: the coverage cost of the true map stopped changing before the end
-    # (H is sampled every 10 s of wall time), far below the start cluster's.
-    # (A CI run once "settled" at 166 s with H at half the start's: a robot stood at a door
-    # jamb whose way on began with a sideways step; core/geodesic/descent.py's ball_descent.)
+    # (H is sampled every 5 s of sim time), far below the start cluster's. The lock-step run:
+    # 95 % explored at 103 s, settled at 150 s with H at 0.145 of the start's.
     why = team_diagnosis(summary, out)
     assert not any("lost_at" in r for r in summary["robots"]), why
-    assert m["converged_at"] is not None and m["converged_at"] <= 285.0, why
-    assert m["H"] <= 0.25 * m["H_start"], why
+    assert summary["exploration"]["explored_at"]["0.95"] <= 120.0, why
+    assert m["converged_at"] is not None and m["converged_at"] <= 180.0, why
+    assert m["H"] <= 0.17 * m["H_start"], why
     # The recording shows the belief's entropy under the cells and the explored fraction.
     rows = read_rrd(out / "recording.rrd")
     assert len(rows["/world/entropy"]) >= 20
@@ -79,11 +78,12 @@ def test_four_robots_explore_the_office_and_settle_into_coverage(tmp_path):
 @pytest.mark.parametrize("strategy", ["geodesic", "frontier"])
 def test_four_robots_explore_the_turtlebot3_sandbox(tmp_path, strategy):
     world = shared_map("tb3_sandbox")
-    # At twice real time, 40 s of sim time (runs of 2026-11-26 at rtf 2: 95 % explored at 15 s,
-    # 99 % at 21-25 s).
-    summary, out = explore(tmp_path, world, "--robots", "4", "--duration", "40", "--rtf", "2",
+    summary, out = explore(tmp_path, world, "--robots", "4", "--duration", "25",
                            "--strategy", strategy, offset=21 if strategy == "geodesic" else 22)
     check_explored(summary, out, world)
+    # The lock-step runs: 95 % explored at 7 s (geodesic) and 8 s (frontier).
+    assert summary["exploration"]["explored_at"]["0.95"] <= 10.0
+    print(f"{strategy}: explored at {summary['exploration']['explored_at']}")
     series = np.array(summary["exploration"]["series"])
     # Evidence only grows, but the explored share may dip a little: a lidar that sees another
     # robot's body marks a few truly free cells occupied until later scans clear them again.

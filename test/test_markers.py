@@ -130,9 +130,11 @@ def test_a_team_shows_in_rviz_markers_and_a_robot_that_leaves_is_cleared(tmp_pat
     out = tmp_path / "team"
     client = RosClient(domain, "marker_watch")
     arrays = client.subscribe("/coverage/markers", MarkerArray)
+    # Lock-step at most twice real time: a silent robot's markers go after 3 s of wall time.
     proc = subprocess.Popen(
         [str(REPO / ".venv" / "bin" / "coverage-team"), "--quiet", "--world", "empty",
-         "--robots", "3", "--duration", "30", "--seed", "1", "--kill", "2@12",
+         "--robots", "3", "--duration", "30", "--seed", "1", "--kill", "2@12", "--lockstep",
+         "--rtf", "2",
          "--out", str(out), "--domain-id", str(domain)],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
     try:

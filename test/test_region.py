@@ -88,10 +88,9 @@ def test_a_polygon_published_mid_run_draws_the_team_into_it(tmp_path):
     states = {i: client.subscribe(f"/robot_{i}/coverage_state", JointState) for i in range(3)}
     pub = client.node.create_publisher(PolygonStamped, REGION_TOPIC, REGION_QOS)
     square = parse_region_text(SQUARE)
-    # At twice real time (the polygon goes out at 12 s of sim time; three runs of 2026-11-26:
-    # H over the region 37-42 when published, 2.6 at the end).
+    # In lock-step at most four times real time (the polygon goes out at 12 s of sim time).
     proc = subprocess.Popen(TEAM + ["--world", "empty", "--robots", "3", "--duration", "45",
-                                    "--seed", "1", "--rtf", "2", "--out", str(out),
+                                    "--seed", "1", "--lockstep", "--rtf", "4", "--out", str(out),
                                     "--domain-id", str(domain)],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             start_new_session=True)

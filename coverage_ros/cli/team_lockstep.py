@@ -142,6 +142,8 @@ def run_lockstep(tracker, observer: LockstepObserver, startup_timeout: float,
         rclpy.spin_once(tracker.node, timeout_sec=0.02)
         observer.beat()
         tracker.check_children(starting=tracker.ready_at is None)
+        if tracker.proc_stats is not None:
+            tracker.proc_stats.sample(time.monotonic())
         tick = observer.next_tick()
         if tick is not None and tracker.ready_at is None and tick.index > 0:
             raise RuntimeError(f"the world started without robots "

@@ -1,8 +1,8 @@
 """Benchmark of a whole team in real time (``scripts/bench_team``).
 
 Runs ``coverage-team`` (world node + the robots' processes, geodesic strategy by default) on
-``../shared/maps/depot.yaml`` with 16 robots at real-time factor 1 and reports the team's
-achieved real-time factor, CPU (% of one core) and memory per robot (all robot processes'
+``../shared/maps/depot.yaml`` with 16 robots at real-time factor 1 (``--lockstep``: in
+lock-step, as fast as the robots answer) and reports the team's achieved real-time factor, CPU (% of one core) and memory per robot (all robot processes'
 figures over the number of robots), and how often the robots updated their cells: the largest
 of the robots' median periods between coverage updates, read back from their logs (each robot
 logs its update statistics when it stops). ``--robots-per-process K``,
@@ -54,16 +54,23 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--executor", choices=EXECUTORS, default=EXECUTORS[0],
                     help="rclpy executor of every node process (the launcher's --executor)")
     ap.add_argument("--keep", type=Path, help="keep the run's output folder here")
+    ap.add_argument("--lockstep", action="store_true",
+                    help="lock-step: the world waits for every robot each tick, as fast as they "
+                    "answer (the rtf is what the team's work allows)")
+    ap.add_argument("--rtf", type=float, default=None,
+                    help="real-time factor (default 1; with --lockstep none: an upper bound)")
     args = ap.parse_args(argv)
     with tempfile.TemporaryDirectory(prefix="bench-team-") as tmp:
         out = args.keep or Path(tmp)
         extra = (["--robots-per-process", str(args.robots_per_process)]
                  if args.robots_per_process else []) + \
             (["--discovery-server"] if args.discovery_server else []) + \
-            ["--executor", args.executor]
+            ["--executor", args.executor] + (["--lockstep"] if args.lockstep else []) + \
+            (["--rtf", str(args.rtf)] if args.rtf is not None else
+             [] if args.lockstep else ["--rtf", "1.0"])
         code = team_main(["--robots", str(args.robots), "--world", args.world, "--strategy",
                           args.strategy, "--duration", str(args.duration), "--seed",
-                          str(args.seed), "--rtf", "1.0", "--stats", "--out", str(out),
+                          str(args.seed), "--stats", "--out", str(out),
                           "--no-markers", *extra])
         if code != 0:
             return code
@@ -75,13 +82,14 @@ def main(argv: list[str] | None = None) -> int:
         "robots": args.robots, "world": Path(args.world).name, "strategy": args.strategy,
         "robot_processes": procs["robot_processes"],
         "discovery": "server" if args.discovery_server else "simple",
-        "executor": args.executor,
+        "executor": args.executor, "lockstep": args.lockstep,
         "sim_time": round(summary["sim_time"] - (summary["ready_at"] or 0.0), 1),
         "rtf": summary["rtf"],
         "rss_mb_per_robot": procs["per_robot"]["rss_mb"],
         "cpu_percent_per_robot": procs["per_robot"]["cpu_percent"],
         "robot_process_rss_mb": procs["robot_mean"]["rss_mb_peak"],
         "update_period_worst_median_s": max(medians) if len(medians) == args.robots else None,
+        "min_separation": summary["metrics"]["min_separation"],
         "robots_with_update_stats": len(periods),
         "world_cpu_percent": procs["per_process"]["world"]["cpu_percent"],
         "world_rss_mb": procs["per_process"]["world"]["rss_mb_peak"],

@@ -1,9 +1,9 @@
 """Lee & Lee (2024) Sec. IV on the live team: Figs. 17-18, real-time coverage with mobile robots.
 
 The paper runs Alg. 3 (its goals every second, A* + RVO on TurtleBot3 models in Unity/ROS); here
-the live ``coverage-team``: the world node simulates the robots, each ``robot_node`` runs the
-decentralized ``acvt`` strategy (its own planner and safety filter), iCVT + projection being the
-same strategy with ``dropout: false``. The robots are TurtleBot3-like bodies with the paper's top
+the live ``coverage-team`` in lock-step (the same seed gives the same row): the world node
+simulates the robots, each ``robot_node`` runs the decentralized ``acvt`` strategy (its own
+planner and safety filter), iCVT + projection being the same strategy with ``dropout: false``. The robots are TurtleBot3-like bodies with the paper's top
 speeds (0.4 m/s, or 0.4 / 0.8 m/s for the heterogeneous Fig. 18), starting in a corner cluster
 (:func:`~.lee2024_scenes.corner_cluster`); the metric is computed from the final positions on
 the same grid as offline: I (Eq. 9) on the two targets, I^L (Eq. 13) in the walled room, I^H
@@ -86,7 +86,7 @@ def run_live(world: dict, starts: np.ndarray, speeds: np.ndarray, params: dict,
         code = team_main(["--world", str(folder / "world.yaml"), "--team",
                           str(folder / "team.yaml"), "--strategy", "acvt",
                           "--strategy-params", json.dumps(params), "--duration", str(duration),
-                          "--seed", str(seed), "--rtf", "1", "--robots-per-process",
+                          "--seed", str(seed), "--lockstep", "--robots-per-process",
                           str(ROBOTS_PER_PROCESS), "--robot-param",
                           f"arrival_tolerance:={ARRIVAL_TOLERANCE}", "--no-markers", "--quiet",
                           "--out", str(out)])

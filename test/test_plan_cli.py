@@ -8,8 +8,9 @@ import sys
 
 import numpy as np
 import pytest
-from conftest import REPO, WORLDS
+from conftest import REPO, WORLDS, shared_map
 
+from coverage_ros.cli.arguments import attach_values
 from coverage_ros.cli.plan import main
 from coverage_ros.core.world import clearance, load_world, parse_poses
 from coverage_ros.errors import ConfigError
@@ -79,6 +80,20 @@ def test_errors_are_one_line_and_named(args, message, capsys):
     import re
 
     assert re.search(message, err), err
+
+
+def test_coordinates_may_begin_with_a_minus_sign(tmp_path):
+    """Most map_server maps have a negative origin: ``--starts -2.6,...`` is a value, not an
+    unknown option (coverage-plan and coverage-team alike)."""
+    from coverage_ros.cli.team_options import build_parser
+
+    out = tmp_path / "plan.json"
+    assert main(["--map", str(shared_map("tb3_sandbox")), "--robots", "1", "--starts",
+                 "-1.0,-0.5", "--json", str(out), "--quiet", "--max-iterations", "1"]) == 0
+    args = build_parser().parse_args(attach_values(
+        ["--starts", "-2.65,-9.15,0;-1,-1,0", "--region", "-1,-1;1,-1;1,1", "--robots", "2"]))
+    assert args.starts == "-2.65,-9.15,0;-1,-1,0" and args.region == ["-1,-1;1,-1;1,1"]
+    assert attach_values(["--starts"]) == ["--starts"]  # (argparse says what is missing)
 
 
 def test_parse_poses():

@@ -2,12 +2,12 @@
 
 Runs ``coverage-team`` (world node + the robots' processes, geodesic strategy by default) on
 ``../shared/maps/depot.yaml`` with 16 robots at real-time factor 1 (``--lockstep``: in
-lock-step, as fast as the robots answer) and reports the team's achieved real-time factor, CPU (% of one core) and memory per robot (all robot processes'
-figures over the number of robots), and how often the robots updated their cells: the largest
-of the robots' median periods between coverage updates, read back from their logs (each robot
-logs its update statistics when it stops). ``--robots-per-process K``,
-``--discovery-server`` and ``--executor`` are passed to the launcher. Progress goes to stderr;
-the last stdout line is JSON.
+lock-step, as fast as the robots answer) and reports the team's achieved real-time factor, CPU
+(% of one core) and memory per robot (all robot processes' figures over the number of robots),
+and how often the robots updated their cells: the largest of the robots' median periods between
+coverage updates, read back from their logs (each robot logs its update statistics when it
+stops). ``--robots-per-process K``, ``--discovery-server`` and ``--executor`` are passed to the
+launcher. Progress goes to stderr; the last stdout line is JSON.
 """
 
 from __future__ import annotations

@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from coverage_ros.cli.arguments import attach_values
 from coverage_ros.cli.plan_explore import plan_exploration
 from coverage_ros.core.geodesic.domain import CoverageDomain
 from coverage_ros.core.geodesic.tessellation import Generator, tessellate
@@ -203,7 +204,7 @@ def record(path: Path, domain: CoverageDomain, world: WorldSpec, result, n: int,
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    args = build_parser().parse_args(attach_values(sys.argv[1:] if argv is None else argv))
     try:
         run(args)
     except CoverageError as exc:

@@ -21,6 +21,7 @@ import sys
 import time
 from pathlib import Path
 
+from coverage_ros.cli.arguments import attach_values
 from coverage_ros.cli.domains import acquire_domain
 from coverage_ros.cli.processes import ProcessSet, executable, ros_args
 from coverage_ros.cli.team_lockstep import OBSERVER
@@ -34,7 +35,7 @@ from coverage_ros.cli.team_network import (
     start_discovery_server,
     write_remote_script,
 )
-from coverage_ros.cli.team_options import attach_values, build_parser, parse_faults
+from coverage_ros.cli.team_options import build_parser, parse_faults
 from coverage_ros.cli.team_robots import (
     default_robots_per_process,
     plan_processes,

@@ -3,8 +3,9 @@
 The paper runs Alg. 3 (its goals every second, A* + RVO on TurtleBot3 models in Unity/ROS); here
 the live ``coverage-team`` in lock-step (the same seed gives the same row): the world node
 simulates the robots, each ``robot_node`` runs the decentralized ``acvt`` strategy (its own
-planner and safety filter), iCVT + projection being the same strategy with ``dropout: false``. The robots are TurtleBot3-like bodies with the paper's top
-speeds (0.4 m/s, or 0.4 / 0.8 m/s for the heterogeneous Fig. 18), starting in a corner cluster
+planner and safety filter), iCVT + projection being the same strategy with ``dropout: false``.
+The robots are TurtleBot3-like bodies with the paper's top speeds (0.4 m/s, or 0.4 / 0.8 m/s for
+the heterogeneous Fig. 18), starting in a corner cluster
 (:func:`~.lee2024_scenes.corner_cluster`); the metric is computed from the final positions on
 the same grid as offline: I (Eq. 9) on the two targets, I^L (Eq. 13) in the walled room, I^H
 (Eq. 18) for mixed speeds.

@@ -73,7 +73,8 @@ def _team(starts: np.ndarray, speeds: np.ndarray) -> dict:
 
 
 def run_live(world: dict, starts: np.ndarray, speeds: np.ndarray, params: dict,
-             duration: float = DURATION, seed: int = 0) -> tuple[np.ndarray, WorldSpec, int]:
+             duration: float = DURATION, seed: int = 0,
+             rtf: float | None = None) -> tuple[np.ndarray, WorldSpec, int]:
     """Run ``coverage-team`` with the ``acvt`` strategy (``params``) on ``world`` (a world
     mapping) from ``starts (k, 2)`` at ``speeds (k,)`` [m/s]: the final positions ``(k, 2)``,
     the world and the number of collisions."""
@@ -87,7 +88,9 @@ def run_live(world: dict, starts: np.ndarray, speeds: np.ndarray, params: dict,
         code = team_main(["--world", str(folder / "world.yaml"), "--team",
                           str(folder / "team.yaml"), "--strategy", "acvt",
                           "--strategy-params", json.dumps(params), "--duration", str(duration),
-                          "--seed", str(seed), "--lockstep", "--robots-per-process",
+                          "--seed", str(seed),
+                          *(["--lockstep"] if rtf is None else ["--rtf", str(rtf)]),
+                          "--robots-per-process",
                           str(ROBOTS_PER_PROCESS), "--robot-param",
                           f"arrival_tolerance:={ARRIVAL_TOLERANCE}", "--no-markers", "--quiet",
                           "--out", str(out)])
@@ -101,9 +104,10 @@ def run_live(world: dict, starts: np.ndarray, speeds: np.ndarray, params: dict,
 
 
 def live_metric(world: dict, starts: np.ndarray, speeds: np.ndarray, params: dict,
-                spec: CellSpec, heterogeneous: bool, seed: int) -> tuple[float, int]:
+                spec: CellSpec, heterogeneous: bool, seed: int,
+                rtf: float | None = None) -> tuple[float, int]:
     """The paper's metric (I, I^L or I^H) at the end of a live run, and its collisions."""
-    final, world_spec, collisions = run_live(world, starts, speeds, params, seed=seed)
+    final, world_spec, collisions = run_live(world, starts, speeds, params, seed=seed, rtf=rtf)
     domain = CoverageDomain.from_world(world_spec, scenes.TB3_RADIUS)
     cells = MassCells(domain)
     reach = speeds if heterogeneous else None
@@ -119,7 +123,8 @@ METHODS = (("iCVT+Projection", {"dropout": False}), ("alpha-CVT", {}))
 
 
 def _fig(world: dict, starts: np.ndarray, speeds: np.ndarray, visible: bool, metric: str,
-         seed: int, methods: tuple[str, ...] | None = None) -> dict[str, float]:
+         seed: int, methods: tuple[str, ...] | None = None,
+         rtf: float | None = None) -> dict[str, float]:
     spec = CellSpec(visibility=visible)
     hetero = bool(np.ptp(speeds) > 0)
     out: dict[str, float] = {}
@@ -128,35 +133,39 @@ def _fig(world: dict, starts: np.ndarray, speeds: np.ndarray, visible: bool, met
         if methods is not None and name not in methods:
             continue
         value, hits = live_metric(world, starts, speeds, {**params, "visibility": visible},
-                                  spec, hetero, seed)
+                                  spec, hetero, seed, rtf)
         out[f"{metric}, {name} (live)"] = value
         collisions += hits
     out["collisions (both runs)" if methods is None else "collisions"] = float(collisions)
     return out
 
 
-def fig17_targets(seed: int, methods: tuple[str, ...] | None = None) -> dict[str, float]:
+def fig17_targets(seed: int, methods: tuple[str, ...] | None = None,
+                  rtf: float | None = None) -> dict[str, float]:
     return _fig(_targets_world(), scenes.corner_cluster(seed, 10), np.full(10, SLOW), False,
-                "I", seed, methods)
+                "I", seed, methods, rtf)
 
 
-def fig17_room(seed: int, methods: tuple[str, ...] | None = None) -> dict[str, float]:
+def fig17_room(seed: int, methods: tuple[str, ...] | None = None,
+               rtf: float | None = None) -> dict[str, float]:
     starts = scenes.corner_cluster(seed, 10, scenes.LOWER_LEFT, arena=ROOM_SIDE,
                                    keep=_clear_of_walls)
-    return _fig(_room_world(), starts, np.full(10, FAST), True, "I^L", seed, methods)
+    return _fig(_room_world(), starts, np.full(10, FAST), True, "I^L", seed, methods, rtf)
 
 
-def fig18_targets(seed: int, methods: tuple[str, ...] | None = None) -> dict[str, float]:
+def fig18_targets(seed: int, methods: tuple[str, ...] | None = None,
+                  rtf: float | None = None) -> dict[str, float]:
     speeds = np.r_[np.full(5, SLOW), np.full(5, FAST)]
     return _fig(_targets_world(), scenes.corner_cluster(seed, 10), speeds, False, "I^H", seed,
-                methods)
+                methods, rtf)
 
 
-def fig18_room(seed: int, methods: tuple[str, ...] | None = None) -> dict[str, float]:
+def fig18_room(seed: int, methods: tuple[str, ...] | None = None,
+               rtf: float | None = None) -> dict[str, float]:
     speeds = np.r_[np.full(4, SLOW), np.full(6, FAST)]
     starts = scenes.corner_cluster(seed, 10, scenes.LOWER_LEFT, arena=ROOM_SIDE,
                                    keep=_clear_of_walls)
-    return _fig(_room_world(), starts, speeds, True, "I^H", seed, methods)
+    return _fig(_room_world(), starts, speeds, True, "I^H", seed, methods, rtf)
 
 
 FIGURES = {"fig17-targets": fig17_targets, "fig17-room": fig17_room,
@@ -175,6 +184,9 @@ def main(argv: list[str] | None = None) -> int:
                     help="comma-separated, of: " + ", ".join(name for name, _ in METHODS))
     ap.add_argument("--seeds", type=int, default=5,
                     help="N seeds, the same starts as bench_papers' (default 5)")
+    ap.add_argument("--rtf", type=float, default=None,
+                    help="run the team in real time at this factor instead of lock-step (to "
+                    "see what the machine's load does to a run)")
     ap.add_argument("--first-seed", type=int, default=0,
                     help="seed to begin with (default 0; bench_papers runs 0..4)")
     args = ap.parse_args(argv)
@@ -186,7 +198,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.seeds < 1 or args.first_seed < 0:
         ap.error(f"--seeds {args.seeds} / --first-seed {args.first_seed}: expected >= 1 / >= 0")
     for seed in range(args.first_seed, args.first_seed + args.seeds):
-        values = FIGURES[args.figure](seed, methods)
+        values = FIGURES[args.figure](seed, methods, args.rtf)
         print(f"{args.figure} seed {seed + 1}: " + ", ".join(
             f"{k} {v:.4g}" for k, v in values.items()), flush=True)
         rows.append({"seed": seed, **values})

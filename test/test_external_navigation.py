@@ -105,9 +105,10 @@ def test_a_team_with_its_own_navigation_and_localization_converges(tmp_path):
                        "0", "1", "2"], domain)
     with nav:
         out = tmp_path / "team"
+        # At twice real time: three robots and the navigator keep up on two cores.
         proc = subprocess.run(
             [str(REPO / ".venv" / "bin" / "coverage-team"), "--quiet", "--world", "empty",
-             "--robots", "3", "--duration", "45", "--seed", "2", "--out", str(out),
+             "--robots", "3", "--duration", "45", "--seed", "2", "--rtf", "2", "--out", str(out),
              "--domain-id", str(domain), "--robot-param", "drive:=false",
              "--robot-param", "pose_source:=tf"],
             capture_output=True, text=True, timeout=300)

@@ -17,9 +17,9 @@ from rosutil import NodeProcess, RosClient, domain_id
 from coverage_ros.bench.lockstep import cpu_hogs, differences
 from coverage_ros.cli.team_summary import WALL_CLOCK_KEYS, deterministic_part
 
-pytestmark = [pytest.mark.integration, pytest.mark.slow]
+pytestmark = [pytest.mark.integration, pytest.mark.slow, pytest.mark.lockstep]
 
-TEAM = [str(REPO / ".venv" / "bin" / "coverage-team"), "--quiet", "--lockstep"]
+TEAM = [str(REPO / ".venv" / "bin" / "coverage-team"), "--quiet", "--lockstep", "--no-markers"]
 
 
 def test_one_command_and_seed_give_the_same_summary_beside_a_cpu_hog(tmp_path):

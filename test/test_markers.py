@@ -123,6 +123,7 @@ def test_a_robots_line_markers_are_built_again_only_for_a_new_outline_or_plan():
 
 @pytest.mark.integration
 @pytest.mark.slow
+@pytest.mark.lockstep
 def test_a_team_shows_in_rviz_markers_and_a_robot_that_leaves_is_cleared(tmp_path):
     from visualization_msgs.msg import Marker, MarkerArray
 

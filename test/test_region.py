@@ -72,6 +72,7 @@ def region_cost(world, square, positions) -> float:
 
 @pytest.mark.integration
 @pytest.mark.slow
+@pytest.mark.lockstep
 def test_a_polygon_published_mid_run_draws_the_team_into_it(tmp_path):
     """Three robots spread over the empty 8 m x 8 m world; a polygon (and a malformed one) is
     published on /coverage/region after 10 s: all robots end inside the polygon, and the

@@ -16,7 +16,8 @@ from coverage_ros.cli.plan import main as plan_main
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
 WORLD = WORLDS / "l_shape.yaml"
-TEAM = [str(REPO / ".venv" / "bin" / "coverage-team"), "--world", str(WORLD), "--quiet"]
+TEAM = [str(REPO / ".venv" / "bin" / "coverage-team"), "--world", str(WORLD), "--quiet",
+        "--no-markers"]
 
 
 def best_plan_cost(robots: int, seeds, tmp_path) -> float:
@@ -38,6 +39,7 @@ def run_team(tmp_path, *args: str, offset: int) -> dict:
     return json.loads((out / "summary.json").read_text())
 
 
+@pytest.mark.lockstep
 def test_geodesic_team_spreads_out_and_reaches_the_planned_cost(tmp_path):
     summary = run_team(tmp_path, "--robots", "4", "--duration", "50", "--seed", "2",
                        "--lockstep", offset=12)
@@ -91,6 +93,7 @@ robots:
 """
 
 
+@pytest.mark.lockstep
 def test_each_robot_runs_with_its_own_spec_from_the_world_file(tmp_path):
     """Robots that differ in radius, speed and sensing: each simulated body and each robot
     node use that robot's own values (the world node's status, the robot's start-up log)."""

@@ -26,7 +26,8 @@ STARTS = "1.95,4.0,-1.5708;2.8,4.0,0;3.4,4.0,0;1.1,4.0,3.1416"
 #: The person's route for robot 0: through the door, then to the room's free right half.
 ROUTE = [(1.95, 2.9), (3.0, 2.4)]
 HOLD_UNTIL = 75.0  # [s] sim time after the team is ready: robot 0 held in the room till then
-DURATION = 120.0
+DURATION = 100.0
+RTF = 2.0  # four robots keep up at twice real time on two cores (nothing else runs beside)
 
 
 def cost_outside_room(positions: np.ndarray) -> float:
@@ -86,6 +87,7 @@ def test_a_human_driven_robot_is_covered_around_and_rejoins(tmp_path):
     team = subprocess.Popen(
         [str(REPO / ".venv" / "bin" / "coverage-team"), "--world", str(OFFICE), "--quiet",
          "--robots", "4", "--human", "0", "--starts", STARTS, "--duration", str(DURATION),
+         "--rtf", str(RTF),
          "--out", str(out), "--domain-id", str(domain)],
         env=ros_env(domain), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
         start_new_session=True)

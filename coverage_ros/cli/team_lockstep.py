@@ -124,6 +124,8 @@ METRICS_PERIOD = 5.0
 EXPLORE_PERIOD = 1.0
 #: [s] wall time the monitor waits for the evidence of a sampled tick before scoring without.
 EVIDENCE_TIMEOUT = 10.0
+#: [s] wall time between looks at the launcher's children (whether one exited).
+CHECK_PERIOD = 0.2
 
 
 def run_lockstep(tracker, observer: LockstepObserver, startup_timeout: float,
@@ -136,14 +138,17 @@ def run_lockstep(tracker, observer: LockstepObserver, startup_timeout: float,
     t0 = time.monotonic()
     tracker.say("  waiting for the world and the robots (lock-step) ...")
     end = next_metrics = next_explore = None
-    last_progress = 0.0
+    last_progress = last_check = 0.0
     until = tracker.args.until_explored
     while True:
         rclpy.spin_once(tracker.node, timeout_sec=0.02)
         observer.beat()
-        tracker.check_children(starting=tracker.ready_at is None)
+        now = time.monotonic()
+        if now - last_check >= CHECK_PERIOD:  # (the loop turns once per message)
+            last_check = now
+            tracker.check_children(starting=tracker.ready_at is None)
         if tracker.proc_stats is not None:
-            tracker.proc_stats.sample(time.monotonic())
+            tracker.proc_stats.sample(now)
         tick = observer.next_tick()
         if tick is not None and tracker.ready_at is None and tick.index > 0:
             raise RuntimeError(f"the world started without robots "

@@ -34,6 +34,19 @@ def test_region_text_and_polygons_are_checked():
         assert str(err.value).startswith("--region")
 
 
+def test_a_polygon_that_came_through_a_message_is_one_the_region_holds():
+    """The launcher's start region reaches a robot as a parameter and again on the topic,
+    with float32 points: the same polygon, which must not restart the robot's strategy."""
+    from coverage_ros.nodes.region_input import SAME_POINT
+
+    square = parse_region_text("-1.8,-1.8;1.0,-1.8;1.0,1.0;-1.8,1.0")
+    echoed = square.astype(np.float32).astype(np.float64)  # geometry_msgs/Point32 on the wire
+    assert not np.array_equal(echoed, square)
+    region = Region((square,))
+    assert region.holds(echoed, SAME_POINT) and not region.holds(echoed)
+    assert not region.holds(echoed + 0.01, SAME_POINT) and not region.holds(echoed[:3])
+
+
 def test_the_density_is_kept_inside_the_union_of_the_polygons():
     occ = np.zeros((40, 60), np.int8)
     occ[:, 30] = OCCUPIED  # a wall down the middle

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-import numpy as np
 from geometry_msgs.msg import PolygonStamped
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
@@ -26,6 +25,8 @@ from coverage_ros.nodes import conversions as conv
 REGION_TOPIC = "/coverage/region"
 CLEAR_TOPIC = "/coverage/region/clear"
 REGION_HISTORY = 10
+#: [m] a polygon held and one that came back through a message (float32 points) match this well
+SAME_POINT = 1e-4
 REGION_QOS = QoSProfile(depth=REGION_HISTORY, reliability=ReliabilityPolicy.RELIABLE,
                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
@@ -56,7 +57,7 @@ class RegionInput:
         except CoverageError as exc:
             self._warn("region", f"dropped a polygon on {REGION_TOPIC}: {exc}")
             return
-        if any(np.array_equal(region.polygons[-1], p) for p in self.region.polygons):
+        if self.region.holds(region.polygons[-1], SAME_POINT):
             return  # held already (e.g. the start region, published for the viewers too)
         self._set(region, "now")
 

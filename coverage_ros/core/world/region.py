@@ -59,6 +59,13 @@ class Region:
     def everywhere(self) -> bool:
         return not self.polygons
 
+    def holds(self, polygon, tolerance: float = 0.0) -> bool:
+        """Whether one of the polygons is ``polygon`` (``(M, 2)`` [m]), point by point within
+        ``tolerance`` [m] (a polygon that came through a message has float32 points)."""
+        q = np.asarray(polygon, dtype=np.float64)
+        return any(p.shape == q.shape and np.allclose(p, q, rtol=0.0, atol=tolerance)
+                   for p in self.polygons)
+
     def mask(self, grid: GridMap) -> np.ndarray:
         """``(H, W)`` bool: cell centres inside the region (all True when it is everywhere)."""
         if self.everywhere:

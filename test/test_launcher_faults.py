@@ -146,6 +146,42 @@ def test_an_interrupt_at_any_moment_leaves_nothing_behind(tmp_path, when):
 
 
 @pytest.mark.integration
+@pytest.mark.parametrize("when", [3.0, 10.0])  # [s] after its first child
+def test_a_launcher_killed_during_a_big_start_up_leaves_nothing_behind(tmp_path, when):
+    """SIGKILL gives the launcher no say: its children go because the kernel tells them
+    (PR_SET_PDEATHSIG), and a process half-way through creating its fifty robots stops at
+    once instead of finishing them first."""
+    team = subprocess.Popen(TEAM + ["--world", "l_shape", "--robots", "200", "--duration", "120",
+                                    "--out", str(tmp_path / "team"), "--quiet", "--no-markers",
+                                    "--domain-id", str(domain_id(29))],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                            env=ros_env(domain_id(29)), start_new_session=True)
+    seen: dict[int, psutil.Process] = {}
+    started, limit = None, time.monotonic() + 60.0
+    while started is None or time.monotonic() < started + when:
+        assert time.monotonic() < limit, "the launcher started no process within 60 s"
+        for p in _children(team.pid):
+            seen.setdefault(p.pid, p)
+        if started is None and seen:
+            started = time.monotonic()
+        time.sleep(0.2)
+    team.kill()
+    team.wait()
+    deadline = time.monotonic() + 10.0
+    alive = list(seen)
+    while alive and time.monotonic() < deadline:
+        time.sleep(0.2)
+        alive = [pid for pid, p in seen.items() if p.is_running() and p.status() != "zombie"]
+    try:
+        assert len(seen) >= 4, seen  # the world and the robots' processes
+        assert not alive, f"left behind 10 s after the launcher died: {alive}"
+    finally:
+        for pid in alive:
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(pid, signal.SIGKILL)
+
+
+@pytest.mark.integration
 @pytest.mark.slow
 def test_serve_web_takes_free_ports_and_shows_the_team_in_a_browser(tmp_path):
     """Another run holds the default ports (9090, 9876): the web viewer still comes up, on

@@ -196,6 +196,34 @@ def test_a_freed_update_slot_goes_to_the_robot_that_waited_longest():
     assert order == [-np.inf, 1.0, 3.0, 5.0]
 
 
+def test_closing_the_workers_of_a_process_does_not_wait_for_the_queue():
+    """Forty robots queued behind one long update: the process's exit waits for the running
+    update at most, not for each queued robot's (they waited 5 s each)."""
+    shared = SharedInputs(update_slots=1)
+    release = threading.Event()
+    ran: list[int] = []
+
+    def work(k):
+        def run(now):
+            ran.append(k)
+            release.wait(10.0)
+        return run
+
+    workers = [UpdateWorker(work(k), load=1.0, slots=shared.update_slots) for k in range(40)]
+    for w in workers:
+        w.request(0.0)
+    time.sleep(0.2)
+    assert len(ran) == 1  # one runs, the others wait for its slot
+    t0 = time.monotonic()
+    for k, w in enumerate(workers):
+        if k != ran[0]:
+            w.close()
+    assert time.monotonic() - t0 < 1.0
+    release.set()
+    workers[ran[0]].close()
+    assert ran == ran[:1] and sum(w.calls for w in workers) == 1  # the queued ones never ran
+
+
 def test_the_robots_of_a_process_share_one_credit():
     """The pool's credit grows by the sum of the loads up to the largest burst (where it
     starts); a call may start once it is not negative."""

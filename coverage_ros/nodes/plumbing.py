@@ -223,11 +223,14 @@ class UpdateTurns:
         self._lock = threading.Lock()
         self._waiting: list[tuple[float, int, threading.Event]] = []  # a heap
         self._tickets = itertools.count()
+        self._closed = False
 
     def acquire(self, last_start: float = -math.inf) -> None:
         """Wait for a slot; ``last_start`` [s monotonic] of the worker's last call (-inf: none
         yet) orders the waiting calls."""
         with self._lock:
+            if self._closed:
+                return
             if self._free > 0 and not self._waiting:
                 self._free -= 1
                 return
@@ -241,6 +244,20 @@ class UpdateTurns:
                 heapq.heappop(self._waiting)[2].set()  # the slot passes on
             else:
                 self._free += 1
+
+    @property
+    def closed(self) -> bool:
+        return self._closed
+
+    def close(self) -> None:
+        """The process ends: every waiting call goes on at once (its worker sees that the
+        turns are closed and returns), and no call waits any more - a robot of a container
+        queued behind forty others must not hold up the process's exit."""
+        with self._lock:
+            self._closed = True
+            for _, _, handed in self._waiting:
+                handed.set()
+            self._waiting.clear()
 
 
 class UpdateWorker:
@@ -307,8 +324,8 @@ class UpdateWorker:
             if self._slots is not None:
                 self._slots.acquire(self.starts[-1] if self.starts else -math.inf)
             try:
-                if self._closed.is_set():  # (closed while waiting for the turn)
-                    return
+                if self._closed.is_set() or (self._slots is not None and self._slots.closed):
+                    return  # (closed while waiting for the turn: the process ends)
                 while (wait := self._pool.delay()) > 0:
                     if self._closed.wait(min(wait, 1.0)):
                         return
@@ -351,6 +368,8 @@ class UpdateWorker:
         """Stop the thread (waits for a running call up to ``timeout``)."""
         self._closed.set()
         self._wake.set()
+        if self._slots is not None:
+            self._slots.close()
         self._thread.join(timeout)
 
 

@@ -3,13 +3,15 @@
 Start-up errors (bad parameters, world files, maps) end the process with one line
 ``<name>: error: ...`` on stderr and exit code 2; so does a :class:`FatalConfigError` raised
 later from a callback (e.g. a map that arrives and does not fit the configuration). SIGINT and
-SIGTERM end it cleanly with code 0, also during start-up.
+SIGTERM end it cleanly with code 0, also during start-up: there a signal interrupts whatever
+is being built at once (a container creating a hundred robots would otherwise go on for
+seconds), as it would end a process that had not started ROS yet.
 
 The signals do not shut ROS down at once (rclpy's own handlers would: a callback publishing at
 that moment failed, and every node's last words - a robot's zero velocity command that leaves
 it standing, its summary on ``/rosout`` - went nowhere). They ask the spin loop to stop between
 callbacks; the nodes' clean-up then runs with ROS still up, and ROS shuts down after it. A
-second signal shuts ROS down at once, as rclpy's handler would.
+second signal ends the process at once (exit code 128 + the signal's number).
 
 The executor is rclpy's ``EventsExecutor`` (``rclpy.experimental``, its dispatch loop in C++:
 0.24-0.30x the CPU per message received in ``scripts/bench_executor``; a process of 16 robots
@@ -58,19 +60,31 @@ def _executor(kind: str):
     return SingleThreadedExecutor()
 
 
+class StartupInterrupted(BaseException):
+    """SIGINT or SIGTERM while the nodes are being built (not an Exception: nothing on the way
+    may catch it)."""
+
+
 class StopRequest:
-    """SIGINT / SIGTERM handlers for the life of a node process (module docstring): the first
-    signal asks the spin loop to stop, the next one shuts ROS down."""
+    """SIGINT / SIGTERM handlers for the life of a node process (module docstring): during
+    start-up a signal interrupts it (:class:`StartupInterrupted`); afterwards the first signal
+    asks the spin loop to stop, the next one shuts ROS down."""
 
     SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
     def __init__(self) -> None:
         self.asked = False
+        self.starting = True
         self._before = {sig: signal.signal(sig, self._on_signal) for sig in self.SIGNALS}
 
     def _on_signal(self, signum, frame) -> None:
+        if self.starting:
+            self.starting = False
+            raise StartupInterrupted
         if self.asked:
-            rclpy.try_shutdown()
+            # At once: shutting rclpy down from a handler deadlocked when the signal had
+            # interrupted rclpy itself (a robot container waited for ever).
+            os._exit(128 + signum)
         self.asked = True
 
     def restore(self) -> None:
@@ -115,10 +129,15 @@ def run_nodes(name: str, make_nodes: Callable[[], list[Node]], args=None,
     except CoverageError as exc:
         print(f"{name}: error: {exc}", file=sys.stderr)
         return 2
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     stop = StopRequest()
     try:
+        rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
         nodes = make_nodes()
+        stop.starting = False
+    except StartupInterrupted:
+        rclpy.try_shutdown()  # (the nodes built so far go with the process)
+        stop.restore()
+        return 0
     except STARTUP_ERRORS as exc:
         print(f"{name}: error: {exc}", file=sys.stderr)
         rclpy.try_shutdown()
@@ -137,8 +156,7 @@ def run_nodes(name: str, make_nodes: Callable[[], list[Node]], args=None,
         print(f"{name}: error: {exc}", file=sys.stderr)
         code = 2
     except Exception:
-        # A second SIGINT/SIGTERM shuts ROS down at once, possibly while a callback is
-        # publishing: that is a shutdown, not a crash.
+        # ROS shut down under a callback that was publishing: a shutdown, not a crash.
         if nodes[0].context.ok():
             raise
     finally:

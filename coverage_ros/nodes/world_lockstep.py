@@ -59,7 +59,7 @@ class LockstepConfig:
 class _Sent:
     """What went out with the current tick (re-published while waiting)."""
 
-    scans: list = field(default_factory=list)  # (publisher, message)
+    scans: list = field(default_factory=list)  # (robot id, LaserScan)
     status: object = None
     tick: LockstepTick | None = None
     at: float = 0.0  # [s] wall time
@@ -174,9 +174,9 @@ class WorldLockstep:
         self._previous = self._stamp
         for _ in range(self.steps_per_tick):
             for scan in node.sim.step():
-                sent = node.publish_scan(scan)
-                if sent is not None:
-                    self.sent.scans.append(sent)
+                msg = node.publish_scan(scan)
+                if msg is not None:
+                    self.sent.scans.append((scan.robot_id, msg))
                     self._scanned.add(scan.robot_id)
             node.log_contacts()
         self._stamp = self._now_ns()
@@ -198,8 +198,10 @@ class WorldLockstep:
         node = self.node
         node.publish_clock()
         node.publish_odometry()
-        for pub, msg in self.sent.scans:
-            pub.publish(msg)
+        for rid, msg in self.sent.scans:
+            io = node.io.get(rid)
+            if io is not None:  # (not a robot removed meanwhile)
+                io.scan_pub.publish(msg)
         if self.sent.status is not None:
             node.status_pub.publish(self.sent.status)
         tick = self._current_plan()

@@ -347,8 +347,8 @@ class WorldNode(Node):
             self.tf.publish(stamp, {rid: ((r.odom.x, r.odom.y, r.odom.yaw), r.pose())
                                     for rid, r in self.sim.robots.items()})
 
-    def publish_scan(self, scan: Scan):
-        """Publish ``scan``; ``(publisher, message)``, or None for a robot gone meanwhile."""
+    def publish_scan(self, scan: Scan) -> LaserScan | None:
+        """Publish ``scan``; the message, or None for a robot gone meanwhile."""
         io = self.io.get(scan.robot_id)
         robot = self.sim.robots.get(scan.robot_id)
         if io is None or robot is None:
@@ -356,7 +356,7 @@ class WorldNode(Node):
         msg = conv.laser_scan_msg(scan.ranges, robot.spec.lidar, conv.to_time_msg(scan.stamp),
                                   io.frames.base_scan)
         io.scan_pub.publish(msg)
-        return io.scan_pub, msg
+        return msg
 
     def publish_status(self) -> DiagnosticArray:
         now = time.monotonic()

@@ -18,9 +18,9 @@ import signal
 import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
+from coverage_ros.bench.results import provenance
 from coverage_ros.bench.team import DEPOT
 from coverage_ros.cli.team_summary import deterministic_part
 
@@ -119,8 +119,8 @@ def main(argv: list[str] | None = None) -> int:
                   f"; H {row['H']:.4g} from {row['H_start']:.4g}; collisions "
                   f"{row['collisions']})" + "".join(f"\n    {d}" for d in diff),
                   file=sys.stderr, flush=True)
-    result = {"command": "scripts/bench_lockstep " + " ".join(argv or sys.argv[1:]),
-              "date": time.strftime("%Y-%m-%d"), "cores": os.cpu_count(),
+    result = {**provenance(), "command": "scripts/bench_lockstep " + " ".join(
+        sys.argv[1:] if argv is None else argv),
               "identical": sum(r["identical"] for r in rows), "scenarios": len(rows),
               "rows": rows}
     if args.json:

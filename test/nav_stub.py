@@ -20,13 +20,13 @@ import sys
 import time
 
 import rclpy
+from coverage_msgs.msg import RobotState
 from geometry_msgs.msg import PoseStamped, Twist
 from nav_msgs.msg import Odometry
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data
 from rclpy.signals import SignalHandlerOptions
-from sensor_msgs.msg import JointState
 
 
 def yaw_of(q) -> float:
@@ -48,7 +48,7 @@ class NavStub(Node):
                                      lambda m, i=i: self._on_goal(i, m), qos_profile_sensor_data)
             self.create_subscription(Odometry, f"/robot_{i}/ground_truth",
                                      lambda m, i=i: self._on_odom(i, m), qos_profile_sensor_data)
-            self.create_subscription(JointState, f"/robot_{i}/coverage_state",
+            self.create_subscription(RobotState, f"/robot_{i}/coverage_state",
                                      lambda m, i=i: self._on_state(i, m), qos_profile_sensor_data)
         self.create_timer(0.1, self._drive)
         self.create_timer(1.0, self._graph)
@@ -62,9 +62,8 @@ class NavStub(Node):
         p = m.pose.pose
         self.pose[i] = (p.position.x, p.position.y, yaw_of(p.orientation))
 
-    def _on_state(self, i: int, m: JointState) -> None:
-        values = dict(zip(m.name, m.position, strict=True))
-        speed = math.hypot(values.get("vx", 0.0), values.get("vy", 0.0))
+    def _on_state(self, i: int, m: RobotState) -> None:
+        speed = math.hypot(m.vx, m.vy) if math.isfinite(m.vx) and math.isfinite(m.vy) else 0.0
         self.state_speed[i] = max(self.state_speed[i], speed)
 
     def _drive(self) -> None:

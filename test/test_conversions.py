@@ -135,3 +135,70 @@ def test_malformed_evidence_clouds_are_refused_with_the_reason():
     ok.fields = ok.fields[:2]
     with pytest.raises(ConfigError, match="fields"):
         conv.evidence_from_msg(ok, 1, lattice)
+
+
+STATES = {
+    # before the first update: presence (acvt: its first extras)
+    "presence": {"x": 1.0, "y": 2.0, "weight": 0.0, "radius": 0.105, "v_max": 0.22},
+    "acvt presence": {"x": 1.0, "y": 2.0, "weight": 0.0, "radius": 0.105, "v_max": 0.22,
+                      "reach": 0.22, "dropout": 1.0, "iteration": 0.0, "greedy": 0.0,
+                      "settled": 0.0, "relocating": 0.0},
+    "geodesic": {"x": 1.0, "y": 2.0, "weight": 0.5, "mass": 3.5, "cost": 1.25,
+                 "update_ms": 12.0, "radius": 0.105, "v_max": 0.22, "manual": 0.0,
+                 "paused": 1.0, "mode": 0.0, "vx": 0.1, "vy": -0.2},
+    "tangentbug": {"x": 1.0, "y": 2.0, "weight": 0.0, "mass": 3.5, "cost": 1.25,
+                   "update_ms": 2.0, "radius": 0.105, "v_max": 0.22, "manual": 0.0,
+                   "paused": 0.0, "mode": 11.0, "virtual_x": 1.5, "virtual_y": 2.5,
+                   "cost_real": 1.25, "cost_virtual": 1.0, "converged": 1.0},
+    "acvt with a plan": {"x": 1.0, "y": 2.0, "weight": 0.0, "mass": 3.5, "cost": 1.25,
+                         "update_ms": 2.0, "radius": 0.105, "v_max": 0.4, "manual": 0.0,
+                         "paused": 0.0, "mode": 17.0, "reach": 0.4, "dropout": 0.0,
+                         "iteration": 42.0, "greedy": 1.0, "settled": 1.0, "relocating": 1.0,
+                         "plan_from": 0.0, "plan_seq": 3.0, "plan_3_x": 5.0, "plan_3_y": 6.0,
+                         "plan_12_x": 7.0, "plan_12_y": 8.0},
+    "exploring, lock-step": {"x": 1.0, "y": 2.0, "weight": 0.0, "mass": 3.5, "cost": 1.25,
+                             "update_ms": 2.0, "radius": 0.105, "v_max": 0.22,
+                             "manual": 1.0, "paused": 0.0, "mode": -1.0, "greedy": 1.0,
+                             "evidence_stamp": 12.3},
+    "another package's strategy": {"x": 1.0, "y": 2.0, "weight": 0.0, "radius": 0.105,
+                                   "v_max": 0.22, "my_value": 4.5},
+}
+
+
+@pytest.mark.parametrize("name", sorted(STATES))
+def test_a_coverage_state_keeps_every_value_it_had(name):
+    """What a robot publishes is what its neighbours' tables get back, value for value, with
+    every strategy's values in their typed fields."""
+    values = STATES[name]
+    msg = conv.coverage_state_msg(conv.to_time_msg(5.0), values, robot_id=7)
+    assert msg.robot_id == 7 and msg.header.frame_id == "map"
+    assert conv.coverage_state_values(msg) == pytest.approx(values)
+    assert (len(msg.acvt), len(msg.tangentbug), len(msg.explore)) == {
+        "acvt presence": (1, 0, 0), "acvt with a plan": (1, 0, 0), "tangentbug": (0, 1, 0),
+        "exploring, lock-step": (0, 0, 1)}.get(name, (0, 0, 0))
+    assert list(msg.extra_names) == (["my_value"] if "another" in name else [])
+
+
+def test_a_malformed_coverage_state_is_refused_with_the_reason():
+    from coverage_msgs.msg import RobotState
+
+    for change, reason in ((lambda m: setattr(m.header, "frame_id", "odom"), "frame_id"),
+                           (lambda m: setattr(m, "x", math.nan), "not finite"),
+                           (lambda m: setattr(m, "extra_names", ["a"]), "extra names"),
+                           (lambda m: setattr(m.acvt[0], "plan_x", [1.0]), "acvt plan")):
+        msg = conv.coverage_state_msg(conv.to_time_msg(1.0), STATES["acvt with a plan"])
+        assert isinstance(msg, RobotState)
+        change(msg)
+        with pytest.raises(ValueError, match=reason):
+            conv.coverage_state_values(msg)
+
+
+def test_the_world_status_carries_every_robot_field():
+    robot = {"id": 3, "x": 1.0, "y": 2.0, "yaw": 0.5, "driving": True, "collisions": 2,
+             "robot_collisions": 1, "wall_collisions": 1, "path_length": 4.5, "scans": 10,
+             "spawn_time": 0.0, "min_separation": math.inf, "radius": 0.105, "v_max": 0.22,
+             "w_max": 2.84, "a_max": 2.5, "alpha_max": 3.2, "sensor_radius": 3.5,
+             "power_weight": 0.0, "lidar_range_max": 3.5}
+    msg = conv.world_status_msg(conv.to_time_msg(2.0), "office", 1.0, 100, 0, [robot])
+    assert conv.world_status_robots(msg) == {3: pytest.approx({k: float(v)
+                                                               for k, v in robot.items()})}

@@ -90,8 +90,8 @@ def test_a_polygon_published_mid_run_draws_the_team_into_it(tmp_path):
     """Three robots spread over the empty 8 m x 8 m world; a polygon (and a malformed one) is
     published on /coverage/region after 10 s: all robots end inside the polygon, and the
     coverage cost over it falls by more than 40 % from where they were when it came."""
+    from coverage_msgs.msg import RobotState
     from geometry_msgs.msg import PolygonStamped
-    from sensor_msgs.msg import JointState
 
     from coverage_ros.nodes import conversions as conv
     from coverage_ros.nodes.region_input import REGION_QOS, REGION_TOPIC
@@ -99,7 +99,7 @@ def test_a_polygon_published_mid_run_draws_the_team_into_it(tmp_path):
     domain = domain_id(5)
     out = tmp_path / "team"
     client = RosClient(domain, "region_user")
-    states = {i: client.subscribe(f"/robot_{i}/coverage_state", JointState) for i in range(3)}
+    states = {i: client.subscribe(f"/robot_{i}/coverage_state", RobotState) for i in range(3)}
     pub = client.node.create_publisher(PolygonStamped, REGION_TOPIC, REGION_QOS)
     square = parse_region_text(SQUARE)
     # In lock-step at most four times real time (the polygon goes out at 12 s of sim time).

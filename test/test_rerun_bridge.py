@@ -255,7 +255,6 @@ def cell_msg(room, stamp):
 def robot_messages(robot_id: int, stamp) -> dict:
     from geometry_msgs.msg import Point32, PolygonStamped, PoseStamped
     from nav_msgs.msg import Path
-    from sensor_msgs.msg import JointState
 
     from coverage_ros.nodes import conversions as conv
 
@@ -269,10 +268,8 @@ def robot_messages(robot_id: int, stamp) -> dict:
     plan = Path()
     plan.header.stamp, plan.header.frame_id = stamp, "map"
     plan.poses = [pose(x + robot_id, y) for x, y in PLAN_0]
-    state = JointState()
-    state.header.stamp, state.header.frame_id = stamp, "map"
-    state.name = ["x", "y", "weight", "mass", "update_ms"]
-    state.position = [1.0, 1.0, 0.0, 2.5, 12.0]
+    state = conv.coverage_state_msg(stamp, {"x": 1.0, "y": 1.0, "weight": 0.0, "mass": 2.5,
+                                            "update_ms": 12.0}, robot_id=robot_id)
     polygon = PolygonStamped()
     polygon.header.stamp, polygon.header.frame_id = stamp, "map"
     polygon.polygon.points = [Point32(x=x, y=y) for x, y in [(0.5, 0.5), (3.5, 0.5), (3.5, 3.0)]]

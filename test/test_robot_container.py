@@ -290,11 +290,11 @@ def test_a_robot_that_hears_its_whole_team_looks_at_the_graph_seldom():
 
 
 def test_state_topics_are_the_teams_own():
-    names = [("/robot_3/coverage_state", ["sensor_msgs/msg/JointState"]),
-             ("/robot_12/coverage_state", ["sensor_msgs/msg/JointState"]),
+    names = [("/robot_3/coverage_state", ["coverage_msgs/msg/RobotState"]),
+             ("/robot_12/coverage_state", ["coverage_msgs/msg/RobotState"]),
              ("/robot_4/coverage_state", ["std_msgs/msg/String"]),
-             ("/robot_x/coverage_state", ["sensor_msgs/msg/JointState"]),
-             ("/other_5/coverage_state", ["sensor_msgs/msg/JointState"]),
+             ("/robot_x/coverage_state", ["coverage_msgs/msg/RobotState"]),
+             ("/other_5/coverage_state", ["coverage_msgs/msg/RobotState"]),
              ("/robot_6/cell", ["nav_msgs/msg/OccupancyGrid"])]
     assert list(state_topics(names, "robot_")) == [(3, "/robot_3/coverage_state"),
                                                    (12, "/robot_12/coverage_state")]

@@ -51,17 +51,17 @@ def team():
 
 
 def test_robot_publishes_its_state_goal_plan_cell_and_commands(team):
+    from coverage_msgs.msg import RobotState
     from geometry_msgs.msg import PoseStamped, Twist
     from nav_msgs.msg import OccupancyGrid, Odometry, Path
-    from sensor_msgs.msg import JointState
 
     from coverage_ros.nodes import conversions as conv
 
     world, robot, client = team
     # Every state names position and radius (before the first update there is no mass yet).
-    first = client.wait_for("/robot_0/coverage_state", JointState, timeout=40.0)
+    first = client.wait_for("/robot_0/coverage_state", RobotState, timeout=40.0)
     assert {"x", "y", "radius"} <= set(conv.coverage_state_values(first))
-    state = client.wait_for("/robot_0/coverage_state", JointState,
+    state = client.wait_for("/robot_0/coverage_state", RobotState,
                             lambda m: "mass" in conv.coverage_state_values(m), timeout=20.0)
     values = conv.coverage_state_values(state)
     truth = client.wait_for("/robot_0/ground_truth", Odometry, timeout=10.0)
@@ -84,14 +84,14 @@ def test_robot_publishes_its_state_goal_plan_cell_and_commands(team):
 
 
 def test_neighbours_are_discovered_and_bad_states_dropped(team):
+    from coverage_msgs.msg import RobotState
     from nav_msgs.msg import OccupancyGrid
-    from sensor_msgs.msg import JointState
 
     from coverage_ros.nodes import conversions as conv
 
     _, robot, client = team
-    pub = client.publisher("/robot_7/coverage_state", JointState)
-    bad_pubs = {k: client.publisher(f"/robot_{k}/coverage_state", JointState)
+    pub = client.publisher("/robot_7/coverage_state", RobotState)
+    bad_pubs = {k: client.publisher(f"/robot_{k}/coverage_state", RobotState)
                 for k in (8, 9, 10)}
     neighbour = (1.0, 2.5)  # same room, above the robot: it takes the upper half
 
@@ -281,9 +281,9 @@ def test_a_robot_on_either_executor_covers_and_stops_cleanly(kind):
     (coverage-team --executor single) on the SingleThreadedExecutor; on either it updates,
     drives and ends on SIGINT with code 0 and its exit log - its last command a zero velocity,
     sent before ROS shuts down (it leaves the robot standing), and its summary on /rosout."""
+    from coverage_msgs.msg import RobotState
     from geometry_msgs.msg import Twist
     from rcl_interfaces.msg import Log
-    from sensor_msgs.msg import JointState
 
     from coverage_ros.nodes import conversions as conv
 
@@ -295,14 +295,14 @@ def test_a_robot_on_either_executor_covers_and_stops_cleanly(kind):
                          "-p", "world:=office"], domain, env) as robot:
         client = RosClient(domain)
         try:
-            client.wait_for("/robot_0/coverage_state", JointState,
+            client.wait_for("/robot_0/coverage_state", RobotState,
                             lambda m: "mass" in conv.coverage_state_values(m), timeout=40.0)
             commands = client.subscribe("/robot_0/cmd_vel", Twist)
             logs = client.subscribe("/rosout", Log, 100)
             client.spin_until(lambda: any(abs(m.linear.x) > 0.01 for m in commands), 20.0,
                               "the robot driving")
             # Its state carries the velocity it drives at (neighbours' safety filters).
-            client.wait_for("/robot_0/coverage_state", JointState, lambda m: math.hypot(
+            client.wait_for("/robot_0/coverage_state", RobotState, lambda m: math.hypot(
                 conv.coverage_state_values(m).get("vx", 0.0),
                 conv.coverage_state_values(m).get("vy", 0.0)) > 0.01, timeout=10.0)
             assert world.alive() and robot.alive()

@@ -78,7 +78,7 @@ class Person:
 
 
 def test_a_human_driven_robot_is_covered_around_and_rejoins(tmp_path):
-    from diagnostic_msgs.msg import DiagnosticArray
+    from coverage_msgs.msg import WorldStatus
     from rosgraph_msgs.msg import Clock
     from std_srvs.srv import SetBool
 
@@ -102,12 +102,10 @@ def test_a_human_driven_robot_is_covered_around_and_rejoins(tmp_path):
 
         def on_status(msg) -> None:
             statuses["n"] += 1
-            for st in msg.status:
-                v = {kv.key: kv.value for kv in st.values}
-                if "id" in v:
-                    poses[int(float(v["id"]))] = np.array([float(v["x"]), float(v["y"])])
+            for r in msg.robots:
+                poses[r.id] = np.array([r.x, r.y])
 
-        client.node.create_subscription(DiagnosticArray, "/world/robots", on_status, 10)
+        client.node.create_subscription(WorldStatus, "/world/robots", on_status, 10)
         person = Person(client)
         # The team is up once every robot announces itself.
         client.spin_until(lambda: len(poses) == 4 and clock["t"] > 0, 120, "the team")

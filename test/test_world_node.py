@@ -16,7 +16,7 @@ from rosutil import NodeProcess, RosClient, domain_id, ros_env
 pytestmark = pytest.mark.integration
 
 rclpy = pytest.importorskip("rclpy")
-from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
+from coverage_msgs.msg import WorldStatus  # noqa: E402
 from geometry_msgs.msg import Twist  # noqa: E402
 from nav_msgs.msg import OccupancyGrid, Odometry  # noqa: E402
 from rclpy.qos import qos_profile_sensor_data  # noqa: E402
@@ -64,8 +64,8 @@ def world(room):
         assert "Traceback" not in proc.output()
 
 
-def statuses(msg: DiagnosticArray) -> dict[str, dict[str, str]]:
-    return {s.name: conv.diagnostic_values(s) for s in msg.status}
+def statuses(msg: WorldStatus) -> dict[int, dict[str, float]]:
+    return conv.world_status_robots(msg)
 
 
 def test_clock_advances(world):
@@ -155,18 +155,16 @@ def test_robots_are_added_and_removed_at_run_time(world):
     spawn.publish(String(data="{id: 8, pose: oops}"))  # malformed: dropped with a warning
     odom = client.wait_for("/robot_7/ground_truth", Odometry, timeout=10.0)
     assert conv.odometry_to_pose(odom) == pytest.approx((7.0, 7.0, 0.5), abs=1e-3)
-    status = client.wait_for("/world/robots", DiagnosticArray,
-                             lambda m: "robot_7" in statuses(m))
-    assert statuses(status)["robot_7"]["id"] == "7"
-    assert "robot_8" not in statuses(status)
+    status = client.wait_for("/world/robots", WorldStatus, lambda m: 7 in statuses(m))
+    assert statuses(status)[7]["radius"] == 0.15 and statuses(status)[7]["x"] == 7.0
+    assert 8 not in statuses(status)
     remove.publish(Int32(data=7))
-    client.wait_for("/world/robots", DiagnosticArray, lambda m: "robot_7" not in statuses(m),
-                    timeout=10.0)
+    client.wait_for("/world/robots", WorldStatus, lambda m: 7 not in statuses(m), timeout=10.0)
     # A spawn without id or pose gets the smallest free id and a free place.
     spawn.publish(String(data=""))
-    status = client.wait_for("/world/robots", DiagnosticArray, lambda m: "robot_2" in statuses(m),
+    status = client.wait_for("/world/robots", WorldStatus, lambda m: 2 in statuses(m),
                              timeout=10.0)
-    assert int(statuses(status)["world"]["robots"]) == 3
+    assert len(status.robots) == 3 and status.world == "room"
     assert "dropped /world/spawn" in proc.output()
 
 

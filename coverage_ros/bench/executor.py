@@ -30,19 +30,20 @@ SCAN_HZ = 5.0  # [Hz] lidar
 
 def _publisher(seconds: float) -> None:
     import rclpy
+    from coverage_msgs.msg import RobotState
     from nav_msgs.msg import Odometry
     from rclpy.executors import ExternalShutdownException
     from rosgraph_msgs.msg import Clock
-    from sensor_msgs.msg import JointState, LaserScan
+    from sensor_msgs.msg import LaserScan
 
     rclpy.init()
     node = rclpy.create_node("bench_publisher")
-    states = [node.create_publisher(JointState, f"/robot_{k}/coverage_state", 10)
+    states = [node.create_publisher(RobotState, f"/robot_{k}/coverage_state", 10)
               for k in range(1, NEIGHBOURS + 1)]
     pose = node.create_publisher(Odometry, "/robot_0/ground_truth", 10)
     clock = node.create_publisher(Clock, "/clock", 10)
     scan = node.create_publisher(LaserScan, "/robot_0/scan", 10)
-    msg = JointState(name=["x", "y", "weight", "mass", "cost"], position=[1.0] * 5)
+    msg = RobotState(x=1.0, y=1.0, weight=1.0, mass=1.0, cost=1.0)
     laser = LaserScan(ranges=[1.0] * 360)
     node.create_timer(1.0 / STATE_HZ, lambda: [p.publish(msg) for p in states])
     node.create_timer(1.0 / POSE_HZ, lambda: (pose.publish(Odometry()), clock.publish(Clock())))
@@ -56,12 +57,13 @@ def _publisher(seconds: float) -> None:
 
 def _listener(kind: str, warmup: float, seconds: float) -> None:
     import rclpy
+    from coverage_msgs.msg import RobotState
     from nav_msgs.msg import Odometry
     from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
     from rclpy.executors import MultiThreadedExecutor, SingleThreadedExecutor
     from rclpy.experimental.events_executor import EventsExecutor
     from rosgraph_msgs.msg import Clock
-    from sensor_msgs.msg import JointState, LaserScan
+    from sensor_msgs.msg import LaserScan
 
     rclpy.init()
     node = rclpy.create_node("bench_listener")
@@ -71,7 +73,7 @@ def _listener(kind: str, warmup: float, seconds: float) -> None:
         count[0] += 1
 
     for k in range(1, NEIGHBOURS + 1):
-        node.create_subscription(JointState, f"/robot_{k}/coverage_state", got, 10)
+        node.create_subscription(RobotState, f"/robot_{k}/coverage_state", got, 10)
     node.create_subscription(Odometry, "/robot_0/ground_truth", got, 10)
     node.create_subscription(Clock, "/clock", got, 10)
     node.create_subscription(LaserScan, "/robot_0/scan", got, 10)

@@ -103,8 +103,8 @@ class FuzzTeam:
         return self.node.create_publisher(message_type(target.type_name), target.topic, qos)
 
     def _listen(self) -> None:
+        from coverage_msgs.msg import RobotState
         from nav_msgs.msg import Odometry
-        from sensor_msgs.msg import JointState
         from visualization_msgs.msg import MarkerArray
 
         from coverage_ros.nodes import conversions as conv
@@ -118,7 +118,7 @@ class FuzzTeam:
             self.node.create_subscription(
                 Odometry, f"/robot_{rid}/ground_truth",
                 lambda m, r=rid: self.truth.__setitem__(r, (time.monotonic(), m)), 10)
-            self.node.create_subscription(JointState, f"/robot_{rid}/coverage_state",
+            self.node.create_subscription(RobotState, f"/robot_{rid}/coverage_state",
                                           lambda m, r=rid: on_state(r, m), 10)
         self.node.create_subscription(MarkerArray, "/coverage/markers", self.markers.append, 10)
 

@@ -118,26 +118,27 @@ def occupancy_grids(draw):
 
 @st.composite
 def coverage_states(draw):
-    """Always malformed: wrong frame, names and values of different lengths, no x or y, or a
-    non-finite x or y."""
-    from sensor_msgs.msg import JointState
+    """Always malformed: wrong frame, a non-finite position, extra names and values of
+    different lengths, an acvt plan with too few points, or a huge extra table."""
+    from coverage_msgs.msg import AcvtState, RobotState
 
-    kind = draw(st.sampled_from(["frame", "lengths", "missing", "nan", "huge"]))
-    names = ["x", "y", "radius", "mass", "mode"]
-    values = [draw(F64) for _ in names]
+    kind = draw(st.sampled_from(["frame", "nan", "lengths", "plan", "huge"]))
+    msg = RobotState(header=_header(draw, BAD_FRAMES if kind == "frame" else st.just("map")),
+                     robot_id=draw(st.integers(-5, 500)), x=draw(F64), y=draw(F64),
+                     weight=draw(F64), radius=draw(F64), v_max=draw(F64), vx=draw(F64),
+                     vy=draw(F64), mass=draw(F64), cost=draw(F64),
+                     mode=draw(st.integers(0, 255)))
     if kind == "nan":
-        values[draw(st.integers(0, 1))] = draw(F64_BAD)
-    elif kind == "missing":
-        names = names[2:]
-        values = values[2:]
+        setattr(msg, draw(st.sampled_from(["x", "y"])), draw(F64_BAD))
     elif kind == "lengths":
-        values = values[:draw(st.integers(0, 4))]
+        msg.extra_names = ["a", "b", "c"]
+        msg.extra_values = [draw(F64)] * draw(st.integers(0, 2))
+    elif kind == "plan":
+        msg.acvt = [AcvtState(plan_from=0, plan_ids=[1, 2, 3], plan_x=[draw(F64)],
+                              plan_y=[draw(F64)] * 3)]
     elif kind == "huge":
-        names = [f"k{i}" for i in range(20_000)]
-        values = [draw(F64)] * 20_000
-    msg = JointState(header=_header(draw, BAD_FRAMES if kind == "frame" else st.just("map")),
-                     name=names, position=values)
-    msg.velocity = [draw(F64)] * draw(st.sampled_from([0, 2, 5000]))
+        msg.extra_names = [f"k{i}" for i in range(20_000)]
+        msg.extra_values = [draw(F64)] * 19_999
     return msg
 
 
@@ -250,21 +251,16 @@ def tf_messages(draw):
 
 
 @st.composite
-def diagnostic_arrays(draw):
-    from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+def world_statuses(draw):
+    from coverage_msgs.msg import SimulatedRobot, WorldStatus
 
-    text = st.text(max_size=30)
-    status = [DiagnosticStatus(level=draw(st.binary(min_size=1, max_size=1)),
-                               name=draw(st.sampled_from(["robot_0", "robot_77", "world", "",
-                                                          "robot_x"])),
-                               message=draw(text),
-                               values=[KeyValue(key=draw(st.sampled_from(
-                                   ["x", "y", "yaw", "collisions", "radius", "?"])),
-                                   value=draw(st.sampled_from(["nan", "inf", "-1", "x", "",
-                                                               "1e400"])))
-                                   for _ in range(draw(st.integers(0, 6)))])
+    robots = [SimulatedRobot(id=draw(st.sampled_from([0, 77, -1, 2**31 - 1])), x=draw(F64),
+                             y=draw(F64), yaw=draw(F64), path_length=draw(F64),
+                             min_separation=draw(F64), radius=draw(F64),
+                             collisions=draw(st.integers(0, 2**32 - 1)))
               for _ in range(draw(st.integers(0, 4)))]
-    return DiagnosticArray(header=_header(draw), status=status)
+    return WorldStatus(header=_header(draw), world=draw(st.text(max_size=30)),
+                       real_time_factor=draw(F64), robots=robots)
 
 
 def empties():
@@ -294,9 +290,9 @@ TOPICS: tuple[Target, ...] = (
     Target("/robot_0/teleop/cmd_vel", "geometry_msgs/msg/Twist", twists, ("robot_0",)),
     Target("/map", "nav_msgs/msg/OccupancyGrid", occupancy_grids,
            ("robot_0", "robot_1", "bridge"), "latched"),
-    Target("/robot_1/coverage_state", "sensor_msgs/msg/JointState", coverage_states,
+    Target("/robot_1/coverage_state", "coverage_msgs/msg/RobotState", coverage_states,
            ("robot_0", "robot_2", "bridge", "markers")),
-    Target(f"{U}/coverage_state", "sensor_msgs/msg/JointState", coverage_states,
+    Target(f"{U}/coverage_state", "coverage_msgs/msg/RobotState", coverage_states,
            ("robot_0", "robot_1", "robot_2", "bridge", "markers")),
     Target(f"{U}/goal_pose", "geometry_msgs/msg/PoseStamped", pose_stampeds,
            ("bridge", "markers")),
@@ -313,7 +309,7 @@ TOPICS: tuple[Target, ...] = (
     Target("/world/remove", "std_msgs/msg/Int32", remove_requests, ("world",)),
     Target("/tf", "tf2_msgs/msg/TFMessage", tf_messages, ("robot_1",)),
     Target("/tf_static", "tf2_msgs/msg/TFMessage", tf_messages, ("robot_1",), "latched"),
-    Target("/world/robots", "diagnostic_msgs/msg/DiagnosticArray", diagnostic_arrays,
+    Target("/world/robots", "coverage_msgs/msg/WorldStatus", world_statuses,
            ("bridge",)),
 )
 

@@ -12,8 +12,7 @@ from __future__ import annotations
 import time
 from collections import deque
 
-from coverage_msgs.msg import LockstepReport, LockstepTick
-from sensor_msgs.msg import JointState
+from coverage_msgs.msg import LockstepReport, LockstepTick, RobotState
 
 from coverage_ros.core.lockstep import Inbox, Tick
 from coverage_ros.core.lockstep.barrier import DONE, JOIN, WORKING
@@ -51,11 +50,11 @@ class LockstepObserver:
         if evidence:
             for rid in robot_ids:
                 node.create_subscription(
-                    JointState, f"/{prefix}{rid}/coverage_state",
+                    RobotState, f"/{prefix}{rid}/coverage_state",
                     lambda msg, rid=rid: self._on_state(rid, msg), LOCKSTEP_STATE_QOS,
                     event_callbacks=quiet_subscription())
 
-    def _on_state(self, rid: int, msg: JointState) -> None:
+    def _on_state(self, rid: int, msg: RobotState) -> None:
         try:
             values = conv.coverage_state_values(msg)
         except ValueError:

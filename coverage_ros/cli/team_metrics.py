@@ -28,12 +28,11 @@ import time
 
 import numpy as np
 import rclpy
-from diagnostic_msgs.msg import DiagnosticArray
+from coverage_msgs.msg import RobotState, WorldStatus
 from geometry_msgs.msg import PolygonStamped
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import JointState
 from std_msgs.msg import Int32
 from std_srvs.srv import SetBool
 
@@ -86,17 +85,17 @@ class TeamTracker:
         self.ready_at: float | None = None
         self.poses: dict[int, np.ndarray] = {}
         self.tracks: dict[int, list[tuple[float, float]]] = {}  # driven paths, for the picture
-        self.status: dict[int, dict[str, str]] = {}
+        self.status: dict[int, dict[str, float]] = {}  # SimulatedRobot's fields by robot
         self.states_seen: set[int] = set()
         self.lost: dict[int, float] = {}
         self.H_samples: list[tuple[float, float]] = []
         self.proc_stats: ProcessStats | None = None  # made in run(), once the children exist
         self.node.create_subscription(Clock, "/clock", self._on_clock, 10)
-        self.node.create_subscription(DiagnosticArray, "/world/robots", self._on_status, 10)
+        self.node.create_subscription(WorldStatus, "/world/robots", self._on_status, 10)
         self.remove_pub = self.node.create_publisher(Int32, "/world/remove", 10)
         # Only to see every robot come up (dropped once the team is ready).
         self.state_subs = [self.node.create_subscription(
-            JointState, f"/robot_{i}/coverage_state", lambda m, i=i: self.states_seen.add(i),
+            RobotState, f"/robot_{i}/coverage_state", lambda m, i=i: self.states_seen.add(i),
             10, event_callbacks=quiet_subscription()) for i in range(n)]
         # Pause and resume the whole team: forwarded to every robot's own service.
         self.pause_clients = {i: self.node.create_client(SetBool, f"/robot_{i}/pause")
@@ -129,18 +128,14 @@ class TeamTracker:
         self.clock_error = self.clock_error or self.clock_guard.check_time(t)
         self.sim_time = max(self.sim_time, t)
 
-    def _on_status(self, msg: DiagnosticArray) -> None:
+    def _on_status(self, msg: WorldStatus) -> None:
         if self.observer is not None:
             self.observer.status_stamp = max(self.observer.status_stamp,
                                              conv.stamp_ns(msg.header.stamp))
-        for st in msg.status:
-            values = conv.diagnostic_values(st)
-            if "id" not in values:
-                continue
-            i = int(float(values["id"]))
+        for i, values in conv.world_status_robots(msg).items():
             self.status[i] = values
             if i not in self.lost:
-                self.poses[i] = np.array([float(values[k]) for k in ("x", "y", "yaw")])
+                self.poses[i] = np.array([values[k] for k in ("x", "y", "yaw")])
                 track = self.tracks.setdefault(i, [])
                 if not track or np.hypot(*(self.poses[i][:2] - track[-1])) > TRACK_STEP:
                     track.append(tuple(self.poses[i][:2]))
@@ -162,7 +157,7 @@ class TeamTracker:
 
     @property
     def min_sep(self) -> float:
-        return min((float(st.get("min_separation", "inf")) for st in self.status.values()),
+        return min((st.get("min_separation", math.inf) for st in self.status.values()),
                    default=math.inf)
 
     # ------------------------------------------------------------------ main loop
@@ -317,7 +312,7 @@ class TeamTracker:
         rtf = (self.sim_time - self.sim_start) / wall if wall > 0 else 0.0
         H = self.H_samples[-1][1] if self.H_samples else math.nan
         bar = "#" * int(30 * frac) + "." * (30 - int(30 * frac))
-        collisions = sum(int(float(s.get("collisions", 0))) for s in self.status.values())
+        collisions = sum(int(s.get("collisions", 0)) for s in self.status.values())
         explored = "" if self.exploration is None else \
             f"  explored {100 * self.exploration.explored:5.1f} %"
         line = (f"  [{bar}] sim {self.sim_time - self.ready_at:6.1f}/{span:g} s  rtf {rtf:4.2f}"
@@ -343,10 +338,10 @@ class TeamTracker:
             robots.append({
                 "id": i, "start": self.starts[i].round(4).tolist(),
                 "final": None if final is None else np.round(final, 4).tolist(),
-                "path_length": round(float(st.get("path_length", 0.0)), 4),
-                "collisions": int(float(st.get("collisions", 0))),
-                "robot_collisions": int(float(st.get("robot_collisions", 0))),
-                "wall_collisions": int(float(st.get("wall_collisions", 0))),
+                "path_length": round(st.get("path_length", 0.0), 4),
+                "collisions": int(st.get("collisions", 0)),
+                "robot_collisions": int(st.get("robot_collisions", 0)),
+                "wall_collisions": int(st.get("wall_collisions", 0)),
                 "spec": self.team[i].spec.numbers(), "role": self.team[i].role,
                 "body": self._body(st),
                 **({"lost_at": round(self.lost[i], 2)} if i in self.lost else {}),
@@ -391,7 +386,7 @@ class TeamTracker:
                     f"{self.args.strategy}: {n} robots, {self.sim_time:.0f} s")
 
     @staticmethod
-    def _body(status: dict[str, str]) -> dict[str, float]:
+    def _body(status: dict[str, float]) -> dict[str, float]:
         """The simulated body's spec as the world node reports it (empty if it never did)."""
         return {k: float(status[k]) for k in NUMBER_FIELDS if k in status}
 

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import math
 import os
 import select
 import signal
@@ -107,9 +108,9 @@ def main(argv: list[str] | None = None) -> int:
 class Teleop:
     def __init__(self, args: argparse.Namespace) -> None:
         import rclpy
+        from coverage_msgs.msg import RobotState
         from geometry_msgs.msg import Twist
         from rclpy.node import Node
-        from sensor_msgs.msg import JointState
         from std_srvs.srv import SetBool
 
         self.rclpy, self.Twist, self.SetBool = rclpy, Twist, SetBool
@@ -121,19 +122,18 @@ class Teleop:
         self.node = Node("coverage_teleop")
         self.pub = self.node.create_publisher(Twist, f"{ns}/teleop/cmd_vel", 10)
         self.manual_client = self.node.create_client(SetBool, f"{ns}/set_manual")
-        self.node.create_subscription(JointState, f"{ns}/coverage_state", self._on_state, 10)
+        self.node.create_subscription(RobotState, f"{ns}/coverage_state", self._on_state, 10)
         self.cmd = TeleopCommand(args.v_max, args.w_max)
         self.robot_manual: bool | None = None  # as the robot last reported
         self.took_over = False
         self.note = "waiting for the robot"
 
     def _on_state(self, msg) -> None:
-        values = dict(zip(msg.name, msg.position, strict=False))
-        if "v_max" in values and values["v_max"] > 0:
-            self.cmd.v_max = float(values["v_max"])
+        if math.isfinite(msg.v_max) and msg.v_max > 0:
+            self.cmd.v_max = float(msg.v_max)
             self.cmd.clip()
-        if "manual" in values:
-            self.robot_manual = values["manual"] > 0.5
+        if msg.mode != msg.MODE_NONE:  # (before the first update it says nothing of it)
+            self.robot_manual = bool(msg.manual)
 
     def _set_manual(self, manual: bool, wait: float = 2.0) -> bool:
         if not self.manual_client.wait_for_service(timeout_sec=wait):

@@ -23,10 +23,10 @@ import sys
 import time
 
 import numpy as np
+from coverage_msgs.msg import RobotState
 from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import OccupancyGrid, Path
 from rclpy.node import Node
-from sensor_msgs.msg import JointState
 from visualization_msgs.msg import MarkerArray
 
 from coverage_ros.core.strategies.base import mode_name
@@ -40,7 +40,7 @@ from coverage_ros.viz.outline import outline_segments
 
 DISCOVERY_PERIOD = 1.0  # [s] wall time between looks at the ROS graph
 VANISH_CHECKS = 2  # graph looks without a coverage_state publisher before a robot is gone
-TOPICS = {"coverage_state": JointState, "cell": OccupancyGrid, "goal_pose": PoseStamped,
+TOPICS = {"coverage_state": RobotState, "cell": OccupancyGrid, "goal_pose": PoseStamped,
           "plan": Path}
 
 PARAMETERS = {
@@ -122,7 +122,7 @@ class MarkerNode(Node):
         return run
 
     @staticmethod
-    def _on_coverage_state(r: conv.RobotMarkers, msg: JointState) -> None:
+    def _on_coverage_state(r: conv.RobotMarkers, msg: RobotState) -> None:
         v = conv.coverage_state_values(msg)
         x, y = v["x"], v["y"]
         if not (math.isfinite(x) and math.isfinite(y)):

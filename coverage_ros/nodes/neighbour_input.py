@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterable
 
-from sensor_msgs.msg import JointState
+from coverage_msgs.msg import RobotState
 
 from coverage_ros.nodes.belief_exchange import OBSERVATIONS, OBSERVATIONS_TYPE
 from coverage_ros.nodes.plumbing import LOCKSTEP_STATE_QOS, TEAM_QOS, quiet_subscription
@@ -21,7 +21,7 @@ class NeighbourInput:
     BeliefExchange (None unless exploring); ``own_states``: subscribe to the states here."""
 
     def __init__(self, node, prefix: str, team_size: int, own_states: bool,
-                 on_state: Callable[[int, JointState], None], exchange, lockstep: bool) -> None:
+                 on_state: Callable[[int, RobotState], None], exchange, lockstep: bool) -> None:
         self.node, self.prefix, self.own_states = node, prefix, own_states
         self._on_state, self._exchange = on_state, exchange
         self._qos = LOCKSTEP_STATE_QOS if lockstep else TEAM_QOS
@@ -59,5 +59,5 @@ class NeighbourInput:
 
     def _subscribe(self, rid: int, name: str) -> None:
         self.subs[rid] = self.node.create_subscription(
-            JointState, name, lambda msg, rid=rid: self._on_state(rid, msg), self._qos,
+            RobotState, name, lambda msg, rid=rid: self._on_state(rid, msg), self._qos,
             event_callbacks=quiet_subscription())

@@ -16,7 +16,6 @@ Robot nodes need none of this: the bridge only listens, so real robots are viewe
 
 from __future__ import annotations
 
-import contextlib
 import math
 import os
 import re
@@ -24,12 +23,12 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path as FilePath
 
-from diagnostic_msgs.msg import DiagnosticArray
+from coverage_msgs.msg import RobotState, WorldStatus
 from geometry_msgs.msg import PolygonStamped, PoseStamped
 from nav_msgs.msg import OccupancyGrid, Odometry, Path
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import JointState, LaserScan, PointCloud2
+from sensor_msgs.msg import LaserScan, PointCloud2
 
 from coverage_ros.core.world import RobotSpec, load_world
 from coverage_ros.errors import ConfigError
@@ -60,10 +59,10 @@ TOPICS = {  # per-robot topic: (message type, QoS)
     "cell": (OccupancyGrid, TEAM_QOS),
     "cell_polygon": (PolygonStamped, TEAM_QOS),
     "observations": (PointCloud2, TEAM_QOS),
-    "coverage_state": (JointState, TEAM_QOS),
+    "coverage_state": (RobotState, TEAM_QOS),
 }
 #: /world/robots values not plotted: the robot positions (shown as robots) and the fixed spec.
-STATUS_SKIP = {"id", "x", "y", "yaw", "radius", "v_max", "w_max", "a_max", "alpha_max",
+STATUS_SKIP = {"id", "x", "y", "yaw", "driving", "radius", "v_max", "w_max", "a_max", "alpha_max",
                "sensor_radius", "power_weight", "lidar_range_max"}
 
 
@@ -203,7 +202,7 @@ class RerunBridge(Node):
                                  CLOCK_QOS)
         self.create_subscription(OccupancyGrid, "/map", self._guard("/map", self._on_map),
                                  MAP_QOS)
-        self.create_subscription(DiagnosticArray, "/world/robots",
+        self.create_subscription(WorldStatus, "/world/robots",
                                  self._guard("/world/robots", self._on_status), TEAM_QOS)
         self.create_timer(DISCOVERY_PERIOD, self._discover)
         self.regions = RegionInput(self, self._on_region, self._warn)
@@ -281,22 +280,14 @@ class RerunBridge(Node):
         if self.team.set_map(grid):
             self.get_logger().info(f"map {grid.width} x {grid.height} at {grid.resolution:g} m")
 
-    def _on_status(self, msg: DiagnosticArray) -> None:
+    def _on_status(self, msg: WorldStatus) -> None:
         t = conv.from_time_msg(msg.header.stamp)
-        prefix = self.config.robot_prefix
-        for status in msg.status:
-            if status.name == "world":
-                where = "world"
-            elif status.name.startswith(prefix) and status.name[len(prefix):].isdigit():
-                where = f"robot_{int(status.name[len(prefix):])}"
-            else:
-                continue
-            values = {}
-            for key, text in conv.diagnostic_values(status).items():
-                with contextlib.suppress(ValueError):
-                    if key not in STATUS_SKIP:
-                        values[key] = float(text)
-            self.team.status(where, t, values)
+        self.team.status("world", t, {"sim_time": t, "real_time_factor": msg.real_time_factor,
+                                      "robots": float(len(msg.robots)),
+                                      "steps": float(msg.steps)})
+        for rid, values in conv.world_status_robots(msg).items():
+            self.team.status(f"robot_{rid}", t, {k: v for k, v in values.items()
+                                                 if k not in STATUS_SKIP and math.isfinite(v)})
 
     # ------------------------------------------------------------------ per-robot topics
     def _on_ground_truth(self, robot_id: int, msg: Odometry) -> None:
@@ -337,7 +328,7 @@ class RerunBridge(Node):
             evidence = conv.evidence_from_msg(msg, robot_id, layer.lattice)
             self.team.observations(robot_id, self._map_frame(msg.header), evidence)
 
-    def _on_coverage_state(self, robot_id: int, msg: JointState) -> None:
+    def _on_coverage_state(self, robot_id: int, msg: RobotState) -> None:
         values = conv.coverage_state_values(msg)  # checks the map frame
         self.team.state(robot_id, conv.from_time_msg(msg.header.stamp), values)
 

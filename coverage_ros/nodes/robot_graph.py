@@ -16,7 +16,7 @@ SLOW_LOOKS = 10
 def robot_topics(names_and_types: Iterable[tuple[str, list[str]]], prefix: str, name: str,
                  msg_type: str | None = None) -> Iterator[tuple[int, str]]:
     """``(robot id, topic)`` of every ``/<prefix><id>/<name>`` (of ``msg_type``, e.g.
-    ``sensor_msgs/msg/JointState``, when given) in ``get_topic_names_and_types()``."""
+    ``coverage_msgs/msg/RobotState``, when given) in ``get_topic_names_and_types()``."""
     pattern = re.compile(rf"/{re.escape(prefix)}(\d+)/{re.escape(name)}")
     for topic, types in names_and_types:
         m = pattern.fullmatch(topic)

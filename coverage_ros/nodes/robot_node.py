@@ -25,11 +25,11 @@ import math
 import sys
 import time
 
+from coverage_msgs.msg import RobotState
 from geometry_msgs.msg import PolygonStamped, Twist, TwistStamped
 from nav_msgs.msg import OccupancyGrid, Odometry, Path
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
-from sensor_msgs.msg import JointState
 from std_srvs.srv import SetBool
 
 from coverage_ros.core.control.controller import RobotController
@@ -113,7 +113,7 @@ class RobotNode(RobotRequests, Node):
         self.plan_pub, self.cell_pub = publisher(Path, "plan"), publisher(OccupancyGrid, "cell")
         self.polygon_pub = publisher(PolygonStamped, "cell_polygon")
         self.state_pub = self.create_publisher(
-            JointState, "coverage_state", TEAM_QOS if self.lockstep is None else
+            RobotState, "coverage_state", TEAM_QOS if self.lockstep is None else
             LOCKSTEP_STATE_QOS, event_callbacks=quiet_publisher())
         if self.config.pose_source == "tf":  # map -> base_link, as AMCL or slam_toolbox give it
             self.tf_input = TfPoseInput(self, self.frames, self._take_pose, self._warn)
@@ -242,7 +242,7 @@ class RobotNode(RobotRequests, Node):
     def robot_id(self) -> int:
         return self.config.controller.robot_id
 
-    def _on_state(self, robot_id: int, msg: JointState) -> None:
+    def _on_state(self, robot_id: int, msg: RobotState) -> None:
         try:
             values = conv.coverage_state_values(msg)
         except ValueError as exc:
@@ -352,7 +352,7 @@ class RobotNode(RobotRequests, Node):
         state = dict(c.last.state) if c.last is not None else c.presence_state()
         motion = c.motion_state() if self.config.drive else self.poses.velocity()
         state.update(x=float(c.pose[0]), y=float(c.pose[1]), **motion, **(extra or {}))
-        self.state_pub.publish(conv.coverage_state_msg(stamp, state))
+        self.state_pub.publish(conv.coverage_state_msg(stamp, state, robot_id=self.robot_id))
 
     def _publish_cmd(self, v: float, w: float, now: float, last: bool = False) -> None:
         if self.cmd_pub is None:

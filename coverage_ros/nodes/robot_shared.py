@@ -30,7 +30,7 @@ import threading
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 
-from sensor_msgs.msg import JointState
+from coverage_msgs.msg import RobotState
 
 from coverage_ros.core.geodesic.domain import CoverageDomain
 from coverage_ros.core.world import load_planar_world
@@ -48,7 +48,7 @@ from coverage_ros.nodes.plumbing import (
 from coverage_ros.nodes.robot_graph import robot_topics
 from coverage_ros.worlds import resolve_world_path
 
-STATE_TYPE = "sensor_msgs/msg/JointState"
+STATE_TYPE = "coverage_msgs/msg/RobotState"
 
 
 def state_topics(names_and_types: Iterable[tuple[str, list[str]]],
@@ -137,7 +137,7 @@ class StateHub:
 
     def _subscribe(self, rid: int, name: str, qos) -> None:
         self.subscriptions[rid] = self.node.create_subscription(
-            JointState, name, lambda msg, rid=rid: self.on_state(rid, msg), qos,
+            RobotState, name, lambda msg, rid=rid: self.on_state(rid, msg), qos,
             event_callbacks=quiet_subscription())
 
     def on_state(self, sender: int, msg) -> None:

@@ -16,7 +16,7 @@ import sys
 import time
 from dataclasses import dataclass, field
 
-from diagnostic_msgs.msg import DiagnosticArray
+from coverage_msgs.msg import WorldStatus
 from geometry_msgs.msg import Twist, TwistStamped
 from nav_msgs.msg import OccupancyGrid, Odometry
 from rclpy.node import Node
@@ -163,7 +163,7 @@ class WorldNode(Node):
         self._throttle = WarnThrottle(self.get_logger().warning, WARN_PERIOD)
         self.clock_pub = self.create_publisher(Clock, "/clock", TEAM_QOS)
         self.map_pub = self.create_publisher(OccupancyGrid, "/map", MAP_QOS)
-        self.status_pub = self.create_publisher(DiagnosticArray, "/world/robots", TEAM_QOS)
+        self.status_pub = self.create_publisher(WorldStatus, "/world/robots", TEAM_QOS)
         self.tf = TfOutput(self) if self.config.publish_tf else None
         self.create_subscription(String, "/world/spawn", self._on_spawn, TEAM_QOS)
         self.create_subscription(Int32, "/world/remove", self._on_remove, TEAM_QOS)
@@ -358,28 +358,25 @@ class WorldNode(Node):
         io.scan_pub.publish(msg)
         return msg
 
-    def publish_status(self) -> DiagnosticArray:
+    def publish_status(self) -> WorldStatus:
         now = time.monotonic()
         wall0, sim0 = self._rate_ref
         rtf = (self.sim.time - sim0) / (now - wall0) if now > wall0 else 0.0
         self._rate_ref = (now, self.sim.time)
-        msg = DiagnosticArray()
-        msg.header.stamp = conv.to_time_msg(self.sim.time)
-        msg.status.append(conv.diagnostic_status("world", self.spec.name, {
-            "sim_time": self.sim.time, "real_time_factor": rtf, "robots": len(self.sim.robots),
-            "steps": self.sim.steps}))
+        robots = []
         for robot_id, robot in self.sim.robots.items():
             x, y, yaw = robot.pose()
-            stalled = self.sim.time - robot.last_cmd_time > self.config.sim.cmd_timeout
-            msg.status.append(conv.diagnostic_status(
-                f"{self.config.robot_prefix}{robot_id}", "idle" if stalled else "driving", {
-                    "id": robot_id, "x": x, "y": y, "yaw": yaw,
-                    "collisions": robot.collisions, "robot_collisions": robot.robot_collisions,
-                    "wall_collisions": robot.wall_collisions, "path_length": robot.path_length,
-                    "scans": robot.scans, "spawn_time": robot.spawn_time,
-                    "min_separation": robot.min_separation, **robot.spec.numbers(),
-                    "lidar_range_max": robot.spec.lidar.range_max},
-                hardware_id=str(robot_id)))
+            robots.append({
+                "id": robot_id, "x": x, "y": y, "yaw": yaw,
+                "driving": self.sim.time - robot.last_cmd_time <= self.config.sim.cmd_timeout,
+                "collisions": robot.collisions, "robot_collisions": robot.robot_collisions,
+                "wall_collisions": robot.wall_collisions, "path_length": robot.path_length,
+                "scans": robot.scans, "spawn_time": robot.spawn_time,
+                "min_separation": robot.min_separation, **robot.spec.numbers(),
+                "lidar_range_max": robot.spec.lidar.range_max})
+        tick = self.lockstep.barrier.tick if self.lockstep is not None else 0
+        msg = conv.world_status_msg(conv.to_time_msg(self.sim.time), self.spec.name, rtf,
+                                    self.sim.steps, tick, robots)
         self.status_pub.publish(msg)
         return msg
 

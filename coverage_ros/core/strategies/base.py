@@ -167,7 +167,7 @@ class StrategyDetails:
 
 
 #: Every ``Decision.mode`` of the shipped strategies; ``coverage_state`` carries a mode as its
-#: index here (``mode``; -1 for one not listed), since a JointState holds numbers only.
+#: index here (``mode``; -1 for one not listed), as the coverage state's ``mode`` constant.
 MODES = ("lloyd", "greedy", "frontier", "done", "stay", "cvt", "dropout", "plain", "guided",
          "escape", "motion_to_goal", "boundary_following", "projecting", "reached",
          "projected", "blocked", "seek", "relocate")

@@ -19,10 +19,10 @@ Conventions (REP 103 / REP 105 / REP 117)
   ``range_min`` (REP 117).
 * Velocity commands (``cmd_vel``): ``linear.x`` [m/s] forward and ``angular.z`` [rad/s]
   counter-clockwise in ``base_link``; the other components are ignored (differential drive).
-* Coverage state (``coverage_state``): a ``sensor_msgs/JointState`` used as a stamped vector of
-  named values in the ``map`` frame: ``name[k]`` / ``position[k]`` pairs ``x``, ``y`` (the
-  generator [m]), ``weight`` (power weight R [m]), ``mass``, ``cost``, ``update_ms``, and for
-  some strategies ``virtual_x``/``virtual_y`` (virtual generator [m]) and further extras.
+* Coverage state (``coverage_state``): a ``coverage_msgs/RobotState`` in the ``map`` frame:
+  the generator ``x``, ``y`` [m], power weight, body, velocity, last update, mode and each
+  strategy's own values in typed fields; inside the stack a mapping of named values (see
+  :mod:`.state`). The world's ``/world/robots``: ``coverage_msgs/WorldStatus``.
 * Cells (``cell``): a ``nav_msgs/OccupancyGrid`` cropped to the cell's bounding box, on the
   map's cell lattice: 100 = part of the robot's cell, 0 = not.
 
@@ -39,8 +39,8 @@ Conventions (REP 103 / REP 105 / REP 117)
   kind; see :mod:`.markers`.
 
 The conversions are grouped by topic kind in :mod:`.basics`, :mod:`.grids`, :mod:`.motion`,
-:mod:`.team`, :mod:`.evidence`, :mod:`.lockstep`, :mod:`.markers` and :mod:`.tf`, and all
-re-exported here: nodes use ``conv.<name>``.
+:mod:`.team`, :mod:`.state`, :mod:`.evidence`, :mod:`.lockstep`, :mod:`.markers` and
+:mod:`.tf`, and all re-exported here: nodes use ``conv.<name>``.
 
 Arrays cross the message boundary with ``array.array`` (``tobytes``/``np.frombuffer``): element-
 wise assignment of a numpy array to a message sequence is ~60x slower.
@@ -81,14 +81,16 @@ from coverage_ros.nodes.conversions.motion import (
     odometry_to_pose,
     twist_to_command,
 )
+from coverage_ros.nodes.conversions.state import (
+    coverage_state_msg,
+    coverage_state_values,
+    world_status_msg,
+    world_status_robots,
+)
 from coverage_ros.nodes.conversions.team import (
     SpawnRequest,
     cell_grid_msg,
     cell_grid_to_grid,
-    coverage_state_msg,
-    coverage_state_values,
-    diagnostic_status,
-    diagnostic_values,
     parse_spawn_request,
     path_msg,
     path_to_points,
@@ -114,8 +116,6 @@ __all__ = [
     "coverage_state_msg",
     "coverage_state_values",
     "delete_marker",
-    "diagnostic_status",
-    "diagnostic_values",
     "evidence_from_msg",
     "evidence_msg",
     "from_time_msg",
@@ -148,5 +148,7 @@ __all__ = [
     "transform_msg",
     "transforms_of",
     "twist_to_command",
+    "world_status_msg",
+    "world_status_robots",
     "yaw_to_quaternion",
 ]

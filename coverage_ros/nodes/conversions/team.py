@@ -1,5 +1,5 @@
-"""Message conversions: spawn requests, diagnostics, a robot's outputs and coverage state
-(conventions: :mod:`..conversions`)."""
+"""Message conversions: spawn requests and a robot's outputs (conventions:
+:mod:`..conversions`)."""
 
 
 from __future__ import annotations
@@ -12,10 +12,9 @@ from typing import Any
 import numpy as np
 import yaml
 from builtin_interfaces.msg import Time
-from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Point32, PolygonStamped, PoseStamped
 from nav_msgs.msg import OccupancyGrid, Path
-from sensor_msgs.msg import JointState, LaserScan
+from sensor_msgs.msg import LaserScan
 
 from coverage_ros.core.world import RobotSpec
 from coverage_ros.core.world.grid import GridMap
@@ -78,22 +77,6 @@ def _is_finite_number(value: Any) -> bool:
 
 
 # ---------------------------------------------------------------------------- diagnostics
-def diagnostic_status(name: str, message: str, values: dict[str, Any],
-                      level: bytes = DiagnosticStatus.OK,
-                      hardware_id: str = "") -> DiagnosticStatus:
-    """A ``diagnostic_msgs/DiagnosticStatus`` with ``values`` as key/value strings (floats with
-    6 significant digits)."""
-    return DiagnosticStatus(
-        level=level, name=name, message=message, hardware_id=hardware_id,
-        values=[KeyValue(key=k, value=f"{v:.6g}" if isinstance(v, float) else str(v))
-                for k, v in values.items()])
-
-
-def diagnostic_values(status: DiagnosticStatus) -> dict[str, str]:
-    """The key/value pairs of a ``DiagnosticStatus`` as a dict."""
-    return {kv.key: kv.value for kv in status.values}
-
-
 # ---------------------------------------------------------------------------- robot outputs
 def pose_stamped_msg(stamp: Time, x: float, y: float, yaw: float,
                      frame_id: str = MAP_FRAME) -> PoseStamped:
@@ -167,37 +150,6 @@ def scan_to_points(msg: LaserScan, pose: tuple[float, float, float]) -> np.ndarr
 
 
 # ---------------------------------------------------------------------------- coverage state
-STATE_REQUIRED = ("x", "y")
-
-
-def coverage_state_msg(stamp: Time, values: dict[str, float],
-                       frame_id: str = MAP_FRAME) -> JointState:
-    """``coverage_state`` message from named values (see module docstring)."""
-    msg = JointState()
-    msg.header.stamp = stamp
-    msg.header.frame_id = frame_id
-    names = list(values)
-    msg.name = names
-    msg.position = [float(values[k]) for k in names]
-    return msg
-
-
-def coverage_state_values(msg: JointState, expected_frame: str = MAP_FRAME) -> dict[str, float]:
-    """Named values of a ``coverage_state`` message; ValueError naming the problem (wrong
-    frame, missing x/y, mismatched lengths, non-finite x/y)."""
-    if msg.header.frame_id != expected_frame:
-        raise ValueError(f"frame_id {msg.header.frame_id!r}, expected {expected_frame!r}")
-    if len(msg.name) != len(msg.position):
-        raise ValueError(f"{len(msg.name)} names but {len(msg.position)} values")
-    values = {str(n): float(v) for n, v in zip(msg.name, msg.position, strict=True)}
-    for key in STATE_REQUIRED:
-        if key not in values:
-            raise ValueError(f"no {key!r} value")
-        if not math.isfinite(values[key]):
-            raise ValueError(f"{key} is {values[key]!r}")
-    return values
-
-
 # ---------------------------------------------------------------------------- viewer inputs
 def pose_stamped_to_pose(msg: PoseStamped) -> tuple[float, float, float]:
     """``(x, y, yaw)`` of a ``geometry_msgs/PoseStamped``, in its header frame."""

@@ -1,0 +1,42 @@
+"""The stack's own messages (interfaces/coverage_msgs): built, and with the type hashes that
+nodes built from this version announce - a change to a message changes its hash, and nodes of
+the old and the new version no longer talk (update the hash here on purpose, never by accident)."""
+
+from __future__ import annotations
+
+import pytest
+from rosutil import RosClient, domain_id
+
+HASHES = {
+    "LockstepTick": "RIHS01_3a871c373118d9a3de4ead182bba819f89a98eb90ac04bfda313b4a455e0ad43",
+    "LockstepReport": "RIHS01_791805ffc8c00e0966431cc90025254e4128d16fd06fd1c56c5592f02bf0b1f7",
+    "RobotState": "RIHS01_b64ce0699611a4c454c0b0056f29071e2a9d712270d0ac3d2d5ba689b3a0b536",
+    "WorldStatus": "RIHS01_6616ba3753495967fd1c316f91c59d25b3c351eb915d074d3a08c020d20e938b",
+}
+
+
+def test_the_messages_have_their_type_hashes():
+    import coverage_msgs.msg as msgs
+
+    client = RosClient(domain_id(8), "hash_check")
+    try:
+        for name, want in HASHES.items():
+            client.node.create_publisher(getattr(msgs, name), f"/hash_{name}", 10)
+            info = client.node.get_publishers_info_by_topic(f"/hash_{name}")
+            assert info[0].topic_type == f"coverage_msgs/msg/{name}"
+            assert str(info[0].topic_type_hash) == want, name
+    finally:
+        client.close()
+
+
+def test_the_modes_of_a_coverage_state_are_the_strategies_modes():
+    """RobotState's MODE_* constants are the strategies' modes, in their order."""
+    from coverage_msgs.msg import RobotState
+
+    from coverage_ros.core.strategies.base import MODES
+
+    for i, mode in enumerate(MODES):
+        assert getattr(RobotState, f"MODE_{mode.upper()}") == i
+    assert RobotState.MODE_NONE > len(MODES) and RobotState.MODE_OTHER > len(MODES)
+    with pytest.raises(AttributeError):
+        RobotState.MODE_NO_SUCH_MODE  # noqa: B018

@@ -13,6 +13,7 @@ from coverage_ros.core.exploration.belief import Belief, BeliefConfig, entropy
 from coverage_ros.core.exploration.maps import EntropyMetric, entropy_domain, trinary_grid
 from coverage_ros.core.exploration.sensor_model import ScanCells
 from coverage_ros.core.geodesic.domain import CoverageDomain
+from coverage_ros.core.geodesic.world_domain import world_domain
 from coverage_ros.core.offline.exploration import ExplorationConfig, run_exploration
 from coverage_ros.core.strategies import (
     Neighbour,
@@ -239,7 +240,7 @@ def test_fig19_a_person_holds_one_robot_in_a_room_of_an_unknown_office():
     assert run.explored[-1] >= 0.99 and run.collisions == 0
     assert np.allclose(run.positions[:, 0], starts[0, :2])  # the person kept robot 0 there
     final = run.positions[-1]
-    cells = tessellate(CoverageDomain.from_world(world, 0.105),
+    cells = tessellate(world_domain(world, 0.105),
                        [Generator(final[i], specs[i].power_weight) for i in range(4)])
     print(f"power cell masses: {np.round(cells.masses, 1).tolist()}")
     assert cells.masses[1] > max(cells.masses[2:]) and cells.masses[0] > 0

@@ -22,6 +22,7 @@ from coverage_ros.core.geodesic.tangents import (
     visible_from,
 )
 from coverage_ros.core.geodesic.tessellation import Generator, tessellate
+from coverage_ros.core.geodesic.world_domain import world_domain
 from coverage_ros.core.world import cluster_starts, load_world
 from coverage_ros.core.world.grid import OCCUPIED, GridMap
 
@@ -455,7 +456,7 @@ def test_vectorized_snap_equals_snap_point_by_point():
 
 
 def test_a_depth_map_kept_for_a_larger_radius_answers_a_smaller_one_alike():
-    domain = CoverageDomain.from_world(load_world(WORLDS / "office.yaml"), 0.105)
+    domain = world_domain(load_world(WORLDS / "office.yaml"), 0.105)
     rng = np.random.default_rng(3)
     H, W = domain.shape
     free = np.argwhere(domain.free)[:, ::-1] + 0.5
@@ -526,10 +527,10 @@ def test_the_whole_domain_search_gives_each_robots_cell_with_tiles_as_without(mo
         return [np.sort(geodesic_cell(domain, g, [h for h in gens if h is not g]).nodes)
                 for g in gens]
 
-    tiled = cells(CoverageDomain.from_world(world, 0.105))
+    tiled = cells(world_domain(world, 0.105))
     assert calls  # the whole-domain search ran and used the tiles
     monkeypatch.setattr(sight, "TILED_FROM", 10**12)
     monkeypatch.setattr(sight.LineOfSight, "sight_tiles",  # every tile to be tested
                         lambda self, *a: np.full(len(plain(self, *a)), -1, dtype=np.int8))
-    for a, b in zip(tiled, cells(CoverageDomain.from_world(world, 0.105)), strict=True):
+    for a, b in zip(tiled, cells(world_domain(world, 0.105)), strict=True):
         np.testing.assert_array_equal(a, b)

@@ -13,7 +13,7 @@ import pytest
 from conftest import shared_map
 from rosutil import domain_id
 
-from coverage_ros.bench.faults import have_tools
+from coverage_ros.bench.environment import have_tools
 from coverage_ros.bench.hosts import hosts_network, run_across_hosts
 from coverage_ros.cli.plan import main as plan_main
 

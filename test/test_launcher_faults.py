@@ -280,7 +280,7 @@ def test_a_second_simulation_on_the_domain_stops_the_team_with_one_line(tmp_path
 
 
 def test_the_clock_guard_sees_a_second_clock_and_time_going_back():
-    from coverage_ros.nodes.plumbing import ClockGuard
+    from coverage_ros.nodes.clock_guard import ClockGuard
 
     guard = ClockGuard(jump_back=1.0)
     assert guard.check_time(10.0) == guard.check_time(10.5) == ""

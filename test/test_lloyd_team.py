@@ -13,6 +13,7 @@ from coverage_ros.cli.plan import main
 from coverage_ros.core.geodesic.domain import CoverageDomain
 from coverage_ros.core.geodesic.euclidean import euclidean_cell, euclidean_labels
 from coverage_ros.core.geodesic.tessellation import Generator
+from coverage_ros.core.geodesic.world_domain import world_domain
 from coverage_ros.core.offline.lloyd_team import EuclideanTeam, solve_lloyd
 from coverage_ros.core.world import load_world
 from coverage_ros.core.world.grid import OCCUPIED, GridMap
@@ -27,7 +28,7 @@ def _open_square(side_cells: int, resolution: float = 0.05, yaw: float = 0.0) ->
 @pytest.fixture(scope="module")
 def field():
     world = load_world(WORLDS / "field.yaml")  # obstacles and a Gaussian-mixture density
-    return CoverageDomain.from_world(world, 0.105)
+    return world_domain(world, 0.105)
 
 
 def _free_points(domain: CoverageDomain, n: int, seed: int) -> np.ndarray:
@@ -98,7 +99,7 @@ def test_gradient_is_twice_mass_times_offset_from_the_centroid(field):
 def scale_runs():
     """Plain and accelerated Lloyd on the shipped scale scenario (402 x 402 cells, 8 robots)."""
     world = load_world(WORLDS / "gaussians.yaml")
-    domain = CoverageDomain.from_world(world, 0.105)
+    domain = world_domain(world, 0.105)
     starts = np.array([[s.x, s.y] for s in world.starts])
     team = EuclideanTeam(domain)
     runs = {s: solve_lloyd(team, starts, solver=s, tolerance=0.005, max_steps=1000)

@@ -111,6 +111,26 @@ def test_a_silent_member_is_dropped_after_the_timeout_counted_from_the_tick_or_i
     assert b.ready(38.5) and b.advance(38.5).answered == (0,)
 
 
+def test_a_member_dropped_after_answering_is_no_longer_waited_for_by_the_others():
+    """Robot 1 answered tick 1 and died: tick 2 lists it among the robots whose states are due,
+    but it may have died before its state went out - once it is dropped, the tick goes out
+    again without it, so that nobody waits for that state."""
+    b = started(0, 1, now=0.0)
+    for r in (0, 1):
+        b.report(robot(r), DONE, 1, 0.1, (0.0, 0.0))
+    assert b.advance(0.1).answered == (0, 1) and b.answered == (0, 1)
+    b.report(robot(0), DONE, 2, 0.2)
+    assert b.expire(5.0) == [] and b.answered == (0, 1)
+    assert len(b.expire(11.0)) == 1 and b.answered == (0,)
+    b2 = started(0, 1, 2)
+    for r in (0, 1, 2):
+        b2.report(robot(r), DONE, 1, 0.0)
+    b2.advance(0.0)
+    b2.leave(robot(2))
+    b2.remove_robot(1)
+    assert b2.answered == (0,) and b2.robots == (0,)
+
+
 def test_leave_and_removal_stop_the_wait():
     b = started(0, 1, 2)
     b.report(robot(0), DONE, 1, 1.0)

@@ -12,7 +12,12 @@ import pytest
 from conftest import shared_map
 from rosutil import domain_id
 
-from coverage_ros.bench.faults import have_tools, lossy_namespace, namespace_env, run_team_in
+from coverage_ros.bench.environment import (
+    have_tools,
+    lossy_namespace,
+    namespace_env,
+    run_team_in,
+)
 from coverage_ros.cli.plan import main as plan_main
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]

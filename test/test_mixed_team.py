@@ -15,6 +15,7 @@ from coverage_ros.cli.team_setup import build_team
 from coverage_ros.cli.teleop import KEYS, TeleopCommand, split_keys
 from coverage_ros.core.control.controller import ControllerConfig, RobotController
 from coverage_ros.core.geodesic.domain import CoverageDomain
+from coverage_ros.core.geodesic.world_domain import world_domain
 from coverage_ros.core.world import load_world, parse_team, parse_world
 from coverage_ros.core.world.grid import OCCUPIED, GridMap
 from coverage_ros.core.world.robot import RobotSpec
@@ -181,7 +182,7 @@ def test_a_world_metric_shifts_the_geodesic_cells():
     from coverage_ros.core.world.metric import zeta_on_grid
 
     world = parse_world(CORRIDOR)
-    domain = CoverageDomain.from_world(world, 0.0)
+    domain = world_domain(world, 0.0)
     assert domain.zeta is not None and domain.zeta.max() == 4.0 and domain.zeta.min() == 1.0
     gens = [Generator(np.array([2.0, 0.5]), 0.0), Generator(np.array([6.0, 0.5]), 0.0)]
     cells = tessellate(domain, gens)
@@ -246,7 +247,7 @@ def test_a_chart_world_is_planned_on_its_surface_and_refused_by_the_team(tmp_pat
     path.write_text(yaml.safe_dump({"name": "surface", "chart": chart, "density": {
         "type": "gaussian_mixture", "components": [{"mean": [1.2, 3.0], "sigma": 0.4}]}}))
     world = load_world(path)
-    domain = CoverageDomain.from_world(world, 0.105)
+    domain = world_domain(world, 0.105)
     assert domain.tensor is not None and domain.shape == world.grid.shape
     out = tmp_path / "plan.json"
     assert plan_main(["--map", str(path), "--robots", "4", "--json", str(out), "--quiet"]) == 0

@@ -13,8 +13,8 @@ import pytest
 from conftest import REPO
 from rosutil import RosClient, domain_id, spin_until_exit
 
-from coverage_ros.core.geodesic.domain import CoverageDomain
 from coverage_ros.core.geodesic.tessellation import Generator, tessellate
+from coverage_ros.core.geodesic.world_domain import world_domain
 from coverage_ros.core.world import load_world
 from coverage_ros.core.world.grid import OCCUPIED, GridMap
 from coverage_ros.core.world.region import Region, parse_region_text
@@ -77,7 +77,7 @@ def test_an_impossible_region_is_refused_before_anything_starts(tmp_path):
 
 
 def region_cost(world, square, positions) -> float:
-    domain = CoverageDomain.from_world(world, 0.105)
+    domain = world_domain(world, 0.105)
     region = Region().with_polygon(square)
     d = domain.with_density(region.restrict(domain.density, world.grid, domain.free))
     return float(tessellate(d, [Generator(p) for p in positions]).cost)

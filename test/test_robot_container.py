@@ -33,14 +33,10 @@ from coverage_ros.cli.team_robots import (
 )
 from coverage_ros.core.world.grid import GridMap
 from coverage_ros.errors import ConfigError
-from coverage_ros.nodes.plumbing import (
-    LastWords,
-    UpdatePool,
-    UpdateTurns,
-    UpdateWorker,
-)
-from coverage_ros.nodes.robot_graph import SLOW_LOOKS, GraphLooks
-from coverage_ros.nodes.robot_shared import SharedInputs, grid_digest, state_topics
+from coverage_ros.nodes.robot_graph import SLOW_LOOKS, GraphLooks, state_topics
+from coverage_ros.nodes.robot_shared import SharedInputs, grid_digest
+from coverage_ros.nodes.runner import LastWords
+from coverage_ros.nodes.update_worker import UpdatePool, UpdateTurns, UpdateWorker
 
 
 def _params(ids, **extra):

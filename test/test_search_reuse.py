@@ -9,8 +9,8 @@ import pytest
 from conftest import WORLDS
 
 from coverage_ros.core.geodesic.cell import SearchCache, geodesic_cell
-from coverage_ros.core.geodesic.domain import CoverageDomain
 from coverage_ros.core.geodesic.tessellation import Generator, tessellate
+from coverage_ros.core.geodesic.world_domain import world_domain
 from coverage_ros.core.world import cluster_starts, load_world
 
 REUSE = 0.1  # [m]
@@ -19,7 +19,7 @@ REUSE = 0.1  # [m]
 def _team(seed: int, count: int = 7):
     """A team bunched up in the office (its outer robots search the whole map)."""
     world = load_world(WORLDS / "office.yaml")
-    domain = CoverageDomain.from_world(world, 0.105)
+    domain = world_domain(world, 0.105)
     starts = cluster_starts(world.grid, count, 0.105, np.random.default_rng(seed))
     return domain, [Generator(p) for p in starts[:, :2]]
 

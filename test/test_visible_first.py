@@ -12,6 +12,7 @@ from coverage_ros.core.geodesic.cell import geodesic_cell
 from coverage_ros.core.geodesic.domain import CoverageDomain
 from coverage_ros.core.geodesic.euclidean import euclidean_labels
 from coverage_ros.core.geodesic.tessellation import Generator, fast_tessellate, tessellate
+from coverage_ros.core.geodesic.world_domain import world_domain
 from coverage_ros.core.world import load_world
 
 
@@ -31,7 +32,7 @@ def _points(domain: CoverageDomain, n_free: int, n_blocked: int, seed: int) -> n
     ("gaussians", 5, 0),
 ])
 def test_shared_search_cells_equal_each_robots_own_search(world, seed, blocked):
-    domain = CoverageDomain.from_world(load_world(WORLDS / f"{world}.yaml"), 0.105)
+    domain = world_domain(load_world(WORLDS / f"{world}.yaml"), 0.105)
     P = _points(domain, 6 - blocked, blocked, seed)
     gens = [Generator(p) for p in P]
     tess = tessellate(domain, gens)
@@ -57,7 +58,7 @@ def test_shared_search_cells_equal_each_robots_own_search(world, seed, blocked):
 
 
 def test_one_search_is_kept_per_domain():
-    domain = CoverageDomain.from_world(load_world(WORLDS / "l_shape.yaml"), 0.105)
+    domain = world_domain(load_world(WORLDS / "l_shape.yaml"), 0.105)
     for seed in range(4):
         gens = [Generator(p) for p in _points(domain, 3, 0, seed)]
         geodesic_cell(domain, gens[0], gens[1:], whole=True)
@@ -71,7 +72,7 @@ def test_fast_tessellation_is_the_centralized_one(world, seed, blocked):
     """fast_tessellate (the launcher's and the viewer's score) gives tessellate's labels,
     distances, masses and costs; with unequal power weights it is tessellate itself."""
     path = WORLDS / f"{world}.yaml" if (WORLDS / f"{world}.yaml").exists() else shared_map(world)
-    domain = CoverageDomain.from_world(load_world(path), 0.105)
+    domain = world_domain(load_world(path), 0.105)
     P = _points(domain, 12 - blocked, blocked, seed)
     gens = [Generator(p) for p in P]
     fast, ref = fast_tessellate(domain, gens), tessellate(domain, gens)

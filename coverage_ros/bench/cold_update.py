@@ -21,14 +21,15 @@ from pathlib import Path
 
 import numpy as np
 
+from coverage_ros.bench.environment import DEPOT
 from coverage_ros.core.geodesic.cell import SearchCache, geodesic_cell
 from coverage_ros.core.geodesic.domain import CoverageDomain
 from coverage_ros.core.geodesic.tessellation import Generator, tessellate
+from coverage_ros.core.geodesic.world_domain import world_domain
 from coverage_ros.core.offline.lloyd_team import GeodesicTeam, solve_lloyd
 from coverage_ros.core.world import load_world
 from coverage_ros.core.world.placement import team_starts
 
-DEPOT = Path(__file__).resolve().parents[2].parent / "shared" / "maps" / "depot.yaml"
 ROBOTS = 16
 SEED = 0  # the launcher's default start cluster
 
@@ -41,7 +42,7 @@ def _largest(domain: CoverageDomain, P: np.ndarray) -> int:
 def bench_cold_update(rounds: int, say, world_path: Path = DEPOT) -> list[dict]:
     world = load_world(world_path)
     specs = [world.robot_spec(i) for i in range(ROBOTS)]
-    domain = CoverageDomain.from_world(world, max(s.radius for s in specs))
+    domain = world_domain(world, max(s.radius for s in specs))
     start = team_starts(world, specs, None, SEED)[:, :2]
     say(f"  spreading {ROBOTS} robots on {world_path.name} (geodesic team steps)")
     spread = solve_lloyd(GeodesicTeam(domain), start, tolerance=0.05, max_steps=40).positions[-1]

@@ -28,7 +28,8 @@ from pathlib import Path
 
 import numpy as np
 
-REPO = Path(__file__).resolve().parents[2]
+from coverage_ros.bench.environment import REPO
+
 SHARED_MAPS = REPO.parent / "shared" / "maps"
 #: The worlds of the default run: the shipped worlds with rooms or obstacles, and the shared
 #: map_server maps (warehouse.yaml, 1.7 million cells at 3 cm, is left out by default: a run

@@ -28,6 +28,7 @@ from hypothesis import HealthCheck, Phase, given, settings
 
 from coverage_ros.bench.fuzz_messages import TOPICS, Target
 from coverage_ros.cli.processes import ProcessSet, executable, ros_args
+from coverage_ros.nodes.robot_graph import robot_topics
 
 STARTS = "1.5,1.5,0.0;6.5,1.5,3.14;4.0,6.5,-1.57"  # the empty world is 8 m x 8 m
 ROBOTS = {0: {}, 1: {"pose_source": "tf"}, 2: {"explore": True}}
@@ -219,9 +220,9 @@ class FuzzTeam:
             if not off < 0.35:
                 problems.append(f"robot {rid}: state at ({got[1]['x']:.2f}, {got[1]['y']:.2f}), "
                                 f"simulator at ({x:.2f}, {y:.2f})")
-        ids = {int(m.group(1)) for name, _ in self.node.get_topic_names_and_types()
-               if (m := re.fullmatch(r"/robot_(\d+)/ground_truth", name))
-               and self.node.count_publishers(name) > 0}
+        ids = {rid for rid, name in robot_topics(self.node.get_topic_names_and_types(),
+                                                 "robot_", "ground_truth")
+               if self.node.count_publishers(name) > 0}
         if ids != set(ROBOTS):
             problems.append(f"the world's robots are {sorted(ids)}, expected {sorted(ROBOTS)}")
         for rid in ROBOTS:

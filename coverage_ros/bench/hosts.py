@@ -26,7 +26,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
-from coverage_ros.bench.faults import REPO, namespace_env
+from coverage_ros.bench.environment import REPO, namespace_env
 
 SUBNET = "10.231.0"
 

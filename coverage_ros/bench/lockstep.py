@@ -20,11 +20,10 @@ import sys
 import tempfile
 from pathlib import Path
 
+from coverage_ros.bench.environment import SANDBOX
 from coverage_ros.bench.results import provenance
-from coverage_ros.bench.team import DEPOT
 from coverage_ros.cli.team_summary import deterministic_part
 
-SANDBOX = DEPOT.with_name("tb3_sandbox.yaml")
 TEAM = [sys.executable, "-m", "coverage_ros.cli.team"]
 MIXED = """\
 robots:

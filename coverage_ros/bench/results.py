@@ -10,7 +10,7 @@ import sys
 import time
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[2]
+from coverage_ros.bench.environment import REPO
 
 
 def provenance(argv: list[str] | None = None) -> dict[str, object]:

@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from coverage_ros.bench.faults import REPO
+from coverage_ros.bench.environment import REPO
 
 WARMUP = 0.25  # share of a process's life before its RSS counts
 RECOVERY = 120.0  # [s] sim time for H to come back after a restart

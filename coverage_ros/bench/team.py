@@ -20,11 +20,11 @@ import sys
 import tempfile
 from pathlib import Path
 
+from coverage_ros.bench.environment import DEPOT
 from coverage_ros.cli.team import main as team_main
 from coverage_ros.nodes.runner import EXECUTORS
 
-DEPOT = Path(__file__).resolve().parents[2].parent / "shared" / "maps" / "depot.yaml"
-#: A robot's update statistics line (nodes/plumbing.UpdateWorker.summary) in its log.
+#: A robot's update statistics line (nodes/update_worker.UpdateWorker.summary) in its log.
 UPDATES = re.compile(r"\[robot_(\d+)\.coverage_robot\]: (\d+) coverage updates, one every "
                      r"(\S+) s wall \(median (\S+) s, longest (\S+) s\)")
 

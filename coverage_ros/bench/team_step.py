@@ -27,6 +27,7 @@ import numpy as np
 from coverage_ros.core.geodesic.domain import CoverageDomain
 from coverage_ros.core.geodesic.euclidean import euclidean_cell
 from coverage_ros.core.geodesic.tessellation import Generator
+from coverage_ros.core.geodesic.world_domain import world_domain
 from coverage_ros.core.offline.lloyd_team import EuclideanTeam, GeodesicTeam, solve_lloyd
 from coverage_ros.core.strategies import (
     Neighbour,
@@ -76,7 +77,7 @@ def _interleaved(path: np.ndarray, rounds: int, per_round: int, fast, slow) -> t
 
 def bench_team_step(rounds: int, per_round: int, say) -> dict:
     world = load_world(resolve_world_path(WORLD))
-    domain = CoverageDomain.from_world(world, world.robot_spec(0).radius)
+    domain = world_domain(world, world.robot_spec(0).radius)
     starts = np.array([[s.x, s.y] for s in world.starts])
     team = EuclideanTeam(domain)
     out: dict = {"world": WORLD, "robots": len(starts),

@@ -23,6 +23,7 @@ from coverage_ros.cli.arguments import attach_values
 from coverage_ros.cli.plan_explore import plan_exploration
 from coverage_ros.core.geodesic.domain import CoverageDomain
 from coverage_ros.core.geodesic.tessellation import Generator, tessellate
+from coverage_ros.core.geodesic.world_domain import world_domain
 from coverage_ros.core.metrics import mass_deviation
 from coverage_ros.core.offline.lloyd_team import (
     SOLVERS,
@@ -108,7 +109,7 @@ def run(args: argparse.Namespace) -> dict:
             args.json.write_text(json.dumps(summary, indent=2))
             say(f"  wrote {args.json}")
         return summary
-    domain = CoverageDomain.from_world(world, radius, connectivity=args.connectivity)
+    domain = world_domain(world, radius, connectivity=args.connectivity)
     contexts = [StrategyContext(domain=domain, robot=specs[i], robot_id=i,
                                 convergence_tolerance=args.tolerance, seed=args.seed + i)
                 for i in range(args.robots)]

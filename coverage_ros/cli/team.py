@@ -45,7 +45,7 @@ from coverage_ros.cli.team_robots import (
 )
 from coverage_ros.cli.team_setup import build_team
 from coverage_ros.cli.team_summary import summary_table
-from coverage_ros.core.geodesic.domain import CoverageDomain
+from coverage_ros.core.geodesic.world_domain import world_domain
 from coverage_ros.core.strategies import strategy_choice
 from coverage_ros.core.world import load_planar_world, write_team
 from coverage_ros.core.world.region import Region, parse_region_text
@@ -125,7 +125,7 @@ def run(args: argparse.Namespace) -> int:
     if args.explore and not region.everywhere:
         raise ConfigError.at("--region", "does not apply to --explore (the density is the "
                              "belief's entropy)", args.region)
-    domain = CoverageDomain.from_world(world, radius)  # the launcher's scoring
+    domain = world_domain(world, radius)  # the launcher's scoring
     region.restrict(domain.density, world.grid, domain.free, "--region")  # refused if empty
     # One DDS domain per run, for sure: held until this process exits.
     domain_lock = acquire_domain(args.domain_id)

@@ -31,7 +31,7 @@ from coverage_ros.core.world.map_server import write_map_yaml
 from coverage_ros.core.world.spec import WorldSpec
 from coverage_ros.errors import CoverageError
 from coverage_ros.nodes import conversions as conv
-from coverage_ros.nodes.plumbing import LOCKSTEP_STATE_QOS, TEAM_QOS, quiet_subscription
+from coverage_ros.nodes.qos import LOCKSTEP_STATE_QOS, TEAM_QOS, quiet_subscription
 
 #: Source id of the launcher's own (merged) belief: no robot has it.
 TEAM_SOURCE = -1

@@ -17,12 +17,7 @@ from coverage_msgs.msg import LockstepReport, LockstepTick, RobotState
 from coverage_ros.core.lockstep import Inbox, Tick
 from coverage_ros.core.lockstep.barrier import DONE, JOIN, WORKING
 from coverage_ros.nodes import conversions as conv
-from coverage_ros.nodes.plumbing import (
-    LOCKSTEP_STATE_QOS,
-    REPORT_QOS,
-    TICK_QOS,
-    quiet_subscription,
-)
+from coverage_ros.nodes.qos import LOCKSTEP_STATE_QOS, REPORT_QOS, TICK_QOS, quiet_subscription
 
 #: The monitor's member name (world_node's lockstep_observers).
 OBSERVER = "coverage_team"

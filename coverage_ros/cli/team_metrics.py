@@ -45,7 +45,8 @@ from coverage_ros.core.metrics import coverage_ratio, mass_deviation
 from coverage_ros.core.world.region import Region
 from coverage_ros.core.world.robot import NUMBER_FIELDS
 from coverage_ros.nodes import conversions as conv
-from coverage_ros.nodes.plumbing import ClockGuard, quiet_subscription
+from coverage_ros.nodes.clock_guard import ClockGuard
+from coverage_ros.nodes.qos import quiet_subscription
 from coverage_ros.nodes.region_input import REGION_QOS, REGION_TOPIC, RegionInput
 
 EXPLORE_PERIOD = 1.0  # [s] wall time between scores of an exploring team's merged belief

@@ -26,7 +26,7 @@ from coverage_ros.nodes.robot_config import PARAMETERS, SPEC_PARAMETERS
 UPDATE_SHARE = 0.15
 #: The same with several robots per process: one executor per process handles the team's
 #: messages for all of its robots, which leaves more for updates, and the robots' budgets are
-#: pooled and taken in turns (nodes/plumbing.UpdatePool). 64 robots in 4 processes on 2
+#: pooled and taken in turns (nodes/update_worker.UpdatePool). 64 robots in 4 processes on 2
 #: cores, bench_team: 0.4 - rtf 0.99-1.00, worst median update period 2.5-2.6 s; 0.5 - rtf
 #: 1.00, 1.7-2.5 s (four runs).
 POOLED_UPDATE_SHARE = 0.5

@@ -25,15 +25,15 @@ from sensor_msgs.msg import PointCloud2
 from coverage_ros.core.exploration.belief import Belief, Evidence, joined
 from coverage_ros.errors import CoverageError
 from coverage_ros.nodes import conversions as conv
-from coverage_ros.nodes.plumbing import (
+from coverage_ros.nodes.qos import (
     LOCKSTEP_STATE_QOS,
     MAP_QOS,
     TEAM_QOS,
-    WarnThrottle,
     quiet_publisher,
     quiet_subscription,
 )
 from coverage_ros.nodes.robot_config import ExploreIO
+from coverage_ros.nodes.throttle import WarnThrottle
 
 OBSERVATIONS = "observations"
 OBSERVATIONS_TYPE = "sensor_msgs/msg/PointCloud2"

@@ -32,7 +32,7 @@ from rclpy.node import Node
 from coverage_ros.core.lockstep import Tick
 from coverage_ros.core.lockstep.barrier import DONE, JOIN, LEAVE, WORKING
 from coverage_ros.nodes import conversions as conv
-from coverage_ros.nodes.plumbing import REPORT_QOS, TICK_QOS
+from coverage_ros.nodes.qos import REPORT_QOS, TICK_QOS
 
 #: [s] wall time between WORKING reports of a robot still on the current tick.
 HEARTBEAT = 1.0
@@ -153,7 +153,8 @@ class LockstepDriver:
                 if self._closed:
                     return
             tick, robot = work
-            if not self._wait_inputs(tick, robot):
+            tick = self._wait_inputs(tick, robot)
+            if tick is None:
                 continue  # a newer tick came (the world went on without this robot)
             self._working = robot.robot_id
             try:
@@ -172,14 +173,16 @@ class LockstepDriver:
             if not self._closed:
                 self._report(DONE, tick.index, robot.robot_id, command)
 
-    def _wait_inputs(self, tick: Tick, robot: LockstepRobot) -> bool:
-        """Wait until ``robot``'s inputs of ``tick`` are in (or INPUT_TIMEOUT); False if a
-        newer tick arrived meanwhile."""
+    def _wait_inputs(self, tick: Tick, robot: LockstepRobot) -> Tick | None:
+        """Wait until ``robot``'s inputs of ``tick`` are in (or INPUT_TIMEOUT); the tick as
+        last sent (the world sends it again without a robot that died meanwhile), or None if a
+        newer tick arrived."""
         t0 = time.monotonic()
         with self._cond:
             while not self._closed:
                 if self.latest is None or self.latest.index != tick.index:
-                    return False
+                    return None
+                tick = self.latest
                 missing = robot.missing(tick)
                 if not missing:
                     break
@@ -192,7 +195,7 @@ class LockstepDriver:
                     break
                 self._cond.wait(0.5)
         self.waited += time.monotonic() - t0
-        return not self._closed
+        return None if self._closed else tick
 
     def close(self) -> None:
         """Stop the thread and tell the world the process's robots are leaving."""

@@ -18,7 +18,6 @@ is dropped with a throttled warning.
 from __future__ import annotations
 
 import math
-import re
 import sys
 import time
 
@@ -32,9 +31,11 @@ from visualization_msgs.msg import MarkerArray
 from coverage_ros.core.strategies.base import mode_name
 from coverage_ros.errors import ConfigError
 from coverage_ros.nodes import conversions as conv
-from coverage_ros.nodes.plumbing import TEAM_QOS, WarnThrottle, quiet_subscription
+from coverage_ros.nodes.qos import TEAM_QOS, quiet_subscription
 from coverage_ros.nodes.region_input import RegionInput
+from coverage_ros.nodes.robot_graph import state_topics
 from coverage_ros.nodes.runner import declare_parameters, run_node
+from coverage_ros.nodes.throttle import WarnThrottle
 from coverage_ros.viz.colors import robot_color
 from coverage_ros.viz.outline import outline_segments
 
@@ -74,18 +75,15 @@ class MarkerNode(Node):
         self._heard: dict[int, float] = {}  # robot id -> time.monotonic() of its last state
         self._shown: set[int] = set()  # robots whose markers the last array added
         self._region_shown = 0  # polygons in the last array
-        self._topic_re = re.compile(rf"^/{re.escape(self.prefix)}(\d+)/coverage_state$")
         self._throttle = WarnThrottle(self.get_logger().warning)
         self.regions = RegionInput(self, lambda region: None, self._throttle.warn)
         self.create_timer(DISCOVERY_PERIOD, self._discover)
         self.create_timer(1.0 / p["rate"], self._publish)
 
     def _discover(self) -> None:
-        found = set()
-        for topic, _ in self.get_topic_names_and_types():
-            m = self._topic_re.match(topic)
-            if m is not None and self.count_publishers(topic) > 0:
-                found.add(int(m.group(1)))
+        found = {rid for rid, topic in state_topics(self.get_topic_names_and_types(),
+                                                    self.prefix)
+                 if self.count_publishers(topic) > 0}
         for rid in sorted(found - self.subs.keys()):
             self.robots[rid] = conv.RobotMarkers(rid, tuple(robot_color(rid) / 255.0))
             self.subs[rid] = [

@@ -11,9 +11,8 @@ from collections.abc import Callable, Iterable
 from coverage_msgs.msg import RobotState
 
 from coverage_ros.nodes.belief_exchange import OBSERVATIONS, OBSERVATIONS_TYPE
-from coverage_ros.nodes.plumbing import LOCKSTEP_STATE_QOS, TEAM_QOS, quiet_subscription
-from coverage_ros.nodes.robot_graph import GraphLooks, robot_topics
-from coverage_ros.nodes.robot_shared import state_topics
+from coverage_ros.nodes.qos import LOCKSTEP_STATE_QOS, TEAM_QOS, quiet_subscription
+from coverage_ros.nodes.robot_graph import GraphLooks, robot_topics, state_topics
 
 
 class NeighbourInput:

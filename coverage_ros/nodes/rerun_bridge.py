@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import math
 import os
-import re
 import sys
 from dataclasses import dataclass
 from pathlib import Path as FilePath
@@ -33,17 +32,18 @@ from sensor_msgs.msg import LaserScan, PointCloud2
 from coverage_ros.core.world import RobotSpec, load_world
 from coverage_ros.errors import ConfigError
 from coverage_ros.nodes import conversions as conv
-from coverage_ros.nodes.plumbing import (
+from coverage_ros.nodes.qos import (
     CLOCK_QOS,
     MAP_QOS,
     SCAN_QOS,
     STREAM_QOS,
     TEAM_QOS,
-    WarnThrottle,
     quiet_subscription,
 )
 from coverage_ros.nodes.region_input import RegionInput
+from coverage_ros.nodes.robot_graph import robot_topic_kinds
 from coverage_ros.nodes.runner import declare_parameters, run_node
+from coverage_ros.nodes.throttle import WarnThrottle
 from coverage_ros.worlds import resolve_world_path
 
 DISCOVERY_PERIOD = 1.0  # [s] wall time between looks at the ROS graph for robots
@@ -197,7 +197,6 @@ class RerunBridge(Node):
         self.subs: dict[int, dict] = {}  # robot id -> {topic kind: Subscription}
         self._idle: dict[int, int] = {}  # robot id -> graph looks without a publisher
         self._scanned: set[int] = set()  # robots whose first scan was logged
-        self._topic_re = re.compile(rf"^/{re.escape(cfg.robot_prefix)}(\d+)/(\w+)$")
         self.create_subscription(Clock, "/clock", self._guard("/clock", self._on_clock),
                                  CLOCK_QOS)
         self.create_subscription(OccupancyGrid, "/map", self._guard("/map", self._on_map),
@@ -235,15 +234,15 @@ class RerunBridge(Node):
     # ------------------------------------------------------------------ robots in the graph
     def _discover(self) -> None:
         found: dict[int, set[str]] = {}
-        for topic, types in self.get_topic_names_and_types():
-            match = self._topic_re.match(topic)
-            if match is None or match.group(2) not in TOPICS:
+        for rid, kind, topic, types in robot_topic_kinds(self.get_topic_names_and_types(),
+                                                         self.config.robot_prefix):
+            if kind not in TOPICS:
                 continue
-            expected = type_name(TOPICS[match.group(2)][0])
+            expected = type_name(TOPICS[kind][0])
             if expected not in types:
                 self._warn(topic, f"not subscribing {topic}: type {types}, expected {expected}")
             elif self.count_publishers(topic) > 0:
-                found.setdefault(int(match.group(1)), set()).add(match.group(2))
+                found.setdefault(rid, set()).add(kind)
         for robot_id, kinds in found.items():
             if robot_id not in self.subs:
                 self.subs[robot_id] = {}

@@ -27,10 +27,10 @@ from rclpy.utilities import remove_ros_args
 
 from coverage_ros.errors import ConfigError
 from coverage_ros.nodes.lockstep_member import LockstepDriver
-from coverage_ros.nodes.plumbing import WarnThrottle
 from coverage_ros.nodes.robot_node import DISCOVERY_PERIOD, RobotNode
 from coverage_ros.nodes.robot_shared import SharedInputs, StateHub
 from coverage_ros.nodes.runner import STARTUP_ERRORS, run_nodes
+from coverage_ros.nodes.throttle import WarnThrottle
 
 
 def parse_arguments(argv: list[str]) -> argparse.Namespace:

@@ -17,11 +17,29 @@ def robot_topics(names_and_types: Iterable[tuple[str, list[str]]], prefix: str, 
                  msg_type: str | None = None) -> Iterator[tuple[int, str]]:
     """``(robot id, topic)`` of every ``/<prefix><id>/<name>`` (of ``msg_type``, e.g.
     ``coverage_msgs/msg/RobotState``, when given) in ``get_topic_names_and_types()``."""
-    pattern = re.compile(rf"/{re.escape(prefix)}(\d+)/{re.escape(name)}")
+    for rid, kind, topic, types in robot_topic_kinds(names_and_types, prefix):
+        if kind == name and (msg_type is None or msg_type in types):
+            yield rid, topic
+
+
+def robot_topic_kinds(names_and_types: Iterable[tuple[str, list[str]]], prefix: str
+                      ) -> Iterator[tuple[int, str, str, list[str]]]:
+    """``(robot id, name, topic, types)`` of every ``/<prefix><id>/<name>`` topic (one level:
+    ``/robot_3/teleop/cmd_vel`` is not one)."""
+    pattern = re.compile(rf"/{re.escape(prefix)}(\d+)/(\w+)")
     for topic, types in names_and_types:
         m = pattern.fullmatch(topic)
-        if m and (msg_type is None or msg_type in types):
-            yield int(m.group(1)), topic
+        if m:
+            yield int(m.group(1)), m.group(2), topic, list(types)
+
+
+STATE_TYPE = "coverage_msgs/msg/RobotState"
+
+
+def state_topics(names_and_types: Iterable[tuple[str, list[str]]],
+                 prefix: str) -> Iterator[tuple[int, str]]:
+    """``(robot id, topic)`` of every ``/<prefix><id>/coverage_state`` of the right type."""
+    return robot_topics(names_and_types, prefix, "coverage_state", STATE_TYPE)
 
 
 class GraphLooks:

@@ -39,27 +39,21 @@ from coverage_ros.core.exploration.belief import Belief
 from coverage_ros.errors import ConfigError, CoverageError
 from coverage_ros.nodes import conversions as conv
 from coverage_ros.nodes.belief_exchange import BeliefExchange
+from coverage_ros.nodes.clock_guard import ClockGuard
 from coverage_ros.nodes.goal_output import GoalOutput
 from coverage_ros.nodes.lockstep_member import LockstepDriver
 from coverage_ros.nodes.neighbour_input import NeighbourInput
-from coverage_ros.nodes.plumbing import (
-    LAST_WORDS,
-    LOCKSTEP_STATE_QOS,
-    MAP_QOS,
-    TEAM_QOS,
-    ClockGuard,
-    UpdateWorker,
-    WarnThrottle,
-    quiet_publisher,
-)
+from coverage_ros.nodes.qos import LOCKSTEP_STATE_QOS, MAP_QOS, TEAM_QOS, quiet_publisher
 from coverage_ros.nodes.region_input import RegionInput
 from coverage_ros.nodes.robot_config import PARAMETERS, load_robot_inputs
 from coverage_ros.nodes.robot_lockstep import RobotLockstep
 from coverage_ros.nodes.robot_requests import RobotRequests
 from coverage_ros.nodes.robot_shared import SharedInputs
-from coverage_ros.nodes.runner import FatalConfigError, declare_parameters, run_node
+from coverage_ros.nodes.runner import LAST_WORDS, FatalConfigError, declare_parameters, run_node
 from coverage_ros.nodes.scan_input import ScanInput
 from coverage_ros.nodes.tf_input import TfPoseInput
+from coverage_ros.nodes.throttle import WarnThrottle
+from coverage_ros.nodes.update_worker import UpdateWorker
 
 DISCOVERY_PERIOD = 1.0  # [s] wall time between looks at the ROS graph for new neighbours
 #: [s] wall time a robot listens for neighbours after its first pose before its first update
@@ -362,7 +356,7 @@ class RobotNode(RobotRequests, Node):
             msg = TwistStamped(twist=msg)
             msg.header.stamp = conv.to_time_msg(now)
             msg.header.frame_id = self.frames.base_link
-        if last:  # the process ends next: the command must arrive (plumbing.LastWords)
+        if last:  # the process ends next: the command must arrive (runner.LastWords)
             LAST_WORDS.publish(self.cmd_pub, msg)
         else:
             self.cmd_pub.publish(msg)

@@ -12,7 +12,7 @@ parameters). The robots of one process share:
   others wait their turn (the one whose last update is oldest first), so the executor thread
   (tracking, safety filter, messages) never competes with more than one busy thread for the
   GIL, and the process holds one update's temporary arrays, not K; the robots' update CPU
-  budgets are pooled (``nodes/plumbing.py``);
+  budgets are pooled (``nodes/update_worker.py``);
 * :class:`StateHub` (container only) - one subscription per neighbour's ``coverage_state``,
   parsed once and handed to every local robot but its sender, instead of one per robot and
   neighbour (with K robots per process, a team of N sends N * N / K messages instead of N * N);
@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import hashlib
 import threading
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable
 from pathlib import Path
 
 from coverage_msgs.msg import RobotState
@@ -38,23 +38,10 @@ from coverage_ros.core.world.grid import GridMap
 from coverage_ros.core.world.metric import zeta_on_grid
 from coverage_ros.core.world.spec import WorldSpec
 from coverage_ros.nodes import conversions as conv
-from coverage_ros.nodes.plumbing import (
-    LOCKSTEP_STATE_QOS,
-    TEAM_QOS,
-    UpdatePool,
-    UpdateTurns,
-    quiet_subscription,
-)
-from coverage_ros.nodes.robot_graph import robot_topics
+from coverage_ros.nodes.qos import LOCKSTEP_STATE_QOS, TEAM_QOS, quiet_subscription
+from coverage_ros.nodes.robot_graph import state_topics
+from coverage_ros.nodes.update_worker import UpdatePool, UpdateTurns
 from coverage_ros.worlds import resolve_world_path
-
-STATE_TYPE = "coverage_msgs/msg/RobotState"
-
-
-def state_topics(names_and_types: Iterable[tuple[str, list[str]]],
-                 prefix: str) -> Iterator[tuple[int, str]]:
-    """``(robot id, topic)`` of every ``/<prefix><id>/coverage_state`` of the right type."""
-    return robot_topics(names_and_types, prefix, "coverage_state", STATE_TYPE)
 
 
 def grid_digest(grid: GridMap) -> bytes:
@@ -73,7 +60,7 @@ class SharedInputs:
     def __init__(self, update_slots: int | None = None) -> None:
         """``update_slots``: coverage updates of the process's robots that may run at once
         (None: no limit, one robot per process); with slots, the robots' update CPU budgets
-        are pooled too (``update_pool``, :class:`~coverage_ros.nodes.plumbing.UpdatePool`)."""
+        are pooled too (``update_pool``, :class:`~coverage_ros.nodes.update_worker.UpdatePool`)."""
         self.update_slots = None if update_slots is None else UpdateTurns(update_slots)
         self.update_pool = None if update_slots is None else UpdatePool()
         self._lock = threading.Lock()

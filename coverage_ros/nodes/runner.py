@@ -27,10 +27,12 @@ from __future__ import annotations
 import os
 import signal
 import sys
+import time
 from collections.abc import Callable
 
 import rclpy
 from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.duration import Duration
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
@@ -58,6 +60,30 @@ def _executor(kind: str):
         from rclpy.experimental.events_executor import EventsExecutor
         return EventsExecutor()
     return SingleThreadedExecutor()
+
+
+class LastWords:
+    """A process's last messages (a robot's zero velocity): each is published, then waited on
+    until every reliable subscriber has acknowledged it - the process ends next, and a sample
+    lost on the way cannot be sent again once its writer is gone. All the nodes of a process
+    (a robot container) share one ``budget`` [s] for that wait, counted from the first one: a
+    subscriber that died without a word (still matched until its lease ends) never acknowledges."""
+
+    def __init__(self, budget: float = 1.0) -> None:
+        self.budget = budget
+        self._deadline: float | None = None
+
+    def publish(self, publisher, msg) -> bool:
+        """Publish ``msg``; whether every subscriber acknowledged it within the budget."""
+        publisher.publish(msg)
+        if self._deadline is None:
+            self._deadline = time.monotonic() + self.budget
+        left = max(0.0, self._deadline - time.monotonic())
+        return publisher.wait_for_all_acked(Duration(seconds=left))
+
+
+#: This process's (see :class:`LastWords`).
+LAST_WORDS = LastWords()
 
 
 class StartupInterrupted(BaseException):

@@ -13,7 +13,7 @@ from sensor_msgs.msg import LaserScan
 from coverage_ros.core.control.pose_history import ScanPairing
 from coverage_ros.core.strategies import Scan
 from coverage_ros.nodes import conversions as conv
-from coverage_ros.nodes.plumbing import SCAN_QOS, TICK_QOS, quiet_subscription
+from coverage_ros.nodes.qos import SCAN_QOS, TICK_QOS, quiet_subscription
 
 
 class ScanInput:

@@ -26,7 +26,7 @@ from coverage_ros.core.lockstep import Barrier, TickPlan, observer, robot, ticks
 from coverage_ros.core.lockstep.barrier import DONE, JOIN, LEAVE
 from coverage_ros.errors import ConfigError
 from coverage_ros.nodes import conversions as conv
-from coverage_ros.nodes.plumbing import REPORT_QOS, TICK_QOS
+from coverage_ros.nodes.qos import REPORT_QOS, TICK_QOS
 
 #: [s] wall time between re-publications of the current tick while the world waits.
 RESEND = 1.0
@@ -113,6 +113,8 @@ class WorldLockstep:
                                    again=True)
         elif msg.kind == LEAVE:
             self._log(b.leave(member))
+            if self._forgotten() and not self._try_advance(now):
+                self._resend(now)
         else:
             command = (msg.linear, msg.angular) if msg.has_command else None
             b.report(member, msg.kind, int(msg.tick), now, command)
@@ -121,15 +123,23 @@ class WorldLockstep:
 
     def robot_removed(self, robot_id: int) -> None:
         self._log(self.barrier.remove_robot(robot_id))
-        self._try_advance(time.monotonic())
+        now = time.monotonic()
+        if not self._try_advance(now) and self._forgotten():
+            self._resend(now)
 
     # ------------------------------------------------------------------ ticks
     def _poll(self) -> None:
         now = time.monotonic()
         for text in self.barrier.expire(now):
             self._log(text, warn=True)
-        if not self._try_advance(now) and now - self.sent.at >= RESEND:
+        if not self._try_advance(now) and (now - self.sent.at >= RESEND or self._forgotten()):
             self._resend(now)
+
+    def _forgotten(self) -> bool:
+        """Whether a member dropped since the tick went out had answered the tick before (the
+        others must stop waiting for its state: the tick goes out again without it)."""
+        sent = self.sent.tick
+        return sent is not None and tuple(sent.answered) != self.barrier.answered
 
     def _try_advance(self, now: float) -> bool:
         b = self.barrier
@@ -156,9 +166,7 @@ class WorldLockstep:
 
     def _current_plan(self) -> TickPlan:
         b = self.barrier
-        last = self.sent.tick
-        return TickPlan(b.tick, b.robots, b.observers,
-                        tuple(last.answered) if last is not None else ())
+        return TickPlan(b.tick, b.robots, b.observers, b.answered)
 
     def _step(self, plan: TickPlan) -> None:
         """Apply the commands, step one period, publish the new instant and the tick."""

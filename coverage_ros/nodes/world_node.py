@@ -27,16 +27,10 @@ from std_msgs.msg import Int32, String
 from coverage_ros.core.world import load_planar_world, load_team, parse_poses
 from coverage_ros.errors import ConfigError, CoverageError
 from coverage_ros.nodes import conversions as conv
-from coverage_ros.nodes.plumbing import (
-    MAP_QOS,
-    SCAN_QOS,
-    TEAM_QOS,
-    TICK_QOS,
-    WarnThrottle,
-    quiet_publisher,
-)
+from coverage_ros.nodes.qos import MAP_QOS, SCAN_QOS, TEAM_QOS, TICK_QOS, quiet_publisher
 from coverage_ros.nodes.runner import declare_parameters, run_node
 from coverage_ros.nodes.tf_output import TfOutput
+from coverage_ros.nodes.throttle import WarnThrottle
 from coverage_ros.nodes.world_lockstep import LockstepConfig, WorldLockstep
 from coverage_ros.sim.world import Scan, SimConfig, World
 from coverage_ros.worlds import resolve_world_path

@@ -34,6 +34,7 @@ from coverage_ros.core.geodesic import visible_first as visible_first_module
 from coverage_ros.core.geodesic.cell import SearchCache, geodesic_cell
 from coverage_ros.core.geodesic.domain import CoverageDomain
 from coverage_ros.core.geodesic.tessellation import Generator, tessellate
+from coverage_ros.core.geodesic.world_domain import world_domain
 from coverage_ros.core.world.grid import GridMap
 from coverage_ros.errors import ConfigError
 
@@ -335,7 +336,7 @@ def explore(seed: int, held: bool) -> dict[str, float]:
     hx, hy = run.positions[:, 0].T
     out["held robot stayed in the larger room (1 = yes)"] = float(np.all(
         (x0 <= hx) & (hx <= x1) & (y0 <= hy) & (hy <= y1)))
-    masses = tessellate(CoverageDomain.from_world(world, radius),
+    masses = tessellate(world_domain(world, radius),
                         [Generator(p, s.power_weight)
                          for p, s in zip(run.positions[-1], specs, strict=True)]).masses
     large = np.array(FOOTPRINTS) == max(FOOTPRINTS)

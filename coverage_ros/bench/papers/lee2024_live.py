@@ -22,7 +22,7 @@ import numpy as np
 import yaml
 
 from coverage_ros.bench.papers import lee2024_scenes as scenes
-from coverage_ros.core.geodesic.domain import CoverageDomain
+from coverage_ros.core.geodesic.world_domain import world_domain
 from coverage_ros.core.strategies.acvt.cells import CellSpec, MassCells, deviation_metric
 from coverage_ros.core.world import WorldSpec, load_world
 
@@ -108,7 +108,7 @@ def live_metric(world: dict, starts: np.ndarray, speeds: np.ndarray, params: dic
                 rtf: float | None = None) -> tuple[float, int]:
     """The paper's metric (I, I^L or I^H) at the end of a live run, and its collisions."""
     final, world_spec, collisions = run_live(world, starts, speeds, params, seed=seed, rtf=rtf)
-    domain = CoverageDomain.from_world(world_spec, scenes.TB3_RADIUS)
+    domain = world_domain(world_spec, scenes.TB3_RADIUS)
     cells = MassCells(domain)
     reach = speeds if heterogeneous else None
     masses, _ = cells.stats(cells.labels(final, reach, spec), len(final))

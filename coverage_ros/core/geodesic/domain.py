@@ -29,7 +29,6 @@ from coverage_ros.core.geodesic.graph import GridGraph, build_grid_graph
 from coverage_ros.core.geodesic.sight import LineOfSight
 from coverage_ros.core.world.density import Density, UniformDensity, density_on_grid
 from coverage_ros.core.world.grid import GridMap
-from coverage_ros.core.world.spec import WorldSpec
 from coverage_ros.errors import ConfigError
 
 #: [chart units] scale of the tie-breaking bias added to every edge out of a virtual source.
@@ -67,20 +66,6 @@ class CoverageDomain(LineOfSight):
         w = density_on_grid(density or UniformDensity(), grid, free)
         return cls(geometry=grid, graph=graph, density=w, zeta=zeta, robot_radius=robot_radius,
                    unknown_is_free=unknown_is_free)
-
-    @classmethod
-    def from_world(cls, world: WorldSpec, robot_radius: float,
-                   density: Density | None = None, connectivity: int = 8) -> CoverageDomain:
-        """Domain of a disc robot on ``world``'s true map, with its density (or ``density``)
-        and its travel metric (``metric:`` in the world file), or the world's chart (a curved
-        surface, whose coordinates are angles: the robot is a point there)."""
-        density = world.density if density is None else density
-        if world.chart is not None:
-            from coverage_ros.core.geodesic.charts import chart_domain
-
-            return chart_domain(world.chart, density, connectivity)
-        return cls.from_grid(world.grid, robot_radius, density, connectivity=connectivity,
-                             zeta=world.zeta)
 
     @property
     def clearance(self) -> np.ndarray:

@@ -87,6 +87,9 @@ class Barrier:
         self.opened = now  # [s] wall time the current tick went out
         self.tick = 0
         self.started = False
+        #: Robots whose states of the tick before the current one are due (see TickPlan); a
+        #: member dropped meanwhile leaves it: nobody is to wait for a state it may never send.
+        self.answered: tuple[int, ...] = ()
         self._members: dict[Member, _Slot] = {}
         self._joining: set[Member] = set()
         self._refused: set[int] = set()
@@ -153,7 +156,11 @@ class Barrier:
         self._joining.discard(member)
         if self._members.pop(member, None) is None:
             return ""
+        self._forget(member)
         return f"{describe(member)} left the lock-step at tick {self.tick}"
+
+    def _forget(self, member: Member) -> None:
+        self.answered = tuple(r for r in self.answered if r != member[0])
 
     def remove_robot(self, robot_id: int) -> str:
         """The body of ``robot_id`` is gone: its robot is waited for no more."""
@@ -168,6 +175,7 @@ class Barrier:
             if silent > self.timeout:
                 del self._members[member]
                 self._joining.discard(member)
+                self._forget(member)
                 lines.append(f"{describe(member)} silent for {silent:.1f} s at tick {self.tick}: "
                              "no longer waited for (lockstep_timeout); it may join again")
         return lines
@@ -199,6 +207,7 @@ class Barrier:
         self.tick += 1
         self.started = True
         self.opened = now
+        self.answered = tuple(answered)
         for member in self._joining:
             self._members[member] = _Slot(self.tick, now)
         self._joining.clear()

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from coverage_ros.core.world.grid import GridMap
-from coverage_ros.core.world.spec import Obstacle
+from coverage_ros.core.world.obstacles import Obstacle
 
 
 @dataclass(frozen=True)

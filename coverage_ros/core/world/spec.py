@@ -10,48 +10,17 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import TYPE_CHECKING
 
 import numpy as np
 
-from coverage_ros.core.geometry import distance_to_segments, points_in_polygon, polygon_edges
 from coverage_ros.core.world.density import Density, UniformDensity
 from coverage_ros.core.world.grid import FREE, OCCUPIED, GridMap
+from coverage_ros.core.world.metric import ChartSpec, WorldMetric, zeta_on_grid
+from coverage_ros.core.world.obstacles import Obstacle
 from coverage_ros.core.world.robot import RobotSpec
-
-if TYPE_CHECKING:
-    from coverage_ros.core.world.metric import ChartSpec, WorldMetric
 
 #: [m] raster of worlds without a map (nav2 maps' usual resolution)
 DEFAULT_RESOLUTION = 0.05
-
-
-@dataclass(frozen=True)
-class Obstacle:
-    """A static obstacle: a polygon (boxes and walls become polygons) or a circle."""
-
-    kind: str  # "box" | "polygon" | "wall" | "circle"
-    polygon: np.ndarray | None = None  # (M, 2) [m], counter-clockwise or not
-    center: np.ndarray | None = None  # (2,) [m] circles only
-    radius: float = 0.0  # [m] circles only
-
-    def bounding_box(self) -> tuple[float, float, float, float]:
-        if self.polygon is not None:
-            lo, hi = self.polygon.min(axis=0), self.polygon.max(axis=0)
-            return float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1])
-        assert self.center is not None
-        c, r = self.center, self.radius
-        return float(c[0] - r), float(c[1] - r), float(c[0] + r), float(c[1] + r)
-
-    def distance(self, points: np.ndarray) -> np.ndarray:
-        """``(N,)`` [m] distance from points to the obstacle (0 inside)."""
-        pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
-        if self.polygon is not None:
-            a, b = polygon_edges(self.polygon)
-            d = distance_to_segments(pts, a, b)
-            return np.where(points_in_polygon(pts, self.polygon), 0.0, d)
-        assert self.center is not None
-        return np.maximum(np.hypot(*(pts - self.center).T) - self.radius, 0.0)
 
 
 @dataclass(frozen=True)
@@ -84,8 +53,6 @@ class WorldSpec:
     def zeta(self) -> np.ndarray | None:
         """``(H, W)`` isotropic metric weight on :attr:`grid`, None where the world is
         Euclidean (domains are built with it: ``CoverageDomain.from_world``)."""
-        from coverage_ros.core.world.metric import zeta_on_grid
-
         return zeta_on_grid(self.metric, self.grid)
 
     @cached_property

@@ -1,22 +1,5 @@
-"""What every node of the package shares beyond its life cycle (:mod:`.runner`): the QoS of
-each kind of topic, throttled warnings, quiet QoS event callbacks, and the update worker.
-
-QoS (one table for the whole team; README "Nodes, topics and parameters" lists it per topic):
-
-* ``MAP_QOS`` - reliable, transient local, depth 1: latched like map_server's ``/map``, so a
-  node that starts late still gets the map;
-* ``SCAN_QOS`` - rclpy's sensor-data profile (best effort, volatile): compatible with every
-  lidar driver, a lost scan is replaced by the next one;
-* ``TEAM_QOS`` - reliable, volatile, depth 10: the team's own streams (``coverage_state``,
-  ``cmd_vel``, ``goal_pose``, ``plan``, ``cell``, odometry, ``/world/...``);
-* ``STREAM_QOS`` - best effort, depth 5: what an observer (the rerun bridge) reads of
-  high-rate streams; it matches reliable and best-effort publishers alike;
-* ``CLOCK_QOS`` - best effort, depth 1: an observer only needs the newest ``/clock``;
-* lock-step (README "Lock-step simulation": nothing the world's barrier waits for may be lost):
-  ``TICK_QOS`` (``/world/tick``, scans) reliable, depth 10; ``REPORT_QOS``
-  (``/world/tick_report``, every member's answers on one topic) reliable, depth 1000;
-  ``LOCKSTEP_STATE_QOS`` (``coverage_state``) reliable and transient local, depth 10, so that a
-  robot that subscribes late still gets the states of the ticks it waits for.
+"""A robot's coverage updates on a thread of their own, within a CPU budget, taking turns with
+the other robots of its process.
 
 Threads. rclpy's executor runs every callback of a node on one thread (the *executor thread*).
 A robot's coverage update can take longer than its tracking period, so it runs on the
@@ -53,90 +36,9 @@ from collections import deque
 from collections.abc import Callable
 
 import numpy as np
-from rclpy.duration import Duration
-from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 
-MAP_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
-                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
-SCAN_QOS = qos_profile_sensor_data
-TEAM_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
-STREAM_QOS = QoSProfile(depth=5, reliability=ReliabilityPolicy.BEST_EFFORT)
-CLOCK_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
-TICK_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
-REPORT_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
-LOCKSTEP_STATE_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
-                                durability=DurabilityPolicy.TRANSIENT_LOCAL)
-
-#: [s] wall time between two warnings of the same kind.
-WARN_PERIOD = 5.0
 #: [s] CPU time an update may borrow ahead of its load (see UpdateWorker).
 UPDATE_BURST = 1.0
-
-
-def quiet_publisher() -> PublisherEventCallbacks:
-    """``event_callbacks`` for a publisher without rclpy's default QoS event handlers.
-
-    Every handler is a waitable that the Python executor adds to its wait set on every
-    wake-up; with a team's dozens of topics per process that was most of an idle robot's
-    CPU (measured: 13 % -> ~5 % of a core). Incompatible QoS is still reported by the
-    subscribing side where it matters (map, pose and scan inputs keep their handlers)."""
-    return PublisherEventCallbacks(use_default_callbacks=False)
-
-
-def quiet_subscription() -> SubscriptionEventCallbacks:
-    """``event_callbacks`` for a subscription without the default QoS event handlers (see
-    :func:`quiet_publisher`); for topics of the team's own nodes, whose QoS match by design."""
-    return SubscriptionEventCallbacks(use_default_callbacks=False)
-
-
-class LastWords:
-    """A process's last messages (a robot's zero velocity): each is published, then waited on
-    until every reliable subscriber has acknowledged it - the process ends next, and a sample
-    lost on the way cannot be sent again once its writer is gone. All the nodes of a process
-    (a robot container) share one ``budget`` [s] for that wait, counted from the first one: a
-    subscriber that died without a word (still matched until its lease ends) never acknowledges."""
-
-    def __init__(self, budget: float = 1.0) -> None:
-        self.budget = budget
-        self._deadline: float | None = None
-
-    def publish(self, publisher, msg) -> bool:
-        """Publish ``msg``; whether every subscriber acknowledged it within the budget."""
-        publisher.publish(msg)
-        if self._deadline is None:
-            self._deadline = time.monotonic() + self.budget
-        left = max(0.0, self._deadline - time.monotonic())
-        return publisher.wait_for_all_acked(Duration(seconds=left))
-
-
-#: This process's (see :class:`LastWords`).
-LAST_WORDS = LastWords()
-
-
-class WarnThrottle:
-    """Warnings at most once per ``period`` (wall time) per key; safe from any thread.
-
-    ``throttle.warn("scan", "dropped an empty scan")`` logs through ``log`` (a node logger's
-    ``warning``) unless the same key was logged less than ``period`` seconds ago."""
-
-    def __init__(self, log: Callable[[str], object], period: float = WARN_PERIOD) -> None:
-        self._log = log
-        self.period = period
-        self._last: dict[str, float] = {}
-        self._lock = threading.Lock()
-
-    def warn(self, key: str, text: str) -> bool:
-        """Log ``text`` if ``key`` is due; whether it was logged."""
-        now = time.monotonic()
-        with self._lock:
-            if now - self._last.get(key, -math.inf) < self.period:
-                return False
-            self._last[key] = now
-        self._log(text)
-        return True
-
-
 #: Calls whose CPU times :class:`UpdateWorker` keeps for its summary's median (bounded memory).
 RECENT_CALLS = 4096
 _LIBC: list = []  # [the C library, or None where it has no malloc_trim], once looked up
@@ -371,28 +273,3 @@ class UpdateWorker:
         if self._slots is not None:
             self._slots.close()
         self._thread.join(timeout)
-
-
-class ClockGuard:
-    """Notices a second simulation on the same ROS domain - more than one ``/clock``
-    publisher, or sim time going back by more than ``jump_back`` seconds - so that a node says
-    so and stops instead of silently mixing two teams (README "Reliability"). Each check
-    returns an error text, or '' when all is well."""
-
-    def __init__(self, jump_back: float = 1.0) -> None:
-        self.jump_back = jump_back
-        self.latest = -math.inf  # [s] newest sim time seen
-
-    def check_time(self, now: float) -> str:
-        if now < self.latest - self.jump_back:
-            return (f"the clock went back from {self.latest:.1f} s to {now:.1f} s: another "
-                    "simulation (or a restarted one) publishes /clock on this ROS_DOMAIN_ID")
-        self.latest = max(self.latest, now)
-        return ""
-
-    @staticmethod
-    def check_publishers(count: int) -> str:
-        if count > 1:
-            return (f"{count} nodes publish /clock: a second simulation runs on this "
-                    "ROS_DOMAIN_ID")
-        return ""

@@ -19,7 +19,7 @@ from conftest import REPO
 from rosutil import NodeProcess, domain_id, ros_env
 from teamdiag import team_diagnosis
 
-from coverage_ros.cli.domains import acquire_domain, foreign_participants, try_lock
+from coverage_ros.cli.team.domains import acquire_domain, foreign_participants, try_lock
 from coverage_ros.errors import ConfigError
 
 TEAM = [str(REPO / ".venv" / "bin" / "coverage-team")]
@@ -40,7 +40,7 @@ def test_a_domain_lock_is_exclusive_and_dies_with_its_owner(tmp_path):
     again.release()
     # A process that holds a lock and is killed (no clean-up at all) frees it.
     code = (f"import sys, time; sys.path.insert(0, {str(REPO)!r}); "
-            "from coverage_ros.cli.domains import try_lock; l = try_lock(151); "
+            "from coverage_ros.cli.team.domains import try_lock; l = try_lock(151); "
             "print('locked', flush=True); time.sleep(60)")
     holder = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True,
                               env=dict(os.environ))
@@ -319,7 +319,7 @@ def test_a_restarted_robot_rejoins_and_the_team_reconverges(tmp_path):
 
 
 def test_faults_are_checked_before_anything_starts():
-    from coverage_ros.cli.team_options import parse_faults as _faults
+    from coverage_ros.cli.team.options import parse_faults as _faults
 
     assert _faults(["0@5"], ["1@3", "0@2"], 2) == [(2.0, 0, "restart"), (3.0, 1, "restart"),
                                                     (5.0, 0, "kill")]

@@ -15,7 +15,7 @@ from conftest import REPO, shared_map
 from rosutil import NodeProcess, RosClient, domain_id
 
 from coverage_ros.bench.lockstep import cpu_hogs, differences
-from coverage_ros.cli.team_summary import WALL_CLOCK_KEYS, deterministic_part
+from coverage_ros.cli.team.summary import WALL_CLOCK_KEYS, deterministic_part
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow, pytest.mark.lockstep]
 

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 from conftest import REPO, WORLDS
 
-from coverage_ros.cli.team import build_parser
-from coverage_ros.cli.team_setup import build_team
+from coverage_ros.cli.team.members import build_team
+from coverage_ros.cli.team.options import build_parser
 from coverage_ros.cli.teleop import KEYS, TeleopCommand, split_keys
 from coverage_ros.core.control.controller import ControllerConfig, RobotController
 from coverage_ros.core.geodesic.domain import CoverageDomain

@@ -85,7 +85,7 @@ def test_errors_are_one_line_and_named(args, message, capsys):
 def test_coordinates_may_begin_with_a_minus_sign(tmp_path):
     """Most map_server maps have a negative origin: ``--starts -2.6,...`` is a value, not an
     unknown option (coverage-plan and coverage-team alike)."""
-    from coverage_ros.cli.team_options import build_parser
+    from coverage_ros.cli.team.options import build_parser
 
     out = tmp_path / "plan.json"
     assert main(["--map", str(shared_map("tb3_sandbox")), "--robots", "1", "--starts",

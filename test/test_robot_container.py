@@ -22,8 +22,8 @@ from conftest import REPO
 from rosutil import domain_id, ros_env
 
 from coverage_ros.bench.team import update_periods
-from coverage_ros.cli.processes import ProcessStats
-from coverage_ros.cli.team_robots import (
+from coverage_ros.cli.team.processes import ProcessStats
+from coverage_ros.cli.team.robots import (
     default_robots_per_process,
     default_state_rate,
     default_update_load,

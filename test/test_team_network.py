@@ -7,7 +7,7 @@ import sys
 
 import pytest
 
-from coverage_ros.cli.team_network import (
+from coverage_ros.cli.team.network import (
     check_reach,
     discovery_advice,
     discovery_server_executable,

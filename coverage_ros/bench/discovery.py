@@ -67,9 +67,9 @@ def _cpu_seconds(pid: int) -> float:
 
 
 def measure(n: int, server: bool, say) -> dict:
-    from coverage_ros.cli.domains import acquire_domain
-    from coverage_ros.cli.processes import ProcessSet
-    from coverage_ros.cli.team_network import start_discovery_server
+    from coverage_ros.cli.team.domains import acquire_domain
+    from coverage_ros.cli.team.network import start_discovery_server
+    from coverage_ros.cli.team.processes import ProcessSet
     from coverage_ros.viz.web_viewer import free_ports
 
     lock = acquire_domain(None)

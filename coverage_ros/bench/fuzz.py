@@ -27,7 +27,7 @@ from pathlib import Path
 from hypothesis import HealthCheck, Phase, given, settings
 
 from coverage_ros.bench.fuzz_messages import TOPICS, Target
-from coverage_ros.cli.processes import ProcessSet, executable, ros_args
+from coverage_ros.cli.team.processes import ProcessSet, executable, ros_args
 from coverage_ros.nodes.robot_graph import robot_topics
 
 STARTS = "1.5,1.5,0.0;6.5,1.5,3.14;4.0,6.5,-1.57"  # the empty world is 8 m x 8 m
@@ -295,7 +295,7 @@ class FuzzTeam:
 
 def fuzz_section(examples: int, folder: Path, say) -> dict:
     """``scripts/bench_faults`` part: the whole table, ``examples`` messages per topic."""
-    from coverage_ros.cli.domains import acquire_domain
+    from coverage_ros.cli.team.domains import acquire_domain
 
     lock = acquire_domain(None)
     report = FuzzReport()

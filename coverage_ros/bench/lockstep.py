@@ -2,7 +2,7 @@
 
 Runs each scenario with ``coverage-team --lockstep`` twice with one seed - the second time
 beside CPU hogs (busy processes, one per ``--hogs``) - and compares the two ``summary.json``
-files without their wall-clock figures (:func:`~coverage_ros.cli.team_summary.deterministic_part`):
+files without their wall-clock figures (:func:`~coverage_ros.cli.team.summary.deterministic_part`):
 H series, final poses, path lengths, collisions, exploration series. Prints one line per
 scenario (identical or the first differences, the real-time factor of each run) and, last, a
 JSON line; ``--json PATH`` writes it too (with machine, date and commit).
@@ -22,7 +22,7 @@ from pathlib import Path
 
 from coverage_ros.bench.environment import SANDBOX
 from coverage_ros.bench.results import provenance
-from coverage_ros.cli.team_summary import deterministic_part
+from coverage_ros.cli.team.summary import deterministic_part
 
 TEAM = [sys.executable, "-m", "coverage_ros.cli.team"]
 MIXED = """\

@@ -124,7 +124,7 @@ CHECK_PERIOD = 0.2
 
 def run_lockstep(tracker, observer: LockstepObserver, startup_timeout: float,
                  progress_period: float) -> None:
-    """:meth:`~coverage_ros.cli.team_metrics.TeamTracker.run` of a lock-step team: every
+    """:meth:`~coverage_ros.cli.team.monitor.TeamTracker.run` of a lock-step team: every
     sample at a tick of its own (module docstring); returns at the end tick, unanswered, so
     the world stands still at it while the launcher stops the team."""
     import rclpy

@@ -7,7 +7,7 @@ import argparse
 import math
 from dataclasses import replace
 
-from coverage_ros.cli.team_robots import default_robots_per_process
+from coverage_ros.cli.team.robots import default_robots_per_process
 from coverage_ros.core.world import TeamMember, load_team
 from coverage_ros.core.world.placement import CLUSTER_GAP, team_starts
 from coverage_ros.core.world.spec import WorldSpec

@@ -22,11 +22,11 @@ import time
 from pathlib import Path
 
 from coverage_ros.cli.arguments import attach_values
-from coverage_ros.cli.domains import acquire_domain
-from coverage_ros.cli.processes import ProcessSet, executable, ros_args
-from coverage_ros.cli.team_lockstep import OBSERVER
-from coverage_ros.cli.team_metrics import TeamTracker
-from coverage_ros.cli.team_network import (
+from coverage_ros.cli.team.domains import acquire_domain
+from coverage_ros.cli.team.lockstep import OBSERVER
+from coverage_ros.cli.team.members import build_team
+from coverage_ros.cli.team.monitor import TeamTracker
+from coverage_ros.cli.team.network import (
     check_reach,
     discovery_advice,
     parse_discovery_address,
@@ -35,16 +35,16 @@ from coverage_ros.cli.team_network import (
     start_discovery_server,
     write_remote_script,
 )
-from coverage_ros.cli.team_options import build_parser, parse_faults
-from coverage_ros.cli.team_robots import (
+from coverage_ros.cli.team.options import build_parser, parse_faults
+from coverage_ros.cli.team.processes import ProcessSet, executable, ros_args
+from coverage_ros.cli.team.robots import (
     default_robots_per_process,
     plan_processes,
     robot_params,
     spec_parameters,
     team_rates,
 )
-from coverage_ros.cli.team_setup import build_team
-from coverage_ros.cli.team_summary import summary_table
+from coverage_ros.cli.team.summary import summary_table
 from coverage_ros.core.geodesic.world_domain import world_domain
 from coverage_ros.core.strategies import strategy_choice
 from coverage_ros.core.world import load_planar_world, write_team

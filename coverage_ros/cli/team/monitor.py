@@ -36,10 +36,10 @@ from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Int32
 from std_srvs.srv import SetBool
 
-from coverage_ros.cli.processes import ProcessStats
-from coverage_ros.cli.team_exploration import TeamExploration
-from coverage_ros.cli.team_lockstep import LockstepObserver, run_lockstep
-from coverage_ros.cli.team_summary import converged_at
+from coverage_ros.cli.team.exploration import TeamExploration
+from coverage_ros.cli.team.lockstep import LockstepObserver, run_lockstep
+from coverage_ros.cli.team.processes import ProcessStats
+from coverage_ros.cli.team.summary import converged_at
 from coverage_ros.core.geodesic.tessellation import Generator, fast_tessellate
 from coverage_ros.core.metrics import coverage_ratio, mass_deviation
 from coverage_ros.core.world.region import Region

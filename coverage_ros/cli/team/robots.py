@@ -17,7 +17,7 @@ from pathlib import Path
 
 import yaml
 
-from coverage_ros.cli.processes import executable, ros_args
+from coverage_ros.cli.team.processes import executable, ros_args
 from coverage_ros.core.world.robot import RobotSpec
 from coverage_ros.errors import ConfigError
 from coverage_ros.nodes.robot_config import PARAMETERS, SPEC_PARAMETERS

@@ -2,11 +2,11 @@
 (``coverage-plan --strategy lloyd --solver lloyd|accelerated``).
 
 :class:`EuclideanTeam` is the centralized form of every robot's decentralized ``lloyd`` update
-(:func:`coverage_ros.core.geodesic.euclidean.euclidean_cell`): the Euclidean power Voronoi
-labels of all grid cells (one pass per robot over squared distances that separate into a row
-and a column term in the grid frame), then every cell's mass, centroid and cost from four sums
-over the labels (one sparse product), each centroid projected to a feasible cell as the
-decentralized update does.
+(:func:`coverage_ros.core.geodesic.euclidean.euclidean_cell`): every cell's mass, centroid and
+cost from its runs of grid cells row by row (:mod:`coverage_ros.core.offline.power_rows`: two
+look-ups in running sums per row instead of labelling every grid cell, which
+:meth:`EuclideanTeam.reference_step` does for the parity tests), each centroid projected to a
+feasible cell as the decentralized update does.
 
 The cost is the CVT energy ``H(P) = sum_i sum_{q in V_i} (|q - p_i|^2 - R_i^2) w(q) dA``,
 whose gradient is ``dH/dp_i = 2 m_i (p_i - c_i)`` (Du, Faber & Gunzburger 1999): Lloyd's step
@@ -32,14 +32,15 @@ Both stop when no robot's Lloyd step is longer than ``tolerance``.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
-import scipy.sparse as sp
 
 from coverage_ros.core.geodesic.cell import geodesic_cell
 from coverage_ros.core.geodesic.domain import CoverageDomain
 from coverage_ros.core.geodesic.tessellation import Generator
+from coverage_ros.core.offline.power_rows import RowNearest, RowSums, row_runs
 from coverage_ros.errors import ConfigError
 
 SOLVERS = ("lloyd", "accelerated")
@@ -50,11 +51,17 @@ class TeamStep:
     """One tessellation of the team at ``positions``."""
 
     positions: np.ndarray  # (n, 2) [m] map frame
-    labels: np.ndarray  # (H, W) int: the robot whose cell holds each grid cell (-1: blocked)
     masses: np.ndarray  # (n,) sum w dA over each cell
     costs: np.ndarray  # (n,) sum (|q - p_i|^2 - R_i^2) w dA over each cell
     centroids: np.ndarray  # (n, 2) [m] mass centroids (a robot with no mass: its position)
     goals: np.ndarray  # (n, 2) [m] centroids projected to feasible cells
+    cells: np.ndarray | Callable[[], np.ndarray] = field(repr=False)  # labels, or their maker
+
+    @cached_property
+    def labels(self) -> np.ndarray:
+        """``(H, W)`` int: the robot whose cell holds each grid cell (-1: blocked); made when
+        first asked for (a solver's steps need the sums only)."""
+        return self.cells() if callable(self.cells) else self.cells
 
     @property
     def cost(self) -> float:
@@ -79,13 +86,14 @@ class EuclideanTeam:
         # Grid-frame metres: distances are those of the map frame (rotation + translation).
         self._cx = (np.arange(W) + 0.5) * res
         self._cy = (np.arange(H) + 0.5) * res
-        w = np.where(domain.free, domain.mass_element, 0.0).ravel()
-        gx = np.broadcast_to(self._cx[None, :], (H, W)).ravel()
-        gy = np.broadcast_to(self._cy[:, None], (H, W)).ravel()
-        self._sums = np.stack([w, w * gx, w * gy, w * (gx * gx + gy * gy)], axis=1)
-        self._w = w
+        w = np.where(domain.free, domain.mass_element, 0.0)
+        self._rows = RowSums(w, self._cx, self._cy)
+        self._w = w.ravel()
         self._free = domain.free.ravel()
-        self._columns = np.arange(H * W + 1)
+        # a centroid's cell is a feasible goal where it is free with positive density
+        self._feasible = domain.free & (domain.density > 0)
+        self._weighted = RowNearest(w > 0)  # else the nearest cell of the own cell there
+        self._open = RowNearest(domain.free)  # or, in a cell without weight, the nearest free
 
     def _to_frame(self, positions: np.ndarray) -> np.ndarray:
         return self.domain.to_grid(positions) * self.domain.resolution
@@ -112,44 +120,78 @@ class EuclideanTeam:
         return labels
 
     def step(self, positions: np.ndarray, weights: np.ndarray | None = None) -> TeamStep:
-        """The team's cells, masses, costs, centroids and goals at ``positions (n, 2)``."""
-        P = np.asarray(positions, dtype=np.float64).reshape(-1, 2)
-        n = len(P)
-        R = np.zeros(n) if weights is None else np.asarray(weights, dtype=np.float64)
-        labels = self.labels(P, R)
-        flat = labels.ravel()
-        owner = sp.csc_matrix((np.ones(len(flat)), flat, self._columns), shape=(n, len(flat)))
-        S = owner @ self._sums  # (n, 4): mass, first moments, second moment
-        mass = S[:, 0]
+        """The team's cells, masses, costs, centroids and goals at ``positions (n, 2)``: the
+        sums over every cell from its runs of grid cells row by row
+        (:mod:`coverage_ros.core.offline.power_rows`); the labels only when asked for."""
+        P, R = self._inputs(positions, weights)
         g = self._to_frame(P)
+        runs = row_runs(g[:, 0], g[:, 1], R * R, self._cx, self._cy)
+
+        def project(i: int, cf: np.ndarray) -> np.ndarray | None:
+            for rows in (self._weighted, self._open):
+                rc = rows.nearest(runs.start[i], runs.stop[i], cf, self._cx, self._cy)
+                if rc is not None:
+                    return np.array([self._cx[rc[1]], self._cy[rc[0]]])
+            return None
+
+        return self._finish(P, R, self._rows.moments(runs),
+                            lambda: runs.labels(self.domain.shape[1]), project)
+
+    def reference_step(self, positions: np.ndarray,
+                       weights: np.ndarray | None = None) -> TeamStep:
+        """:meth:`step` the obvious way, for the parity tests and benchmarks: every grid cell
+        labelled (:meth:`labels`), the sums over the labels."""
+        P, R = self._inputs(positions, weights)
+        lab = self.labels(P, R)
+        flat = lab.ravel()
+        n = len(P)
+        S = np.stack([np.bincount(flat, weights=v.ravel(), minlength=n)
+                      for v in self._rows.cell_values()], axis=1)
+        return self._finish(P, R, S, lambda: lab, lambda i, cf: self._project(i, cf, flat))
+
+    @staticmethod
+    def _inputs(positions: np.ndarray, weights: np.ndarray | None) -> tuple[np.ndarray, ...]:
+        P = np.asarray(positions, dtype=np.float64).reshape(-1, 2)
+        R = np.zeros(len(P)) if weights is None else np.asarray(weights, dtype=np.float64)
+        return P, R
+
+    def _finish(self, P: np.ndarray, R: np.ndarray, S: np.ndarray,
+                labels: Callable[[], np.ndarray],
+                project: Callable[[int, np.ndarray], np.ndarray | None]) -> TeamStep:
+        """The step from every cell's sums ``S (n, 4)`` (mass, first moments, second moment in
+        the grid frame), a maker of the ``(H, W)`` labels of every grid cell and ``project``:
+        robot i's goal (grid frame) for a centroid ``cf`` on a cell that is not feasible."""
+        g = self._to_frame(P)
+        mass = S[:, 0]
         costs = S[:, 3] - 2.0 * (g * S[:, 1:3]).sum(axis=1) + ((g * g).sum(axis=1) - R * R) * mass
         safe = np.where(mass > 0, mass, 1.0)
         cf = np.where(mass[:, None] > 0, S[:, 1:3] / safe[:, None], g)
         centroids = self._to_map(cf)
-        goals = centroids.copy()
-        for i in range(n):
-            goals[i] = self._project(i, centroids[i], cf[i], flat)
-        labels = np.where(self.domain.free, labels, -1)
-        return TeamStep(P, labels, mass, costs, centroids, goals)
-
-    def _project(self, i: int, centroid: np.ndarray, cf: np.ndarray,
-                 flat: np.ndarray) -> np.ndarray:
-        """As ``project_feasible``: the centroid if its cell is free with positive density,
-        else the nearest cell centre of the own cell with positive weight (or free)."""
         H, W = self.domain.shape
         res = self.domain.resolution
-        r, c = int(np.floor(cf[1] / res)), int(np.floor(cf[0] / res))
-        if 0 <= r < H and 0 <= c < W and self.domain.free[r, c] and \
-                self.domain.density[r, c] > 0:
-            return centroid
+        r = np.floor(cf[:, 1] / res).astype(np.int64)
+        c = np.floor(cf[:, 0] / res).astype(np.int64)
+        ok = (r >= 0) & (r < H) & (c >= 0) & (c < W)
+        ok[ok] = self._feasible[r[ok], c[ok]]
+        goals = centroids.copy()
+        for i in np.flatnonzero(~ok):  # as project_feasible: the nearest cell centre of the
+            q = project(i, cf[i])  # own cell with positive weight (or free), else the centroid
+            if q is not None:
+                goals[i] = self._to_map(q)[0]
+        return TeamStep(P, mass, costs, centroids, goals,
+                        lambda: np.where(self.domain.free, labels(), -1))
+
+    def _project(self, i: int, cf: np.ndarray, flat: np.ndarray) -> np.ndarray | None:
+        """The obvious projection over robot i's labelled cells (:meth:`reference_step`)."""
+        W = self.domain.shape[1]
         own = flat == i
         pool = np.flatnonzero(own & (self._w > 0))
         if len(pool) == 0:
             pool = np.flatnonzero(own & self._free)
         if len(pool) == 0:
-            return centroid
+            return None
         xy = np.stack([self._cx[pool % W], self._cy[pool // W]], axis=1)
-        return self._to_map(xy[int(np.argmin(((xy - cf) ** 2).sum(axis=1)))])
+        return xy[int(np.argmin(((xy - cf) ** 2).sum(axis=1)))]
 
 
 class GeodesicTeam:
@@ -172,10 +214,9 @@ class GeodesicTeam:
         labels = np.full(self.domain.shape, -1, dtype=np.int32)
         for i, c in enumerate(cells):
             labels.ravel()[c.nodes] = i
-        return TeamStep(P, labels, np.array([c.mass for c in cells]),
-                        np.array([c.cost for c in cells]),
+        return TeamStep(P, np.array([c.mass for c in cells]), np.array([c.cost for c in cells]),
                         P + np.array([c.control for c in cells]),
-                        np.array([c.goal for c in cells]))
+                        np.array([c.goal for c in cells]), labels)
 
 
 @dataclass

@@ -1,0 +1,181 @@
+"""Euclidean power Voronoi cells of a grid, row by row.
+
+A power Voronoi cell ``V_k = {q : |q - p_k|^2 - R_k^2 <= |q - p_j|^2 - R_j^2 for all j}`` is an
+intersection of half-planes, so it is convex and meets every grid row in one run of cells. On
+the row at height ``y`` the condition against robot ``j`` is linear in ``x`` (the ``x^2`` terms
+cancel)::
+
+    (a_k - a_j) x <= b_j - b_k,   a_k = -2 x_k,   b_k = x_k^2 + (y - y_k)^2 - R_k^2
+
+which bounds the run from the left or the right (or empties it, when ``x_k = x_j``). A cell
+centre exactly on the boundary of two cells goes to the lower index, as the brute-force
+labelling (:meth:`coverage_ros.core.offline.lloyd_team.EuclideanTeam.labels`) decides ties.
+
+With running sums along every row of ``w``, ``w x``, ``w y`` and ``w (x^2 + y^2)``
+(:class:`RowSums`, built once per grid), a cell's mass, first and second moments are two
+look-ups per row: ``O(n^2 H)`` work for ``n`` robots on ``H`` rows instead of the ``O(n H W)``
+of labelling every grid cell.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+#: Largest (robots x robots x rows) block evaluated at once [elements]; bounds the memory.
+BLOCK = 1 << 21
+
+
+@dataclass(frozen=True)
+class RowRuns:
+    """Every robot's run of grid cells on every row: columns ``start[k, r] <= c < stop[k, r]``
+    (``stop <= start``: robot ``k``'s cell misses row ``r``)."""
+
+    start: np.ndarray  # (n, H) int64
+    stop: np.ndarray  # (n, H) int64
+
+    def labels(self, width: int) -> np.ndarray:
+        """``(H, W) int32``: the robot whose cell holds each grid cell."""
+        H = self.start.shape[1]
+        first = np.full((H, width + 1), -1, dtype=np.int32)
+        k, r = np.nonzero(self.stop > self.start)
+        first[r, self.start[k, r]] = k
+        first = first[:, :width]
+        cols = np.where(first >= 0, np.arange(width), 0)
+        np.maximum.accumulate(cols, axis=1, out=cols)
+        return np.take_along_axis(first, cols, axis=1)
+
+
+def row_runs(gx: np.ndarray, gy: np.ndarray, r2: np.ndarray, cx: np.ndarray,
+             cy: np.ndarray) -> RowRuns:
+    """The runs of the power cells of generators at ``(gx, gy)`` (n,) with squared weights
+    ``r2`` over the grid of column centres ``cx`` (W,) and row centres ``cy`` (H,) (all in one
+    frame and unit; ``cx`` evenly spaced)."""
+    n, H, W = len(gx), len(cy), len(cx)
+    start = np.zeros((n, H), dtype=np.int64)
+    stop = np.full((n, H), W, dtype=np.int64)
+    if n < 2:
+        return RowRuns(start, stop)
+    pairs = neighbour_pairs(gx, gy, r2) if n >= NEIGHBOURS_FROM else None
+    if pairs is None:
+        k, j = np.nonzero(~np.eye(n, dtype=bool))
+        has = np.ones(n, dtype=bool)
+    else:
+        k, j = pairs
+        has = np.bincount(k, minlength=n) > 0
+        stop[~has] = 0  # not a vertex of the regular triangulation: an empty cell
+    first = np.flatnonzero(np.diff(k, prepend=-1))  # pairs sorted by k: where each k begins
+    step = cx[1] - cx[0] if W > 1 else 1.0
+    b = (gx * gx - r2)[:, None] + (cy[None, :] - gy[:, None]) ** 2  # (n, H)
+    da = 2.0 * (gx[j] - gx[k])  # a_k - a_j
+    upper, lower, parallel = da > 0, da < 0, da == 0  # upper: k left of the crossing
+    j_wins_tie = (j < k)[:, None]
+    with np.errstate(divide="ignore"):
+        scale = np.where(parallel, 0.0, 1.0 / (da * step))[:, None]
+    # the tie rule moves a bound by one column only where a centre is exactly on the crossing
+    up_tie = (upper[:, None] & ~j_wins_tie)
+    lo_tie = (lower[:, None] & j_wins_tie)
+    rows = max(1, BLOCK // len(k))
+    for r0 in range(0, H, rows):
+        r1 = min(H, r0 + rows)
+        db = b[j, r0:r1] - b[k, r0:r1]  # (pairs, h): b_j - b_k
+        u = db * scale
+        u -= cx[0] / step  # the crossing in columns: centre c at u = c
+        c = np.ceil(u)
+        exact = c == u
+        hi = np.where(upper[:, None], c + (exact & up_tie), np.inf)
+        lo = np.where(lower[:, None], c + (exact & lo_tie), -np.inf)
+        hi = np.clip(np.minimum.reduceat(hi, first, axis=0), 0, W)
+        if parallel.any():  # robots above each other: the one below the other on the row
+            gone = parallel[:, None] & ((db < 0) | ((db == 0) & j_wins_tie))
+            hi[np.logical_or.reduceat(gone, first, axis=0)] = 0
+        stop[has, r0:r1] = hi
+        start[has, r0:r1] = np.clip(np.maximum.reduceat(lo, first, axis=0), 0, W)
+    return RowRuns(start, stop)
+
+
+#: From this many robots on, a cell is bounded by its neighbours only (the regular
+#: triangulation's edges, about 6 per robot) instead of by every other robot.
+NEIGHBOURS_FROM = 12
+
+
+def neighbour_pairs(gx: np.ndarray, gy: np.ndarray,
+                    r2: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """``(k, j)`` sorted by ``k``: the pairs of generators whose power cells share an edge, from
+    the lower convex hull of the points lifted to ``(x, y, x^2 + y^2 - R^2)``; None where that
+    hull is degenerate (collinear, repeated or coplanar points), and every pair must be used."""
+    from scipy.spatial import ConvexHull, QhullError
+
+    pts = np.stack([gx, gy], axis=1)
+    if len(np.unique(pts, axis=0)) < len(pts):
+        return None
+    lifted = np.column_stack([pts, gx * gx + gy * gy - r2])
+    try:
+        hull = ConvexHull(lifted)
+    except (QhullError, ValueError):
+        return None
+    if len(hull.coplanar):
+        return None
+    tri = hull.simplices[hull.equations[:, 2] < 0]
+    if len(tri) == 0:
+        return None
+    e = np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]])
+    e = np.unique(np.concatenate([e, e[:, ::-1]]), axis=0)  # sorted by k, then j
+    return e[:, 0], e[:, 1]
+
+
+class RowSums:
+    """Running sums along the rows of a grid's cell weights ``w`` (H, W) and their moments, in
+    a frame where column ``c`` is centred at ``cx[c]`` and row ``r`` at ``cy[r]``."""
+
+    def __init__(self, w: np.ndarray, cx: np.ndarray, cy: np.ndarray) -> None:
+        H, W = w.shape
+        self._w, self._cx, self._cy = w, cx, cy
+        q = np.zeros((4, H, W + 1))
+        q[:, :, 1:] = self.cell_values()
+        np.cumsum(q, axis=2, out=q)
+        self._q = q
+        self._rows = np.arange(H)[None, :]
+
+    def cell_values(self) -> np.ndarray:
+        """``(4, H, W)``: ``w``, ``w x``, ``w y``, ``w (x^2 + y^2)`` of every grid cell."""
+        w, cx, cy = self._w, self._cx[None, :], self._cy[:, None]
+        return np.stack([w, w * cx, w * cy, w * (cx * cx + cy * cy)])
+
+    def moments(self, runs: RowRuns) -> np.ndarray:
+        """``(n, 4)``: every cell's ``sum w``, ``sum w x``, ``sum w y``, ``sum w (x^2 + y^2)``."""
+        stop = np.maximum(runs.stop, runs.start)
+        q = self._q
+        return (q[:, self._rows, stop] - q[:, self._rows, runs.start]).sum(axis=2).T
+
+
+class RowNearest:
+    """The grid cell of a ``mask`` nearest to a point within one cell's runs, row by row: on
+    every row the nearest masked column to the left and to the right of the point."""
+
+    def __init__(self, mask: np.ndarray) -> None:
+        W = mask.shape[1]
+        cols = np.arange(W)
+        self._left = np.maximum.accumulate(np.where(mask, cols, -1), axis=1)
+        self._right = np.minimum.accumulate(np.where(mask, cols, W)[:, ::-1], axis=1)[:, ::-1]
+
+    def nearest(self, start: np.ndarray, stop: np.ndarray, xy: np.ndarray, cx: np.ndarray,
+                cy: np.ndarray) -> tuple[int, int] | None:
+        """``(row, col)`` of the masked cell with columns ``start[r] <= col < stop[r]`` whose
+        centre is nearest to ``xy`` (ties: the lower row, then the lower column), or None."""
+        rows = np.flatnonzero(stop > start)
+        if len(rows) == 0:
+            return None
+        lo, hi = start[rows], stop[rows]
+        step = cx[1] - cx[0] if len(cx) > 1 else 1.0
+        c0 = np.clip(int(np.floor((xy[0] - cx[0]) / step + 0.5)), lo, hi - 1)
+        left, right = self._left[rows, c0], self._right[rows, c0]
+        dl = np.where(left >= lo, (cx[np.maximum(left, 0)] - xy[0]) ** 2, np.inf)
+        dr = np.where(right < hi, (cx[np.minimum(right, len(cx) - 1)] - xy[0]) ** 2, np.inf)
+        take_left = dl <= dr
+        d = np.where(take_left, dl, dr) + (cy[rows] - xy[1]) ** 2
+        best = int(np.argmin(d))
+        if not np.isfinite(d[best]):
+            return None
+        return int(rows[best]), int(left[best] if take_left[best] else right[best])

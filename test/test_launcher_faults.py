@@ -319,10 +319,10 @@ def test_a_restarted_robot_rejoins_and_the_team_reconverges(tmp_path):
 
 
 def test_faults_are_checked_before_anything_starts():
-    from coverage_ros.cli.team.options import parse_faults as _faults
+    from coverage_ros.cli.team.faults import parse_faults as _faults
 
-    assert _faults(["0@5"], ["1@3", "0@2"], 2) == [(2.0, 0, "restart"), (3.0, 1, "restart"),
-                                                    (5.0, 0, "kill")]
+    assert [(f.time, f.robot, f.action) for f in _faults(["0@5"], ["1@3", "0@2"], 2)] == [
+        (2.0, 0, "restart"), (3.0, 1, "restart"), (5.0, 0, "kill")]
     for kills, restarts, message in [([], ["2@3"], "out of range"), ([], ["1"], "ID@SECONDS"),
                                      (["1@3"], ["1@4"], "killed"), ([], ["0@-1"], ">= 0")]:
         with pytest.raises(ConfigError, match=message):

@@ -4,14 +4,12 @@ terminal teleop's keys."""
 
 from __future__ import annotations
 
-import argparse
-
 import numpy as np
 import pytest
 from conftest import REPO, WORLDS
 
 from coverage_ros.cli.team.members import build_team
-from coverage_ros.cli.team.options import build_parser
+from coverage_ros.cli.team.options import RunConfig, parse_config
 from coverage_ros.cli.teleop import KEYS, TeleopCommand, split_keys
 from coverage_ros.core.control.controller import ControllerConfig, RobotController
 from coverage_ros.core.geodesic.domain import CoverageDomain
@@ -50,8 +48,8 @@ def test_team_roles_are_checked_and_written_back():
 
 @pytest.mark.parametrize("name", ["burgers_and_waffles", "sensor_footprints", "one_human"])
 def test_shipped_teams_load_on_the_office(name):
-    args = build_parser().parse_args(["--team", str(TEAMS / f"{name}.yaml")])
-    team = build_team(load_world(WORLDS / "office.yaml"), args)
+    config = parse_config(["--team", str(TEAMS / f"{name}.yaml")])
+    team = build_team(load_world(WORLDS / "office.yaml"), config)
     assert [m.id for m in team] == [0, 1, 2, 3]
     assert all(m.start is not None for m in team)  # placed: a seeded cluster
     if name == "burgers_and_waffles":
@@ -63,8 +61,8 @@ def test_shipped_teams_load_on_the_office(name):
         assert [m.role for m in team] == ["human", "auto", "auto", "auto"]
 
 
-def _args(*argv: str) -> argparse.Namespace:
-    return build_parser().parse_args(list(argv))
+def _args(*argv: str) -> RunConfig:
+    return parse_config(list(argv))
 
 
 def test_the_launchers_team_from_options(tmp_path):

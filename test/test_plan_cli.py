@@ -85,14 +85,14 @@ def test_errors_are_one_line_and_named(args, message, capsys):
 def test_coordinates_may_begin_with_a_minus_sign(tmp_path):
     """Most map_server maps have a negative origin: ``--starts -2.6,...`` is a value, not an
     unknown option (coverage-plan and coverage-team alike)."""
-    from coverage_ros.cli.team.options import build_parser
+    from coverage_ros.cli.team.options import parse_config
 
     out = tmp_path / "plan.json"
     assert main(["--map", str(shared_map("tb3_sandbox")), "--robots", "1", "--starts",
                  "-1.0,-0.5", "--json", str(out), "--quiet", "--max-iterations", "1"]) == 0
-    args = build_parser().parse_args(attach_values(
-        ["--starts", "-2.65,-9.15,0;-1,-1,0", "--region", "-1,-1;1,-1;1,1", "--robots", "2"]))
-    assert args.starts == "-2.65,-9.15,0;-1,-1,0" and args.region == ["-1,-1;1,-1;1,1"]
+    config = parse_config(
+        ["--starts", "-2.65,-9.15,0;-1,-1,0", "--region", "-1,-1;1,-1;1,1", "--robots", "2"])
+    assert config.starts == "-2.65,-9.15,0;-1,-1,0" and config.regions == ("-1,-1;1,-1;1,1",)
     assert attach_values(["--starts"]) == ["--starts"]  # (argparse says what is missing)
 
 

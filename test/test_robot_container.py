@@ -60,7 +60,9 @@ def test_robots_are_grouped_and_faulty_or_single_ones_run_alone(tmp_path):
     k = cmd.index("--ros-args")
     assert cmd[k - 3:k] == ["1", "3", "6"] and "robot_container" in cmd[k - 4]
     params_file = cmd[cmd.index("--params-file") + 1]
-    sections = yaml.safe_load(Path(params_file).read_text())
+    assert Path(params_file) == by_name["robots_1_3_6"].params_file
+    assert not any(tmp_path.iterdir())  # the plan writes nothing: the launcher does
+    sections = yaml.safe_load(by_name["robots_1_3_6"].params_text)
     assert list(sections) == ["/robot_1/coverage_robot", "/robot_3/coverage_robot",
                               "/robot_6/coverage_robot"]
     assert sections["/robot_3/coverage_robot"]["ros__parameters"] == _params([3])[3]

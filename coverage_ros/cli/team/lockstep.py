@@ -9,6 +9,7 @@ that tick exactly, and the run ends at an exact tick: the same seed gives the sa
 
 from __future__ import annotations
 
+import math
 import time
 from collections import deque
 
@@ -122,61 +123,57 @@ EVIDENCE_TIMEOUT = 10.0
 CHECK_PERIOD = 0.2
 
 
-def run_lockstep(tracker, observer: LockstepObserver, startup_timeout: float,
+def run_lockstep(monitor, observer: LockstepObserver, startup_timeout: float,
                  progress_period: float) -> None:
-    """:meth:`~coverage_ros.cli.team.monitor.TeamTracker.run` of a lock-step team: every
+    """:meth:`~coverage_ros.cli.team.monitor.TeamMonitor.run` of a lock-step team: every
     sample at a tick of its own (module docstring); returns at the end tick, unanswered, so
     the world stands still at it while the launcher stops the team."""
     import rclpy
 
+    log = monitor.log
     t0 = time.monotonic()
-    tracker.say("  waiting for the world and the robots (lock-step) ...")
-    end = next_metrics = next_explore = None
+    monitor.say("  waiting for the world and the robots (lock-step) ...")
+    end = next_metrics = next_explore = math.inf
     last_progress = last_check = 0.0
-    until = tracker.args.until_explored
     while True:
-        rclpy.spin_once(tracker.node, timeout_sec=0.02)
+        rclpy.spin_once(monitor, timeout_sec=0.02)
         observer.beat()
         now = time.monotonic()
         if now - last_check >= CHECK_PERIOD:  # (the loop turns once per message)
             last_check = now
-            tracker.check_children(starting=tracker.ready_at is None)
-        if tracker.proc_stats is not None:
-            tracker.proc_stats.sample(now)
+            monitor.check_children(starting=log.ready_at is None)
+        if monitor.proc_stats is not None:
+            monitor.proc_stats.sample(now)
         tick = observer.next_tick()
-        if tick is not None and tracker.ready_at is None and tick.index > 0:
+        if tick is not None and log.ready_at is None and tick.index > 0:
             raise RuntimeError(f"the world started without robots "
-                               f"{sorted(set(tracker.alive()) - tick.robots)}")
+                               f"{sorted(set(monitor.alive()) - tick.robots)}")
         if tick is None:
-            if tracker.ready_at is None and time.monotonic() - t0 > startup_timeout:
+            if log.ready_at is None and time.monotonic() - t0 > startup_timeout:
                 raise RuntimeError(f"the world's lock-step did not list robots "
-                                   f"{sorted(set(tracker.alive()))} within "
+                                   f"{sorted(set(monitor.alive()))} within "
                                    f"{startup_timeout:g} s (see their logs)")
             continue
-        tracker.sim_time = max(tracker.sim_time, tick.time)
-        if tracker.ready_at is None:
-            if not set(tracker.alive()) <= tick.robots:
+        log.sim_time = max(log.sim_time, tick.time)
+        if log.ready_at is None:
+            if not set(monitor.alive()) <= tick.robots:
                 continue  # tick 0 while the team joins: unanswered, the world does not start
-            tracker.team_ready(t0)
-            end = tracker.ready_at + tracker.args.duration
-            next_metrics = tracker.ready_at + METRICS_PERIOD
-            next_explore = tracker.ready_at
+            monitor.team_ready(t0)
+            end = monitor.end
+            next_metrics = log.ready_at + METRICS_PERIOD
+            next_explore = log.ready_at
         t = tick.time
-        while tracker.faults and t - tracker.ready_at >= tracker.faults[0][0] - 1e-9:
-            _, rid, action = tracker.faults.pop(0)
-            tracker.kill(rid) if action == "kill" else tracker.restart(rid)
+        monitor.apply_faults(t - log.ready_at, slack=1e-9)
         if tick.status and t >= next_metrics - 1e-9:
             next_metrics += METRICS_PERIOD
-            tracker.H_samples.append((t, tracker.cost()))
-        if tracker.exploration is not None and tick.status and t >= next_explore - 1e-9:
+            log.H_samples.append((t, monitor.cost()))
+        if monitor.exploration is not None and tick.status and t >= next_explore - 1e-9:
             next_explore += EXPLORE_PERIOD
-            _wait_evidence(tracker, observer, tick)
+            _wait_evidence(monitor, observer, tick)
             for evidence in observer.take_evidence(tick):
-                tracker.exploration.belief.merge(evidence)
-            fraction = tracker.exploration.sample(t - tracker.ready_at)
-            if until is not None and fraction >= until:
-                tracker.say(f"\n  explored {100 * fraction:.1f} % at sim time "
-                            f"{t - tracker.ready_at:.1f} s: stopping")
+                monitor.exploration.belief.merge(evidence)
+            fraction = monitor.exploration.sample(t - log.ready_at)
+            if monitor.explored_enough(fraction, monitor.config.until_explored):
                 return
         if tick.status and t >= end - 1e-9:
             return  # the end: not answered, the world holds still here
@@ -184,16 +181,16 @@ def run_lockstep(tracker, observer: LockstepObserver, startup_timeout: float,
         now = time.monotonic()
         if now - last_progress >= progress_period:
             last_progress = now
-            tracker.progress(end)
+            monitor.progress()
 
 
-def _wait_evidence(tracker, observer: LockstepObserver, tick: Tick) -> None:
+def _wait_evidence(monitor, observer: LockstepObserver, tick: Tick) -> None:
     import rclpy
 
     t0 = time.monotonic()
     while missing := observer.inputs_missing(tick):
         if time.monotonic() - t0 > EVIDENCE_TIMEOUT:
-            tracker.say(f"\n  tick {tick.index}: scoring without {', '.join(missing[:3])}")
+            monitor.say(f"\n  tick {tick.index}: scoring without {', '.join(missing[:3])}")
             return
-        rclpy.spin_once(tracker.node, timeout_sec=0.02)
+        rclpy.spin_once(monitor, timeout_sec=0.02)
         observer.beat()

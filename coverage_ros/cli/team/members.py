@@ -3,10 +3,10 @@ options) and whether the machine and the map can hold them at all."""
 
 from __future__ import annotations
 
-import argparse
 import math
 from dataclasses import replace
 
+from coverage_ros.cli.team.options import RunConfig
 from coverage_ros.cli.team.robots import default_robots_per_process
 from coverage_ros.core.world import TeamMember, load_team
 from coverage_ros.core.world.placement import CLUSTER_GAP, team_starts
@@ -24,40 +24,39 @@ BRIDGE_MB = 300.0
 MARKERS_MB = 100.0  # the RViz marker node
 
 
-def build_team(world: WorldSpec, args: argparse.Namespace) -> list[TeamMember]:
+def build_team(world: WorldSpec, config: RunConfig) -> list[TeamMember]:
     """The robots to run, from ``--team`` (else ``--robots`` robots of the world), with the
     launcher's options applied: ``--sensor-radius``, ``--starts`` (or the team file's starts,
     else the world's or a seeded cluster) and ``--human``."""
-    if args.team is not None:
-        members = list(load_team(args.team, world))
-        if args.robots is not None and args.robots != len(members):
+    if config.team_file is not None:
+        members = list(load_team(config.team_file, world))
+        if config.robots is not None and config.robots != len(members):
             raise ConfigError.at("--robots", f"differs from the {len(members)} robots of "
-                                 f"{args.team}", args.robots)
+                                 f"{config.team_file}", config.robots)
         ids = sorted(m.id for m in members)
         if ids != list(range(len(members))):
-            raise ConfigError.at(f"{args.team}: robots", "ids must be 0..N-1, each once", ids,
-                                 f"0..{len(members) - 1}")
+            raise ConfigError.at(f"{config.team_file}: robots", "ids must be 0..N-1, each once",
+                                 ids, f"0..{len(members) - 1}")
         members.sort(key=lambda m: m.id)
         given = [m.start is not None for m in members]
         if any(given) and not all(given):
-            raise ConfigError.at(f"{args.team}: robots", "give every robot a start or none",
+            raise ConfigError.at(f"{config.team_file}: robots",
+                                 "give every robot a start or none",
                                  [m.id for m in members if m.start is None])
     else:
-        n = 4 if args.robots is None else args.robots
+        n = 4 if config.robots is None else config.robots
         members = [TeamMember(i, None, world.robot_spec(i)) for i in range(n)]
-    if args.sensor_radius is not None:
+    if config.sensor_radius is not None:
         members = [replace(m, spec=m.spec.with_overrides(
-            {"sensor_radius": args.sensor_radius}, "--sensor-radius")) for m in members]
-    per_process = getattr(args, "robots_per_process", None) or \
-        default_robots_per_process(len(members))
-    check_room(world, len(members), max(m.spec.radius for m in members),
-               bool(args.record or args.viewer or args.serve_web), not args.no_markers,
-               per_process=per_process)
-    if args.starts or any(m.start is None for m in members):
-        starts = team_starts(world, [m.spec for m in members], args.starts, args.seed)
+            {"sensor_radius": config.sensor_radius}, "--sensor-radius")) for m in members]
+    per_process = config.robots_per_process or default_robots_per_process(len(members))
+    check_room(world, len(members), max(m.spec.radius for m in members), config.visualized,
+               config.markers, per_process=per_process)
+    if config.starts or any(m.start is None for m in members):
+        starts = team_starts(world, [m.spec for m in members], config.starts, config.seed)
         members = [replace(m, start=tuple(float(v) for v in starts[i]))
                    for i, m in enumerate(members)]
-    for rid in args.human:
+    for rid in config.humans:
         if not 0 <= rid < len(members):
             raise ConfigError.at("--human", f"robot id out of range 0..{len(members) - 1}", rid)
         members[rid] = replace(members[rid], role="human")

@@ -1,15 +1,25 @@
-"""coverage-team's command line: the options, and the checks of their values that need no
-world (``--kill``/``--restart`` schedules)."""
+"""coverage-team's command line: the options, read into a frozen :class:`RunConfig` whose
+values are checked here as far as they can be without the world (nothing below this module
+sees the argparse ``Namespace``)."""
 
 from __future__ import annotations
 
 import argparse
 import math
+import sys
+from collections.abc import Mapping
+from dataclasses import dataclass, field
 from pathlib import Path
+from types import MappingProxyType
 
-from coverage_ros.core.strategies import EXPLORERS, STRATEGIES
+from coverage_ros.cli.arguments import attach_values
+from coverage_ros.cli.team.network import parse_discovery_address
+from coverage_ros.cli.team.robots import robot_params
+from coverage_ros.core.strategies import EXPLORERS, STRATEGIES, StrategyChoice, strategy_choice
+from coverage_ros.core.world.region import Region, parse_region_text
+from coverage_ros.core.world.yaml_io import yaml_mapping
 from coverage_ros.errors import ConfigError
-from coverage_ros.nodes.runner import EXECUTORS
+from coverage_ros.nodes.runner import EXECUTORS, executor_kind
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -110,23 +120,118 @@ def build_parser() -> argparse.ArgumentParser:
     return ap
 
 
-def parse_faults(kills: list[str], restarts: list[str], n: int) -> list[tuple[float, int, str]]:
-    """``--kill`` and ``--restart`` ``ID@SECONDS`` items, sorted by time."""
-    out = []
-    for option, action, specs in (("--kill", "kill", kills), ("--restart", "restart", restarts)):
-        for spec in specs:
-            try:
-                rid, t = spec.split("@")
-                out.append((float(t), int(rid), action))
-            except ValueError:
-                raise ConfigError.at(option, "must be ID@SECONDS", spec) from None
-            if not 0 <= out[-1][1] < n:
-                raise ConfigError.at(option, f"robot id out of range 0..{n - 1}", spec)
-            if not (math.isfinite(out[-1][0]) and out[-1][0] >= 0):
-                raise ConfigError.at(option, "needs a time >= 0 [s]", spec)
-    killed = {rid: t for t, rid, action in out if action == "kill"}
-    for t, rid, action in out:
-        if action == "restart" and killed.get(rid, math.inf) <= t:
-            raise ConfigError.at("--restart", f"robot {rid} is killed (--kill) before that",
-                                 f"{rid}@{t:g}")
-    return sorted(out)
+
+
+@dataclass(frozen=True)
+class RunConfig:
+    """One ``coverage-team`` run as asked for, every value checked that can be without the world
+    (the team size, starts and room are checked by :mod:`.plan`). Field meanings: the options
+    of :func:`build_parser` of the same name."""
+
+    world: str = "office"
+    strategy: str = "geodesic"
+    strategy_params: str = ""
+    choice: StrategyChoice | None = None  # the strategy and its settings, checked
+    robots: int | None = None
+    team_file: Path | None = None
+    humans: tuple[int, ...] = ()
+    explore: bool = False
+    map_free: bool = False
+    until_explored: float | None = None
+    duration: float = 60.0  # [s] sim time
+    seed: int = 0
+    starts: str | None = None
+    lockstep: bool = False
+    rtf: float = 1.0  # real-time factor; 0: as fast as possible
+    out: Path | None = None
+    record: bool = False
+    viewer: bool = False
+    serve_web: bool = False
+    domain_id: int | None = None
+    control_rate: float = 2.0  # [Hz]
+    update_load: float | None = None
+    state_rate: float | None = None  # [Hz]
+    clock_rate: float = 10.0  # [Hz, sim time]
+    odom_rate: float = 10.0  # [Hz, sim time]
+    sensor_radius: float | None = None  # [m]
+    robot_params: Mapping[str, object] = field(default_factory=lambda: MappingProxyType({}))
+    robots_per_process: int | None = None
+    kills: tuple[str, ...] = ()
+    restarts: tuple[str, ...] = ()
+    regions: tuple[str, ...] = ()  # region of interest polygons as given, "x,y;x,y;..."
+    region: Region = field(default_factory=Region)
+    markers: bool = True
+    stats: bool = False
+    remote_robots: str | None = None
+    discovery: tuple[str, int] | None = None  # the discovery server's (address, port)
+    executor: str = "events"
+    quiet: bool = False
+
+    @property
+    def visualized(self) -> bool:
+        """The rerun bridge runs (recording, a viewer or the web viewer)."""
+        return self.record or self.viewer or self.serve_web
+
+
+def parse_config(argv: list[str] | None = None) -> RunConfig:
+    """The run configuration of a command line (``sys.argv[1:]`` by default); argparse exits
+    on unknown options, :class:`~coverage_ros.errors.ConfigError` names a bad value."""
+    args = build_parser().parse_args(attach_values(sys.argv[1:] if argv is None else argv))
+    return config_from_args(args)
+
+
+def _finite(option: str, value: float, low: float, strict: bool, unit: str) -> float:
+    ok = math.isfinite(value) and (value > low if strict else value >= low)
+    if not ok:
+        raise ConfigError.at(option, f"must be {'>' if strict else '>='} {low:g} [{unit}]", value)
+    return float(value)
+
+
+def config_from_args(args: argparse.Namespace) -> RunConfig:
+    """:class:`RunConfig` of parsed options, each value checked (module docstring)."""
+    if args.robots is not None and args.robots < 1:
+        raise ConfigError.at("--robots", "must be >= 1", args.robots)
+    if args.robots_per_process is not None and args.robots_per_process < 1:
+        raise ConfigError.at("--robots-per-process", "must be >= 1", args.robots_per_process)
+    duration = _finite("--duration", args.duration, 0.0, True, "s")
+    clock_rate = _finite("--clock-rate", args.clock_rate, 0.0, False, "Hz")
+    odom_rate = _finite("--odom-rate", args.odom_rate, 0.0, True, "Hz")
+    rtf = args.rtf if args.rtf is not None else (0.0 if args.lockstep else 1.0)
+    if not (math.isfinite(rtf) and rtf >= 0):
+        raise ConfigError.at("--rtf", "must be >= 0 (0: as fast as possible)", rtf)
+    control_rate = _finite("--control-rate", args.control_rate, 0.0, True, "Hz")
+    if args.sensor_radius is not None:
+        _finite("--sensor-radius", args.sensor_radius, 0.0, True, "m")
+    # The strategy and its settings are checked here, before any process starts.
+    choice = strategy_choice(args.strategy,
+                             yaml_mapping(args.strategy_params, "--strategy-params"),
+                             "--strategy-params", explore=args.explore)
+    if args.map_free and (args.explore or choice.needs_map):
+        raise ConfigError.at("--map-free", f"strategy {args.strategy} needs a map"
+                             if choice.needs_map else "and --explore exclude each other", True,
+                             "--strategy bvc without --explore")
+    if args.until_explored is not None and not (args.explore and 0 < args.until_explored <= 1):
+        raise ConfigError.at("--until-explored", "needs --explore and a fraction in (0, 1]",
+                             args.until_explored)
+    region = Region(tuple(parse_region_text(t) for t in args.region))
+    if args.explore and not region.everywhere:
+        raise ConfigError.at("--region", "does not apply to --explore (the density is the "
+                             "belief's entropy)", args.region)
+    discovery = (parse_discovery_address(args.discovery_server)
+                 if args.discovery_server is not None else None)
+    return RunConfig(
+        world=args.world, strategy=args.strategy, strategy_params=args.strategy_params,
+        choice=choice, robots=args.robots, team_file=args.team, humans=tuple(args.human),
+        explore=args.explore, map_free=args.map_free, until_explored=args.until_explored,
+        duration=duration, seed=args.seed, starts=args.starts, lockstep=args.lockstep, rtf=rtf,
+        out=args.out, record=args.record, viewer=args.viewer, serve_web=args.serve_web,
+        domain_id=args.domain_id, control_rate=control_rate, update_load=args.update_load,
+        state_rate=args.state_rate, clock_rate=clock_rate, odom_rate=odom_rate,
+        sensor_radius=args.sensor_radius,
+        robot_params=MappingProxyType(robot_params(args.robot_param)),
+        robots_per_process=args.robots_per_process, kills=tuple(args.kill),
+        restarts=tuple(args.restart), regions=tuple(args.region), region=region,
+        markers=not args.no_markers, stats=args.stats, remote_robots=args.remote_robots,
+        discovery=discovery,
+        executor=args.executor or executor_kind(),  # a bad COVERAGE_ROS_EXECUTOR: refused
+        quiet=args.quiet)

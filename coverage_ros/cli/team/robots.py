@@ -110,11 +110,15 @@ def spec_parameters(spec: RobotSpec) -> dict[str, float]:
 
 @dataclass(frozen=True)
 class RobotProcess:
-    """One process of robots: its name in the launcher (and log file), command and robots."""
+    """One process of robots: its name in the launcher (and log file), command and robots;
+    a ``robot_container`` reads its robots' parameters from ``params_file``, whose contents
+    are ``params_text`` (written by the launcher before it starts the process)."""
 
     name: str
     cmd: list[str]
     ids: tuple[int, ...]
+    params_file: Path | None = None
+    params_text: str = ""
 
 
 def robot_node_command(rid: int, params: dict[str, object]) -> list[str]:
@@ -137,7 +141,7 @@ def plan_processes(params: dict[int, dict[str, object]], per_process: int,
                    alone: set[int], params_dir: Path) -> list[RobotProcess]:
     """The processes for robots ``{id: parameters}``: groups of up to ``per_process`` ids in a
     ``robot_container`` (parameters written to ``params_dir``), and a ``robot_node`` of its
-    own for each robot in ``alone`` and for a group of one.
+    own for each robot in ``alone`` and for a group of one. Pure: the files are in the plan.
 
     The ids are dealt to the groups in turn (0, G, 2G, ... in the first of G groups): the
     launcher's start cluster fills ring by ring in id order, and the robots of the outer ring,
@@ -155,13 +159,12 @@ def plan_processes(params: dict[int, dict[str, object]], per_process: int,
                                     robot_node_command(ids[0], params[ids[0]]), (ids[0],)))
             continue
         name = group_name(ids)
-        params_dir.mkdir(parents=True, exist_ok=True)
-        path = params_dir / f"{name}.yaml"
-        path.write_text(yaml.safe_dump(
+        path = (params_dir / f"{name}.yaml").resolve()
+        text = yaml.safe_dump(
             {f"/robot_{rid}/coverage_robot": {"ros__parameters": params[rid]} for rid in ids},
-            sort_keys=False))
+            sort_keys=False)
         cmd = executable("robot_container") + [str(rid) for rid in ids] + \
-            ["--ros-args", "--params-file", str(path.resolve())]
-        out.append(RobotProcess(name, cmd, tuple(ids)))
+            ["--ros-args", "--params-file", str(path)]
+        out.append(RobotProcess(name, cmd, tuple(ids), path, text))
     return sorted(out, key=lambda p: p.ids[0])
 

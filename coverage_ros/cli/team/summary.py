@@ -1,5 +1,17 @@
-"""What a team run gives a user: ``summary.json``'s derived figures and the table printed at
-the end (pure: no ROS).
+"""What a team run gives a user (pure: no ROS): the :class:`RunLog` the monitor fills, and
+from it ``summary.json``, the table printed at the end and ``summary.png``.
+
+The metrics of ``summary.json`` (definitions in README "Team launcher"):
+
+* ``H`` / ``H_start``: geodesic coverage cost (density-weighted, as ``coverage-plan``) of the
+  final / start positions of the robots still running;
+* ``mass_deviation_I``: Lee & Lee's I of the final geodesic cell masses;
+* ``coverage_ratio``: free area within its sensing radius and line of sight of some robot;
+* ``min_separation``: smallest distance between two robot centres during the run (the
+  simulator checks every physics step);
+* ``converged_at``: first sim time from which H stayed within 2 % of its final value;
+* ``H_series``: ``[[t, H], ...]`` as the monitor sampled it (t: sim time since the team was
+  ready).
 
 In lock-step (``--lockstep``) every figure of ``summary.json`` is the same for the same command
 and seed, except the wall-clock ones named in :data:`WALL_CLOCK_KEYS`.
@@ -8,6 +20,18 @@ and seed, except the wall-clock ones named in :data:`WALL_CLOCK_KEYS`.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from coverage_ros.core.geodesic.domain import CoverageDomain
+from coverage_ros.core.geodesic.tessellation import Generator, Tessellation, fast_tessellate
+from coverage_ros.core.metrics import coverage_ratio, mass_deviation
+from coverage_ros.core.world import TeamMember
+from coverage_ros.core.world.robot import NUMBER_FIELDS
+from coverage_ros.core.world.spec import WorldSpec
 
 CONVERGED_BAND = 0.02  # H within 2 % of its final value counts as converged
 #: summary.json keys measured on the wall clock (they differ run to run, lock-step or not).
@@ -26,6 +50,126 @@ def converged_at(samples: list[tuple[float, float]], H_final: float,
             break
         t_conv = t
     return None if t_conv is None else round(t_conv - (ready_at or 0.0), 3)
+
+
+@dataclass
+class RunLog:
+    """What the monitor measured of a run: sim times [s], the robots' poses ``(x, y, yaw)``,
+    driven paths, the world's status of each robot (SimulatedRobot's fields), losses and
+    restarts, H samples ``(t, H)`` and what the run ended with."""
+
+    sim_time: float = 0.0
+    ready_at: float | None = None  # the team was up
+    sim_start: float | None = None  # sim and wall time [s, monotonic] the run's rtf starts from
+    wall_start: float | None = None
+    run_span: tuple[float, float] | None = None  # (sim, wall) [s] from ready to the end
+    poses: dict[int, np.ndarray] = field(default_factory=dict)
+    tracks: dict[int, list[tuple[float, float]]] = field(default_factory=dict)
+    status: dict[int, dict[str, float]] = field(default_factory=dict)
+    lost: dict[int, float] = field(default_factory=dict)  # robot -> sim time lost
+    restarted: dict[int, list[float]] = field(default_factory=dict)  # -> [s since ready]
+    H_samples: list[tuple[float, float]] = field(default_factory=list)
+    region: list[np.ndarray] = field(default_factory=list)  # polygons at the end
+    region_set_at: float | None = None  # sim time
+    exploration: dict | None = None
+    processes: dict | None = None
+
+    @property
+    def min_separation(self) -> float:
+        return min((st.get("min_separation", math.inf) for st in self.status.values()),
+                   default=math.inf)
+
+    @property
+    def collisions(self) -> int:
+        return sum(int(s.get("collisions", 0)) for s in self.status.values())
+
+    def present(self, robots: int) -> list[int]:
+        """Robots not lost whose pose is known."""
+        return [i for i in range(robots) if i not in self.lost and i in self.poses]
+
+
+def tessellate(domain: CoverageDomain, team: Sequence[TeamMember], ids: list[int],
+               positions: np.ndarray) -> Tessellation:
+    """Robots ``ids`` at ``positions`` as the tessellation sees them: each with its own power
+    weight."""
+    return fast_tessellate(domain, [Generator(p, team[i].spec.power_weight)
+                                    for i, p in zip(ids, positions, strict=True)])
+
+
+def team_cost(domain: CoverageDomain, team: Sequence[TeamMember], log: RunLog) -> float:
+    """H of the robots present now (nan if none)."""
+    ids = log.present(len(team))
+    if not ids:
+        return math.nan
+    return float(tessellate(domain, team, ids, np.array([log.poses[i][:2] for i in ids])).cost)
+
+
+def summarize(log: RunLog, team: Sequence[TeamMember], world: WorldSpec,
+              domain: CoverageDomain, strategy: str, seed: int, wall_time: float,
+              interrupted: bool) -> dict:
+    """``summary.json`` of a run (module docstring); ``domain``: the scoring's, with the
+    region of interest in force at the end."""
+    n = len(team)
+    alive = log.present(n)
+    P = np.array([log.poses[i][:2] for i in alive]).reshape(-1, 2)
+    tess = tessellate(domain, team, alive, P) if len(P) else None
+    starts = np.array([m.start for m in team], dtype=np.float64)
+    H_start = float(tessellate(domain, team, list(range(n)), starts[:, :2]).cost)
+    sensing = np.array([team[i].spec.sensor_radius for i in alive])
+    robots = []
+    for i in range(n):
+        st = log.status.get(i, {})
+        final = log.poses.get(i)
+        robots.append({
+            "id": i, "start": starts[i].round(4).tolist(),
+            "final": None if final is None else np.round(final, 4).tolist(),
+            "path_length": round(st.get("path_length", 0.0), 4),
+            "collisions": int(st.get("collisions", 0)),
+            "robot_collisions": int(st.get("robot_collisions", 0)),
+            "wall_collisions": int(st.get("wall_collisions", 0)),
+            "spec": team[i].spec.numbers(), "role": team[i].role,
+            "body": {k: float(st[k]) for k in NUMBER_FIELDS if k in st},
+            **({"lost_at": round(log.lost[i], 2)} if i in log.lost else {}),
+            **({"restarted_at": log.restarted[i]} if i in log.restarted else {})})
+    H = float(tess.cost) if tess is not None else math.nan
+    min_sep = log.min_separation
+    ready = log.ready_at or 0.0
+    return {
+        "world": str(world.source), "strategy": strategy, "seed": seed,
+        "sim_time": round(log.sim_time, 3), "wall_time": round(wall_time, 3),
+        "rtf": 0.0 if log.run_span is None else
+        round(log.run_span[0] / max(log.run_span[1], 1e-9), 3),
+        "ready_at": None if log.ready_at is None else round(log.ready_at, 3),
+        "interrupted": interrupted, "robots": robots,
+        "metrics": {
+            "H": H if math.isfinite(H) else None, "H_start": H_start,
+            "mass_deviation_I": mass_deviation(tess.masses) if tess is not None else None,
+            "coverage_ratio": coverage_ratio(world.grid, P, sensing),
+            "min_separation": min_sep if math.isfinite(min_sep) else None,
+            "converged_at": converged_at(log.H_samples, H, log.ready_at),
+            "H_series": [[round(t - ready, 2), round(h, 6)]
+                         for t, h in log.H_samples if math.isfinite(h)],
+        },
+        "region": {"polygons": [p.round(4).tolist() for p in log.region],
+                   "set_at": None if log.region_set_at is None or log.ready_at is None
+                   else round(max(log.region_set_at - log.ready_at, 0.0), 3)},
+        **({"processes": log.processes} if log.processes is not None else {}),
+        **({"exploration": log.exploration} if log.exploration is not None else {}),
+    }
+
+
+def picture(path: Path, log: RunLog, team: Sequence[TeamMember], world: WorldSpec,
+            domain: CoverageDomain, strategy: str) -> None:
+    """``summary.png`` (:func:`coverage_ros.viz.png.render_team`): cells, starts, paths."""
+    from coverage_ros.viz.png import render_team
+
+    n = len(team)
+    alive = log.present(n)
+    P = np.array([log.poses[i][:2] for i in alive]).reshape(-1, 2)
+    own = tessellate(domain, team, alive, P).labels if len(P) else None
+    starts = np.array([m.start for m in team], dtype=np.float64)
+    render_team(path, world.grid, own, alive, starts, [log.tracks.get(i, []) for i in range(n)],
+                domain.density, f"{strategy}: {n} robots, {log.sim_time:.0f} s")
 
 
 def deterministic_part(summary: dict) -> dict:

@@ -4,5 +4,7 @@ separation in unstructured environments", 2024).
 
 * :mod:`.strategy` - the ``bvc`` strategy;
 * :mod:`.cells` - buffered Voronoi cells from raw range points (Sec. IV-A/B);
-* :mod:`.guided_map` - obstacle memory and navigation function of the guided map (Sec. IV-C).
+* :mod:`.guided_map` - obstacle memory and navigation function of the guided map (Sec. IV-C);
+* :mod:`.guide` - the guided map's goal and density (Eq. 8) for one robot;
+* :mod:`.peaks` - peaks of the density that no robot attends.
 """

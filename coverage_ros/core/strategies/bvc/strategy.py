@@ -10,9 +10,9 @@ Every control period the robot
 2. in guided mode (default) remembers the lidar hits, picks the highest-density point it can
    reach within sensing range and inside its own Voronoi region as goal, and replaces the
    density by ``phi = exp(-gamma M_go)`` with ``M_go`` the cost-to-go to that goal over what it
-   has seen (Eq. 8, :mod:`.guided_map`); with ``seek_peaks`` a robot whose neighbour keeps the
-   peak heads for a peak nobody attends, or covers round the others if none is left
-   (:mod:`.peaks`); in plain mode it keeps the importance density (the classic
+   has seen (Eq. 8, :mod:`.guide` on :mod:`.guided_map`); with ``seek_peaks`` a robot whose
+   neighbour keeps the peak heads for a peak nobody attends, or covers round the others if
+   none is left (:mod:`.peaks`); in plain mode it keeps the importance density (the classic
    move-to-centroid policy, which stalls behind non-convex obstacles);
 3. moves towards the centroid ``C`` of its cell under that density (Eq. 3). The decision's
    goal is ``C`` itself: it lies in the convex cell, so the straight move there is
@@ -57,26 +57,14 @@ from coverage_ros.core.strategies.bvc.cells import (
     buffered_cell,
     convex_polygon_cells,
 )
-from coverage_ros.core.strategies.bvc.guided_map import (
-    ObstacleMemory,
-    WindowGraph,
-    bridge_shadows,
-    guided_density,
-    local_map,
-    local_maximum_goal,
-    navigation_function,
-    without_discs,
-)
-from coverage_ros.core.strategies.bvc.peaks import PeakRole, density_peaks, peak_role
+from coverage_ros.core.strategies.bvc.guide import Guide
+from coverage_ros.core.strategies.bvc.guided_map import ObstacleMemory
 from coverage_ros.errors import ConfigError
 
 #: [m] lidar points this close to a neighbour's body are the neighbour, not a wall: they are
 #: kept out of the obstacle memory (the bisector already separates the robots). Covers pose
 #: latency (0.22 m/s for ~0.3 s) and range noise.
 NEIGHBOUR_POINT_MARGIN = 0.1
-#: The density over the guided map's candidates counts as flat (no goal to be guided to) when
-#: its largest value is within this share of its smallest.
-FLAT_DENSITY = 0.01
 #: A centroid closer than the arrival tolerance that keeps moving ahead is sent to the
 #: navigation this many tolerances along (see BvcStrategy._navigation_goal).
 EXTEND_FACTOR = 1.5
@@ -159,11 +147,9 @@ class BvcStrategy(Strategy):
         domain = context.domain
         self.bounds = domain.geometry.extent()
         self.memory = ObstacleMemory.covering(self.bounds, self.params.grid_resolution)
-        self.nf_cells = int(math.ceil(self.nf_radius / self.params.grid_resolution))
-        self.graph = WindowGraph(2 * self.nf_cells + 1, self.params.grid_resolution)
+        self.guide = Guide(domain, self.memory, self.radius, self.sensor_radius, self.nf_radius,
+                           self.params.gamma, self.params.bridge_width, self.params.seek_peaks)
         self.clock = ControlPeriod(self.params.period)
-        self._goal: np.ndarray | None = None
-        self._peaks: np.ndarray | None = None  # the density's peaks, found at first use
         self._last_step: np.ndarray | None = None  # centroid - position at the last update
         self._extended = False  # the last navigation goal lay beyond the centroid
         self._overshot = False  # ... and the centroid then turned back: no more until moving
@@ -188,7 +174,7 @@ class BvcStrategy(Strategy):
         nodes, xy, wdA = self._samples(cell)
         phi, mode, field = wdA, "plain", None
         if self.params.guided:
-            field = self._guided_field(p, xy, cell, obs, (nb, nb_r))
+            field = self.guide.field(p, xy, cell, obs, (nb, nb_r))
             if field is not None:
                 phi, mode = field.phi, "guided"
         total = float(phi.sum())
@@ -250,22 +236,6 @@ class BvcStrategy(Strategy):
                                            buffer=self.radius, obstacle_planes=0,
                                            reason=reason))
 
-    def _window(self, p: np.ndarray, reach: float) -> tuple[np.ndarray, np.ndarray]:
-        """Domain nodes ``(N,)`` within ``reach`` [m] of ``p`` and their centres ``(N, 2)``."""
-        domain = self.context.domain
-        H, W = domain.shape
-        g = domain.to_grid(p)[0]
-        n = int(math.ceil(reach / domain.resolution)) + 1
-        c0, c1 = max(int(g[0]) - n, 0), min(int(g[0]) + n + 1, W)
-        r0, r1 = max(int(g[1]) - n, 0), min(int(g[1]) + n + 1, H)
-        if c0 >= c1 or r0 >= r1:
-            return np.zeros(0, np.int64), np.zeros((0, 2))
-        rows, cols = np.mgrid[r0:r1, c0:c1]
-        nodes = (rows * W + cols).ravel()
-        xy = domain.to_map(domain.node_centers(nodes))
-        near = np.hypot(*(xy - p).T) <= reach
-        return nodes[near], xy[near]
-
     def _samples(self, cell: BufferedCell) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Domain nodes whose centre lies in the cell, the centres ``(N, 2)`` and their mass
         elements (density * area)."""
@@ -275,87 +245,9 @@ class BvcStrategy(Strategy):
         xy = domain.to_map(domain.node_centers(nodes))
         return nodes, xy, domain.mass_element.ravel()[nodes]
 
-    def _peak_role(self, p: np.ndarray, nb: np.ndarray) -> PeakRole | None:
-        """This robot's role among the density's peaks (:mod:`.peaks`); None without
-        ``seek_peaks`` or peaks."""
-        if not self.params.seek_peaks:
-            return None
-        if self._peaks is None:
-            self._peaks = density_peaks(self.context.domain, self.sensor_radius)
-        return peak_role(p, self._peaks, nb, self.sensor_radius) if len(self._peaks) else None
-
     def _speed(self, step: np.ndarray, dt: float) -> float:
         """|u| of Eq. 3 towards a target ``step`` away: ``|step| / dt`` capped at ``u_max``."""
         return min(self.u_max, float(np.hypot(*step)) / dt)
-
-    def _guided_field(self, p: np.ndarray, xy: np.ndarray, cell: BufferedCell,
-                      obs: Observation, team: tuple[np.ndarray, np.ndarray]
-                      ) -> _GuidedField | None:
-        """Eq. 8 at the cell samples ``xy``, or None when no goal can be reached (the caller
-        falls back to the importance density). ``team``: the neighbours' positions and
-        radii."""
-        local = local_map(self.memory, p, self.nf_cells, self.radius)
-        nodes, cand = self._window(p, self.sensor_radius)
-        # Candidates: inside the own (unbuffered) Voronoi region - the region this robot is
-        # tasked with - and reachable in what it has seen. A robot heading for a peak nobody
-        # attends goes where it is nearest that peak, round its neighbours: its bisector with
-        # a neighbour between it and the peak would hold it behind that neighbour.
-        role = self._peak_role(p, team[0])
-        if role is not None and role.peakless:
-            return None  # every peak kept or sought by others: cover round them (Lloyd)
-        peak = None if role is None else role.target
-        rp = cell.robot_planes
-        own = np.all(cand @ rp.a.T <= rp.b[None, :], axis=1) if len(rp) and peak is None \
-            else np.ones(len(cand), dtype=bool)
-        if peak is not None:
-            local = without_discs(local, team[0], team[1] + self.radius)
-        domain = self.context.domain
-        ok = own & local.is_reachable(cand) & domain.free.ravel()[nodes]
-        if not ok.any():
-            return None
-        values = domain.density.ravel()[nodes[ok]]
-        cand = cand[ok]
-        if peak is None and values.max() <= values.min() * (1.0 + FLAT_DENSITY):
-            # No peak to be guided to (a uniform density): every candidate ties, and the
-            # nearest - the robot's own spot - would hold the robot in place. Be guided to the
-            # middle of what is its own instead: the candidate nearest to the centroid of the
-            # part of its Voronoi region within sensing range that its scans have seen free -
-            # not only the current scan, and with the shadows of narrow obstacles (pillars,
-            # teammates) filled in: space hidden behind them would otherwise not pull the
-            # robot, which then settles short of it, leaving that side thin - a stall of its
-            # own (H 1.26-1.31x the best plan on tb3_sandbox's pillars) where Lloyd over the
-            # true free space moves on. Without a map, space never seen behind a wall must not
-            # pull it, and it does not: a wall's shadow has no far side.
-            scan, at = obs.scan, obs.scan_origin
-            depths = bridge_shadows(scan.depths(), scan.angle_increment,
-                                    self.params.bridge_width, scan.full_circle)
-            self.memory.add_view(at[:2], self.sensor_radius, lambda q: scan.sees(q, at, depths))
-            seen = self.memory.was_seen(cand)
-            if seen.any():
-                cand = cand[seen]
-            k = int(np.argmin(np.hypot(*(cand - cand.mean(axis=0)).T)))
-        else:
-            if peak is not None:  # (closer to the peak is higher; the same hysteresis)
-                values = np.exp(-np.hypot(*(cand - peak).T) / self.sensor_radius)
-            k = local_maximum_goal(cand, values, p, self._goal, match_radius=domain.resolution)
-        if k is None:
-            return None
-        self._goal = cand[k].copy()
-        nf = navigation_function(local, self._goal, self.graph, origin=p,
-                                 reach=self.sensor_radius)
-        cost = nf.at(xy)
-        phi = guided_density(cost, self.params.gamma)
-        if phi.sum() <= 0:
-            return None
-        return _GuidedField(self._goal.copy(), cost, float(nf.at(p)[0]), phi)
-
-
-@dataclass(frozen=True)
-class _GuidedField:
-    goal: np.ndarray  # (2,) [m] p_g
-    cost: np.ndarray  # (N,) [m] M_go at the cell samples
-    cost_here: float  # [m] M_go at the robot
-    phi: np.ndarray  # (N,) Eq. 8 weights at the samples
 
 
 def _away_from(points: np.ndarray, centres: np.ndarray, radii: np.ndarray) -> np.ndarray:

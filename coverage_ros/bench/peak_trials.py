@@ -46,6 +46,7 @@ from coverage_ros.core.strategies import (
 )
 from coverage_ros.core.world import WorldSpec, parse_world
 from coverage_ros.core.world.grid import GridMap
+from coverage_ros.core.world.robot import TB3_RADIUS
 from coverage_ros.errors import ConfigError
 
 #: Collision checks per move (a robot moves at most a few cm per step; 4 samples along the
@@ -297,7 +298,7 @@ class TrialSetup:
 def cluttered_trial(rng: np.random.Generator, size: float = 10.0, obstacles: int = 12,
                     robots: int = 3, peaks: int = 3, sigma: float = 1.0,
                     peak_spacing: float = 3.0, resolution: float = 0.1,
-                    robot_radius: float = 0.105, start_clearance: float = 0.3,
+                    robot_radius: float = TB3_RADIUS, start_clearance: float = 0.3,
                     circle_share: float = 0.5,
                     circle_radius: tuple[float, float] = (0.2, 0.6),
                     start_spacing: float | None = None) -> TrialSetup:

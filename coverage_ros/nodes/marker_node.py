@@ -31,10 +31,11 @@ from visualization_msgs.msg import MarkerArray
 from coverage_ros.core.strategies.base import mode_name
 from coverage_ros.errors import ConfigError
 from coverage_ros.nodes import conversions as conv
+from coverage_ros.nodes.parameters import declare_parameters
 from coverage_ros.nodes.qos import TEAM_QOS, quiet_subscription
 from coverage_ros.nodes.region_input import RegionInput
 from coverage_ros.nodes.robot_graph import state_topics
-from coverage_ros.nodes.runner import declare_parameters, run_node
+from coverage_ros.nodes.runner import run_node
 from coverage_ros.nodes.throttle import WarnThrottle
 from coverage_ros.viz.colors import robot_color
 from coverage_ros.viz.outline import outline_segments

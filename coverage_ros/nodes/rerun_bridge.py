@@ -32,6 +32,7 @@ from sensor_msgs.msg import LaserScan, PointCloud2
 from coverage_ros.core.world import RobotSpec, load_world
 from coverage_ros.errors import ConfigError
 from coverage_ros.nodes import conversions as conv
+from coverage_ros.nodes.parameters import declare_parameters
 from coverage_ros.nodes.qos import (
     CLOCK_QOS,
     MAP_QOS,
@@ -42,7 +43,7 @@ from coverage_ros.nodes.qos import (
 )
 from coverage_ros.nodes.region_input import RegionInput
 from coverage_ros.nodes.robot_graph import robot_topic_kinds
-from coverage_ros.nodes.runner import declare_parameters, run_node
+from coverage_ros.nodes.runner import run_node
 from coverage_ros.nodes.throttle import WarnThrottle
 from coverage_ros.worlds import resolve_world_path
 
@@ -73,7 +74,7 @@ def type_name(msg_type: type) -> str:
 
 @dataclass(frozen=True)
 class BridgeConfig:
-    """The node's parameters, validated (meanings: _PARAMETERS and README)."""
+    """The node's parameters, validated (meanings: PARAMETERS and README)."""
 
     record_path: str = ""
     record_index: bool = True
@@ -134,31 +135,33 @@ class BridgeConfig:
                          self.robot_radius, self.computed_cells)
 
 
-_PARAMETERS = {  # name: (default, description)
-    "record_path": ("", "write the recording to this .rrd file"),
-    "record_index": (True, "when the bridge stops, rewrite the file compacted and with "
-                     "rerun's chunk index (rerun rrd optimize); it is never held in memory"),
-    "connect_url": ("", "stream to a running viewer, e.g. rerun+http://127.0.0.1:9876/proxy"),
-    "serve_web": (False, "host a web viewer (and its gRPC proxy) on 127.0.0.1"),
-    "web_port": (9090, "HTTP port of the web viewer (serve_web)"),
-    "grpc_port": (9876, "gRPC port of the web viewer's proxy (serve_web)"),
-    "robot_prefix": ("robot_", "robot namespaces are /<prefix><id>"),
-    "recording_id": ("", "rerun recording id; processes with the same id share one "
-                     "recording; '': a new random id"),
-    "world": ("", "world name or YAML for the importance density layer and metrics; "
-              "'': uniform"),
-    "robot_radius": (RobotSpec().radius, "[m] robot radius: markers and the metrics' "
-                     "inflated map"),
-    "metrics_period": (1.0, "[s] sim time between H / cell-mass computations; 0: none"),
-    "cells_period": (0.5, "[s] sim time between cell-layer updates; 0: on every change"),
-    "robots_period": (0.1, "[s] sim time between robot-marker updates; 0: every pose"),
-    "trajectory_period": (0.5, "[s] sim time between trajectory points; 0: every pose"),
-    "scan_period": (0.5, "[s] sim time between logged scans of a robot; 0: every scan"),
+PARAMETERS = {  # name: (default, description)
+    "record_path": ("", "write the recording to this `.rrd` file (its folder must exist)"),
+    "record_index": (True, "when the bridge stops, rewrite the file compacted and ending with "
+                           "rerun's chunk index (`rerun rrd optimize`, into a file beside it, "
+                           "then swapped in)"),
+    "connect_url": ("", "stream to a running viewer, e.g. `rerun+http://127.0.0.1:9876/proxy`"),
+    "serve_web": (False, "host a web viewer and its gRPC proxy on 127.0.0.1"),
+    "web_port": (9090, "HTTP port of the web viewer (`serve_web`)"),
+    "grpc_port": (9876, "gRPC port of the web viewer's proxy (`serve_web`)"),
+    "robot_prefix": ("robot_", "robot namespaces are `/<prefix><id>`"),
+    "recording_id": ("", "rerun recording id; processes with the same id share one recording; "
+                         "`\"\"`: a new random id"),
+    "world": ("", "world name or YAML for the importance-density layer and the metrics; `\"\"`: "
+                  "uniform density"),
+    "robot_radius": (RobotSpec().radius,
+                     "[m] robot markers and the inflation of the metrics' map"),
+    "metrics_period": (1.0, "[s, sim time] between H / cell-mass computations; `0`: none"),
+    "cells_period": (0.5, "[s, sim time] between cell-layer updates; `0`: on every change"),
+    "robots_period": (0.1, "[s, sim time] between robot-marker updates; `0`: every pose"),
+    "trajectory_period": (0.5, "[s, sim time] between trajectory points; `0`: every pose"),
+    "scan_period": (0.5, "[s, sim time] between logged scans of a robot; `0`: every scan"),
     "scan_decimation": (2, "log every n-th lidar hit"),
-    "computed_cells": (True, "until a robot publishes a cell, show the cells of the "
-                       "metrics' tessellation"),
-    "explore": (False, "the team explores: show the world's true map, the team's belief "
-                "entropy over it and the explored fraction (needs 'world')"),
+    "computed_cells": (True, "until a robot publishes its own cell, show the cells of the "
+                             "metrics' tessellation"),
+    "explore": (False, "the team explores an unknown map: show the world's true map, the team's "
+                       "merged belief as an entropy layer over it (white: unknown), and the "
+                       "explored fraction and false free share as plots; needs `world`"),
 }
 
 
@@ -167,7 +170,7 @@ class RerunBridge(Node):
 
     def __init__(self) -> None:
         super().__init__("rerun_bridge")
-        self.config = cfg = BridgeConfig(**declare_parameters(self, _PARAMETERS))
+        self.config = cfg = BridgeConfig(**declare_parameters(self, PARAMETERS))
         world = load_world(resolve_world_path(cfg.world)) if cfg.world else None
         from coverage_ros.viz.live_metrics import LiveMetrics
         from coverage_ros.viz.live_team import LiveTeam

@@ -43,13 +43,14 @@ from coverage_ros.nodes.clock_guard import ClockGuard
 from coverage_ros.nodes.goal_output import GoalOutput
 from coverage_ros.nodes.lockstep_member import LockstepDriver
 from coverage_ros.nodes.neighbour_input import NeighbourInput
+from coverage_ros.nodes.parameters import declare_parameters
 from coverage_ros.nodes.qos import LOCKSTEP_STATE_QOS, MAP_QOS, TEAM_QOS, quiet_publisher
 from coverage_ros.nodes.region_input import RegionInput
 from coverage_ros.nodes.robot_config import PARAMETERS, load_robot_inputs
 from coverage_ros.nodes.robot_lockstep import RobotLockstep
 from coverage_ros.nodes.robot_requests import RobotRequests
 from coverage_ros.nodes.robot_shared import SharedInputs
-from coverage_ros.nodes.runner import LAST_WORDS, FatalConfigError, declare_parameters, run_node
+from coverage_ros.nodes.runner import LAST_WORDS, FatalConfigError, run_node
 from coverage_ros.nodes.scan_input import ScanInput
 from coverage_ros.nodes.tf_input import TfPoseInput
 from coverage_ros.nodes.throttle import WarnThrottle

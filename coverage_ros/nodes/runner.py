@@ -31,7 +31,6 @@ import time
 from collections.abc import Callable
 
 import rclpy
-from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.duration import Duration
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
@@ -127,14 +126,6 @@ def _spin(executor, context, stop: StopRequest) -> None:
 
 class FatalConfigError(CoverageError):
     """A configuration error found after start-up (e.g. when the map arrives): ends the node."""
-
-
-def declare_parameters(node: Node, table: dict[str, tuple[object, str]]) -> dict[str, object]:
-    """Declare ``{name: (default, description)}`` on ``node``; the values it was given.
-    A value of the wrong type raises ParameterException (a start-up error)."""
-    for name, (default, text) in table.items():
-        node.declare_parameter(name, default, ParameterDescriptor(description=text))
-    return {name: node.get_parameter(name).value for name in table}
 
 
 def run_node(name: str, make_node: Callable[[], Node], args=None,

@@ -27,8 +27,9 @@ from std_msgs.msg import Int32, String
 from coverage_ros.core.world import load_planar_world, load_team, parse_poses
 from coverage_ros.errors import ConfigError, CoverageError
 from coverage_ros.nodes import conversions as conv
+from coverage_ros.nodes.parameters import declare_parameters
 from coverage_ros.nodes.qos import MAP_QOS, SCAN_QOS, TEAM_QOS, TICK_QOS, quiet_publisher
-from coverage_ros.nodes.runner import declare_parameters, run_node
+from coverage_ros.nodes.runner import run_node
 from coverage_ros.nodes.tf_output import TfOutput
 from coverage_ros.nodes.throttle import WarnThrottle
 from coverage_ros.nodes.world_lockstep import LockstepConfig, WorldLockstep
@@ -76,42 +77,53 @@ class WorldNodeConfig:
                                  self.robot_prefix)
 
 
-_PARAMETERS = {  # name: (default, description)
-    "world": ("office", "shipped world name (config/worlds/<name>.yaml) or path to a package "
-              "world YAML or a map_server YAML"),
-    "num_robots": (-1, "robots at start-up; -1: one per start pose of the world, else 4"),
-    "starts": ("", "start poses 'x,y,yaw;x,y,yaw;...' [m, rad] overriding the world's; "
-               "num_robots -1 then means one robot per pose"),
-    "team": ("", "team YAML (each robot's id, start and spec, e.g. coverage-team's "
-             "<out>/team.yaml); overrides starts and num_robots"),
-    "seed": (0, "seed of placement, odometry noise and lidar noise (same seed, same run)"),
-    "real_time_factor": (1.0, "sim seconds per wall second; 0: as fast as possible"),
-    "physics_rate_hz": (50.0, "[Hz] fixed physics steps per simulated second"),
-    "cmd_timeout": (0.5, "[s] sim time without cmd_vel after which a robot brakes to a stop"),
-    "use_stamped_cmd_vel": (False, "subscribe geometry_msgs/TwistStamped instead of Twist"),
-    "odom_noise_trans": (0.0, "[m/sqrt(m)] odometry translation random walk per metre driven"),
+PARAMETERS = {  # name: (default, description)
+    "world": ("office", "a shipped world name (`config/worlds/<name>.yaml`, found through the "
+                        "ament index share dir, else the source tree), or a path to a world YAML "
+                        "or a map_server YAML"),
+    "num_robots": (-1, "robots at start-up; `-1`: one per start pose of the world, or 4 if it "
+                       "lists none"),
+    "starts": ("", "start poses `x,y,yaw;x,y,yaw;...` [m, rad] overriding the world's; "
+                   "`num_robots` -1 then means one robot per pose"),
+    "team": ("", "team YAML (each robot's `id`, `start` and spec keys, e.g. `coverage-team`'s "
+                 "`<out>/team.yaml`; see README \"World files\"); overrides `starts` and "
+                 "`num_robots`"),
+    "seed": (0, "seeds placement, odometry noise and lidar noise: the same seed gives the same "
+                "run"),
+    "real_time_factor": (1.0, "sim seconds per wall second; `0`: as fast as possible"),
+    "physics_rate_hz": (50.0, "fixed physics steps per simulated second"),
+    "cmd_timeout": (0.5, "[s] sim time without `cmd_vel` after which a robot brakes to a stop "
+                         "(within its acceleration limits)"),
+    "use_stamped_cmd_vel": (False, "subscribe `geometry_msgs/TwistStamped` instead of `Twist`"),
+    "odom_noise_trans": (0.0, "[m/sqrt(m)] odometry translation random walk: error std after "
+                              "driving d metres is `k * sqrt(d)`"),
     "odom_noise_rot": (0.0, "[rad/sqrt(rad)] odometry heading random walk per radian turned"),
-    "scan_noise_std": (-1.0, "[m] lidar range noise std; < 0: the world's lidar.noise_std"),
-    "odom_rate_hz": (20.0, "[Hz] sim time rate of odom and ground_truth"),
-    "clock_rate_hz": (0.0, "[Hz] sim time rate of /clock; 0: every physics step"),
-    "status_rate_hz": (1.0, "[Hz] wall time rate of /world/robots"),
-    "robot_prefix": ("robot_", "robot namespaces and frame prefixes are <prefix><id>"),
-    "publish_map": (True, "publish the true map on /map (false: the robots explore an unknown "
-                    "map)"),
-    "publish_tf": (True, "publish /tf (map -> odom -> base_link per robot) and /tf_static "
-                   "(base_link -> base_scan)"),
-    "lockstep": (False, "lock-step: sim time advances one lockstep_period only when every robot "
-                 "(robot_node lockstep: true) and observer has answered the last tick; odom, "
-                 "ground truth and /clock go out every tick, /world/robots every "
-                 "status_rate_hz of sim time, and real_time_factor > 0 caps the pace"),
-    "lockstep_period": (0.1, "[s] sim time per lock-step tick (a whole number of physics "
-                        "steps; the robots track and send commands once per tick)"),
-    "lockstep_timeout": (10.0, "[s] wall time a silent lock-step member is waited for before "
-                         "the world goes on without it"),
-    "lockstep_start_timeout": (120.0, "[s] wall time the first lock-step tick waits for the "
-                               "robot of every body (and the lockstep_observers) to join"),
-    "lockstep_observers": ("", "comma-separated names of observer members the first tick "
-                           "waits for (coverage-team's monitor: coverage_team)"),
+    "scan_noise_std": (-1.0, "[m] Gaussian lidar range noise; `< 0`: the world's "
+                             "`lidar.noise_std`"),
+    "odom_rate_hz": (20.0, "[Hz, sim time] rate of `odom` and `ground_truth`"),
+    "clock_rate_hz": (0.0, "[Hz, sim time] rate of `/clock`; `0`: every physics step"),
+    "status_rate_hz": (1.0, "[Hz, wall time] rate of `/world/robots`"),
+    "robot_prefix": ("robot_", "robot namespaces and frame prefixes are `<prefix><id>`"),
+    "publish_map": (True, "publish the true map on `/map`; `false` when the robots explore an "
+                          "unknown map (the simulator still uses it)"),
+    "publish_tf": (True, "publish `/tf` (`map -> robot_<id>/odom -> robot_<id>/base_link` per "
+                         "robot) and `/tf_static` (`base_link -> base_scan`)"),
+    "lockstep": (False, "lock-step (README \"Lock-step simulation\"): sim time advances one "
+                        "`lockstep_period` only when every member - each robot with `lockstep: "
+                        "true`, and the observers - has answered the last tick on "
+                        "`/world/tick_report`; `/clock`, `odom` and `ground_truth` go out every "
+                        "tick, `/world/robots` every `status_rate_hz` of sim time, and "
+                        "`real_time_factor` > 0 caps the pace (0: as fast as the members answer)"),
+    "lockstep_period": (0.1, "[s] sim time per tick (a whole number of physics steps); robots "
+                             "track and command once per tick"),
+    "lockstep_timeout": (10.0, "[s] wall time a member that owes an answer may stay silent "
+                               "(robots send a heartbeat every second while they work) before the"
+                               " world goes on without it, with one warning; it may join again"),
+    "lockstep_start_timeout": (120.0, "[s] wall time the first tick waits for the robot of every "
+                                      "body and for the `lockstep_observers`; then it starts with"
+                                      " those that joined"),
+    "lockstep_observers": ("", "comma-separated observer members the first tick waits for "
+                               "(`coverage-team`'s monitor: `coverage_team`)"),
 }
 
 
@@ -133,7 +145,7 @@ class WorldNode(Node):
 
     def __init__(self) -> None:
         super().__init__("world")
-        p = declare_parameters(self, _PARAMETERS)
+        p = declare_parameters(self, PARAMETERS)
         scan_noise = p.pop("scan_noise_std")
         starts_text = p.pop("starts")
         team_path = p.pop("team")

@@ -21,12 +21,12 @@ import numpy as np
 import pymunk
 
 from coverage_ros.core.world import RobotSpec
+from coverage_ros.core.world.robot import TB3_RADIUS
 
 ROBOT_MASS = 1.0  # [kg] TurtleBot3 Burger (about 1 kg); scaled with footprint area for others
 DRIVE_ACCEL = 50.0  # [m/s^2] drive force limit / mass: 20x a_max, so commands are tracked exactly
 DRIVE_ANGULAR_ACCEL = 200.0  # [rad/s^2] drive torque limit / moment, likewise
 ROBOT_FRICTION = 0.3  # [-] Coulomb friction against walls and robots (plastic on paint)
-TB3_RADIUS = 0.105  # [m] reference radius for the mass scaling
 
 
 def _step_towards(current: float, target: float, max_delta: float) -> float:

@@ -26,6 +26,7 @@ import numpy as np
 from coverage_ros.core.control.pose_history import TIME_JUMP_BACK, PoseHistory
 from coverage_ros.core.exploration.belief import Evidence
 from coverage_ros.core.world.grid import GridMap
+from coverage_ros.core.world.robot import TB3_RADIUS
 from coverage_ros.viz.live_exploration import ExplorationLayer
 from coverage_ros.viz.live_metrics import LiveMetrics
 from coverage_ros.viz.recording import CoverageRecorder
@@ -50,7 +51,7 @@ class LiveRates:
     cells_period: float = 0.5
     metrics_period: float = 1.0  # 0: no metrics
     scan_decimation: int = 2  # log every n-th lidar hit
-    robot_radius: float = 0.105  # [m] marker size
+    robot_radius: float = TB3_RADIUS  # [m] marker size
     computed_cells: bool = True  # the tessellation's cells until a robot publishes one
 
 

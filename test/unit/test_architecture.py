@@ -54,25 +54,49 @@ def test_modules_stay_small():
     assert big == {}
 
 
-def test_robot_params_file_matches_the_declared_parameters():
-    """config/robot.yaml lists every robot_node parameter with its declared default."""
+def test_generated_parameter_files_match_the_tables():
+    """config/robot.yaml and README's parameter tables are what the nodes' tables say."""
+    from coverage_ros.nodes.reference import stale_files
+
+    assert stale_files() == []
+
+
+def test_robot_params_file_loads_as_the_declared_defaults():
     from coverage_ros.nodes.robot_config import PARAMETERS
 
     data = yaml.safe_load((REPO / "config" / "robot.yaml").read_text())
     shipped = data["/**"]["ros__parameters"]
-    shipped.pop("use_sim_time", None)  # rclpy's own parameter
-    assert sorted(shipped) == sorted(PARAMETERS)
-    for name, (default, _) in PARAMETERS.items():
-        assert shipped[name] == default, name
-        assert type(shipped[name]) is type(default), name
+    shipped.pop("use_sim_time")  # rclpy's own parameter
+    assert shipped == {name: default for name, (default, _) in PARAMETERS.items()}
+    assert all(type(shipped[n]) is type(d) for n, (d, _) in PARAMETERS.items())
 
 
-def test_readme_documents_every_robot_parameter():
+def test_the_nodes_defaults_are_the_cores():
+    """A robot_node parameter that configures a core object starts from that object's default."""
+    from dataclasses import MISSING, fields
+
+    from coverage_ros.core.control.controller import ControllerConfig
+    from coverage_ros.core.strategies.base import StrategyContext
     from coverage_ros.nodes.robot_config import PARAMETERS
 
-    readme = (REPO / "README.md").read_text()
-    missing = [name for name in PARAMETERS if f"| `{name}` |" not in readme]
-    assert missing == []
+    shared = [(cls.__name__, f.name, f.default) for cls in (ControllerConfig, StrategyContext)
+              for f in fields(cls) if f.name in PARAMETERS and f.default is not MISSING
+              and f.name != "robot_id"]  # the node's -1: "from the namespace"
+    assert len(shared) >= 6
+    assert [(c, n, d) for c, n, d in shared if PARAMETERS[n][0] != d] == []
+
+
+def test_a_stale_section_is_found_and_rewritten():
+    from coverage_ros.nodes.parameters import markdown_table
+    from coverage_ros.nodes.reference import BEGIN, END, with_sections
+
+    table = {"rate": (2.0, "[Hz] how often")}
+    text = f"intro\n{BEGIN.format(node='n')}\n| old |\n{END.format(node='n')}\nrest\n"
+    new = with_sections(text, {"n": table}, "README.md")
+    assert markdown_table(table) in new and "| old |" not in new and new.endswith("rest\n")
+    assert with_sections(new, {"n": table}, "README.md") == new
+    with pytest.raises(ValueError, match=r"README\.md: no section for m"):
+        with_sections(text, {"m": table}, "README.md")
 
 
 @pytest.mark.parametrize("module, forbidden", [

@@ -19,11 +19,11 @@ import numpy as np
 from coverage_ros.core.geodesic.domain import CoverageDomain
 from coverage_ros.core.world.density import TargetPolygons
 from coverage_ros.core.world.grid import OCCUPIED, GridMap
+from coverage_ros.core.world.robot import TB3_RADIUS  # the paper's robot (Fig. 16)
 
 RES = 0.1  # [m] per cell
 SIDE = 200  # [cells] the paper's 200 x 200 pixel domains
 ARENA = SIDE * RES  # [m]
-TB3_RADIUS = 0.105  # [m] TurtleBot3 Burger, the paper's robot (Fig. 16)
 SLOW, FAST = 0.4, 0.8  # [m/s] the paper's two top speeds (Sec. IV-C; R_i = v_max t, Eq. 16)
 #: Fig. 3: a larger and a smaller target with masses 68 : 32. The paper gives no shapes, but
 #: its numbers fix the ratio: iCVT + projection put "nine in the larger target and one in the

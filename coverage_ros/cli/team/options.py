@@ -19,6 +19,7 @@ from coverage_ros.core.strategies import EXPLORERS, STRATEGIES, StrategyChoice, 
 from coverage_ros.core.world.region import Region, parse_region_text
 from coverage_ros.core.world.yaml_io import yaml_mapping
 from coverage_ros.errors import ConfigError
+from coverage_ros.nodes.robot_config import PARAMETERS
 from coverage_ros.nodes.runner import EXECUTORS, executor_kind
 
 
@@ -70,7 +71,8 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--serve-web", action="store_true",
                     help="serve the rerun web viewer on 127.0.0.1")
     ap.add_argument("--domain-id", type=int, help="ROS_DOMAIN_ID (default: a fresh one)")
-    ap.add_argument("--control-rate", type=float, default=2.0, help="[Hz] coverage updates")
+    ap.add_argument("--control-rate", type=float, default=PARAMETERS["control_rate"][0],
+                    help="[Hz] coverage updates (robot_node control_rate)")
     ap.add_argument("--update-load", type=float, default=None,
                     help="robot_node update_load: CPU share of one core each robot may spend "
                     "on coverage updates (default: the team's fair share of 15 %% of the "
@@ -148,7 +150,7 @@ class RunConfig:
     viewer: bool = False
     serve_web: bool = False
     domain_id: int | None = None
-    control_rate: float = 2.0  # [Hz]
+    control_rate: float = PARAMETERS["control_rate"][0]  # [Hz]
     update_load: float | None = None
     state_rate: float | None = None  # [Hz]
     clock_rate: float = 10.0  # [Hz, sim time]

@@ -17,6 +17,7 @@ from coverage_ros.cli.team.network import check_reach, discovery_advice, parse_r
 from coverage_ros.cli.team.options import RunConfig
 from coverage_ros.cli.team.processes import executable, ros_args
 from coverage_ros.cli.team.robots import (
+    CONTAINER_SEARCH_REUSE,
     RobotProcess,
     default_robots_per_process,
     plan_processes,
@@ -100,8 +101,10 @@ class RunPlan:
 
 
 def robot_parameters(config: RunConfig, world_path: Path, team: tuple[TeamMember, ...],
-                     update_load: float, state_rate: float) -> dict[int, dict[str, object]]:
-    """robot_node's parameters of each robot of the team."""
+                     update_load: float, state_rate: float,
+                     per_process: int = 1) -> dict[int, dict[str, object]]:
+    """robot_node's parameters of each robot of the team (``per_process`` to a process)."""
+    shared = {"search_reuse": CONTAINER_SEARCH_REUSE} if per_process > 1 else {}
     return {m.id: {"robot_id": m.id, "use_sim_time": True, "strategy": config.strategy,
                    "world": str(world_path), "control_rate": float(config.control_rate),
                    "update_load": float(update_load), "state_rate": float(state_rate),
@@ -109,7 +112,7 @@ def robot_parameters(config: RunConfig, world_path: Path, team: tuple[TeamMember
                    "manual": m.role == "human", "map_free": config.map_free,
                    "team_size": len(team), "lockstep": config.lockstep,
                    "region": "|".join(config.regions),
-                   **spec_parameters(m.spec), **config.robot_params} for m in team}
+                   **spec_parameters(m.spec), **shared, **config.robot_params} for m in team}
 
 
 def plan_run(config: RunConfig, out: Path, env: Mapping[str, str] | None = None,
@@ -133,7 +136,7 @@ def plan_run(config: RunConfig, out: Path, env: Mapping[str, str] | None = None,
     radius = max(m.spec.radius for m in team)
     domain = world_domain(world, radius)
     config.region.restrict(domain.density, world.grid, domain.free, "--region")  # refused if empty
-    params = robot_parameters(config, world_path, team, load, state_rate)
+    params = robot_parameters(config, world_path, team, load, state_rate, per_process)
     processes = plan_processes(params, per_process, {f.robot for f in faults} | set(remote),
                                out / "params")
     notes = []

@@ -41,6 +41,9 @@ SOLO_STATES_PER_SECOND = 40.0
 #: processes 0.56, in 8 0.84, in 4 0.96).
 SOLO_PER_CORE = 8
 PROCESSES_PER_CORE = 2
+#: [m] robot_node search_reuse for robots sharing a process: a robot takes its cell from a
+#: whole-map search another one made while the team stood within this of where it had them.
+CONTAINER_SEARCH_REUSE = 0.2
 
 
 def default_update_load(robots: int, per_process: int = 1) -> float:

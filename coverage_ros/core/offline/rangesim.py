@@ -13,6 +13,7 @@ import numpy as np
 from coverage_ros.core.strategies.base import Scan
 from coverage_ros.core.world import LidarSpec
 from coverage_ros.core.world.grid import GridMap
+from coverage_ros.core.world.robot import TB3_RADIUS
 
 #: Ray-marching step as a fraction of a cell: the range error is below this many cells.
 STEP_CELLS = 1.0 / 3.0
@@ -40,7 +41,7 @@ def simulate_scan(grid: GridMap, pose: np.ndarray, lidar: LidarSpec,
     ranges = np.where(hit.any(axis=1), t[first], np.inf)
     if others is not None and len(others):
         others = np.asarray(others, dtype=np.float64).reshape(-1, 2)
-        radii = np.broadcast_to(np.asarray(other_radii if other_radii is not None else 0.105,
+        radii = np.broadcast_to(np.asarray(other_radii if other_radii is not None else TB3_RADIUS,
                                            dtype=np.float64), (len(others),))
         # |o + s d - c|^2 = r^2 with |d| = 1: s = b -/+ sqrt(b^2 - (|o - c|^2 - r^2)).
         ox, oy = others[:, 0] - x, others[:, 1] - y

@@ -23,6 +23,7 @@ from geometry_msgs.msg import Point
 from std_msgs.msg import ColorRGBA
 from visualization_msgs.msg import Marker, MarkerArray
 
+from coverage_ros.core.world.robot import TB3_RADIUS
 from coverage_ros.nodes.conversions.basics import MAP_FRAME
 
 #: The namespaces of a robot's markers (README "RViz").
@@ -36,7 +37,7 @@ class RobotMarkers:
     robot_id: int
     color: tuple[float, float, float]  # RGB in [0, 1]
     position: tuple[float, float] | None = None
-    radius: float = 0.105
+    radius: float = TB3_RADIUS
     outline: np.ndarray | None = None  # (K, 2, 2) segments
     goal: tuple[float, float] | None = None
     plan: np.ndarray | None = None  # (M, 2)

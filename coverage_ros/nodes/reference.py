@@ -1,0 +1,80 @@
+"""The files generated from the nodes' parameter tables (:mod:`.parameters`):
+``config/robot.yaml`` and README's parameter tables. ``python -m coverage_ros.nodes.reference
+--write`` rewrites them; without ``--write`` it exits 1 naming each one that differs from its
+table (the tests check the same).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Callable, Mapping
+from pathlib import Path
+
+from coverage_ros.nodes.parameters import ParameterTable, markdown_table, params_file_text
+
+REPO = Path(__file__).resolve().parents[2]
+ROBOT_YAML = REPO / "config" / "robot.yaml"
+README = REPO / "README.md"
+#: The README section generated from each node's table sits between these lines.
+BEGIN = "<!-- parameters of {node}: generated from its table (python -m " \
+    "coverage_ros.nodes.reference --write) -->"
+END = "<!-- end of the parameters of {node} -->"
+
+
+
+def node_tables() -> dict[str, ParameterTable]:
+    """Every node's table, by executable name."""
+    from coverage_ros.nodes.marker_node import PARAMETERS as MARKERS
+    from coverage_ros.nodes.rerun_bridge import PARAMETERS as BRIDGE
+    from coverage_ros.nodes.robot_config import PARAMETERS as ROBOT
+    from coverage_ros.nodes.world_node import PARAMETERS as WORLD
+
+    return {"robot_node": ROBOT, "world_node": WORLD, "rerun_bridge": BRIDGE,
+            "marker_node": MARKERS}
+
+
+def with_sections(text: str, tables: Mapping[str, ParameterTable], where: str) -> str:
+    """``text`` with each node's generated section replaced by its table now (ValueError naming
+    ``where`` and the node when a section's markers are missing)."""
+    for node, table in tables.items():
+        begin, end = BEGIN.format(node=node), END.format(node=node)
+        i, j = text.find(begin), text.find(end)
+        if i < 0 or j < i:
+            raise ValueError(f"{where}: no section for {node} (lines '{begin}' ... '{end}')")
+        text = text[:i] + begin + "\n\n" + markdown_table(table) + "\n\n" + text[j:]
+    return text
+
+
+def generated_files() -> dict[Path, Callable[[str], str]]:
+    """Each generated file and how its text now becomes what its tables say."""
+    tables = node_tables()
+    return {ROBOT_YAML: lambda _: params_file_text("robot_node", tables["robot_node"]),
+            README: lambda text: with_sections(text, tables, str(README))}
+
+
+def stale_files() -> list[Path]:
+    """The generated files that differ from their tables."""
+    return [path for path, make in generated_files().items()
+            if path.read_text() != make(path.read_text())]
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m coverage_ros.nodes.reference",
+                                 description=__doc__.split("\n\n")[0])
+    ap.add_argument("--write", action="store_true", help="rewrite the generated files")
+    args = ap.parse_args(argv)
+    if args.write:
+        for path, make in generated_files().items():
+            path.write_text(make(path.read_text()))
+            print(f"wrote {path}")
+        return 0
+    stale = stale_files()
+    for path in stale:
+        print(f"{path}: differs from the parameter tables; run python -m "
+              "coverage_ros.nodes.reference --write", file=sys.stderr)
+    return 1 if stale else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

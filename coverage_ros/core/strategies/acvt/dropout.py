@@ -31,12 +31,8 @@ import numpy as np
 
 from coverage_ros.core.geodesic.domain import CoverageDomain
 from coverage_ros.core.strategies.acvt.cells import CellSpec, MassCells, normalized_masses
-from coverage_ros.core.strategies.acvt.relocation import (
-    RelocationConfig,
-    best_relocation,
-    cvt_step,
-    team_metric,
-)
+from coverage_ros.core.strategies.acvt.prediction import cvt_step, team_metric
+from coverage_ros.core.strategies.acvt.relocation import RelocationConfig, best_relocation
 from coverage_ros.errors import ConfigError
 
 #: Paper, Sec. II-D: the dropout ends once the filtered Delta I falls below this.

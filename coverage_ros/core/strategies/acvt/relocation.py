@@ -17,7 +17,7 @@ in how equal their cells are, and a step into a heavy neighbour's cell lets the 
 into a nearby, more equal one, where a far point rebuilds the same; a team of mixed reaches has
 few plans, and live on Fig. 18a-c's setting these steps spent them worse: median I^H 0.040
 against 0.027), and the team's iCVT + projection is run forward to convergence from there
-(:func:`settle`). The best of these
+(:func:`.prediction.settle`). The best of these
 predictions is taken if its metric (I, I^L or I^H) is below the team's own future - the CVT
 it reaches without a move - by at least ``margin`` (``mixed_margin`` in a team of mixed
 reaches); otherwise nothing moves. (Weighed against the present metric instead, a team whose
@@ -63,13 +63,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from coverage_ros.core.strategies.acvt.cells import (
-    CellSpec,
-    MassCells,
-    deviation_metric,
-    normalized_masses,
-)
+from coverage_ros.core.strategies.acvt.cells import CellSpec, MassCells, normalized_masses
 from coverage_ros.core.strategies.acvt.exchange import agent_regions, exchanges, swaps
+from coverage_ros.core.strategies.acvt.prediction import coverage_energy, settle, team_metric
 from coverage_ros.errors import ConfigError
 
 #: Fewest the predicted metric must fall by for a relocation to be made (absolute; I is a
@@ -173,24 +169,6 @@ class Relocation:
         return self.points[self.agents.index(agent)].copy() if agent in self.agents else None
 
 
-def cvt_step(cells: MassCells, spec: CellSpec, positions: np.ndarray,
-             reach: np.ndarray | None, movers: np.ndarray | None = None,
-             projection: bool = True) -> np.ndarray:
-    """One iCVT (+ projection, Eq. 8) step of the agents ``movers`` (bool mask; all by
-    default) on the partition among themselves; the others keep their place. An agent with an
-    empty cell keeps its position as virtual target (then projected). ``(k, 2)`` [m] in and
-    out."""
-    P = np.asarray(positions, dtype=np.float64)
-    idx = np.arange(len(P)) if movers is None else np.flatnonzero(movers)
-    sub_reach = None if reach is None else reach[idx]
-    labels = cells.labels(P[idx], sub_reach, spec)
-    _, centroids = cells.stats(labels, len(idx))
-    virt = np.where(np.isnan(centroids), P[idx], centroids)
-    out = P.copy()
-    out[idx] = cells.project(virt) if projection else virt
-    return out
-
-
 class MetricLevel:
     """Whether a settled team's metric has stopped falling: among the last ``window`` + 1
     values recorded since the last :meth:`reset`, the newest is not below the oldest by
@@ -215,42 +193,6 @@ class MetricLevel:
     def reset(self) -> None:
         """The team is moving (a neighbour is unsettled or relocating): start over."""
         self._values.clear()
-
-
-def team_metric(cells: MassCells, spec: CellSpec, positions: np.ndarray,
-                reach: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, float]:
-    """``(labels (N,), masses (k,), metric)`` of the partition at ``positions``: I (Eq. 9),
-    I^L (Eq. 13) or I^H (Eq. 18), as the paper uses for the scenario."""
-    labels = cells.labels(positions, reach, spec)
-    masses, _ = cells.stats(labels, len(positions))
-    return labels, masses, deviation_metric(masses, cells.total, reach, spec.visibility)
-
-
-def coverage_energy(cells: MassCells, labels: np.ndarray, positions: np.ndarray,
-                    reach: np.ndarray | None = None) -> float:
-    """Eq. 2: H = sum of |s - p_i|^2 rho(s) ds over each agent's labelled cells (uncovered
-    cells count nothing); with ``reach (k,)`` each agent's term is divided by R_i^2 - the
-    energy that the partition by |s - p_i| / R_i (Eq. 17) and the centroid step descend."""
-    ok = labels >= 0
-    d = cells.xy[ok] - np.asarray(positions, dtype=np.float64)[labels[ok]]
-    d2 = (d * d).sum(axis=1)
-    if reach is not None:
-        d2 /= np.asarray(reach, dtype=np.float64)[labels[ok]] ** 2
-    return float((d2 * cells.wdA[ok]).sum())
-
-
-def settle(cells: MassCells, spec: CellSpec, positions: np.ndarray, reach: np.ndarray | None,
-           horizon: int, tolerance: float) -> np.ndarray:
-    """iCVT + projection from ``positions`` until no agent moves farther than ``tolerance`` [m]
-    or ``horizon`` steps have run; the positions reached."""
-    P = np.asarray(positions, dtype=np.float64)
-    for _ in range(horizon):
-        new = cvt_step(cells, spec, P, reach)
-        moved = float(np.hypot(*(new - P).T).max()) if len(P) else 0.0
-        P = new
-        if moved < tolerance:
-            break
-    return P
 
 
 def insertion_point(cells: MassCells, labels: np.ndarray, positions: np.ndarray,

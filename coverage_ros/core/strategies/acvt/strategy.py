@@ -63,13 +63,13 @@ from coverage_ros.core.strategies.acvt.iterations import (
     peer_counts,
 )
 from coverage_ros.core.strategies.acvt.plans import heard_plan, plan_extras
+from coverage_ros.core.strategies.acvt.prediction import team_metric
 from coverage_ros.core.strategies.acvt.relocation import (
     DEFAULT_LEVEL_WINDOW,
     MetricLevel,
     RelocationConfig,
     best_relocation,
     movers,
-    team_metric,
 )
 from coverage_ros.core.strategies.base import (
     Decision,

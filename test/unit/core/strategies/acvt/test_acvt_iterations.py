@@ -16,7 +16,7 @@ from coverage_ros.core.strategies.acvt.iterations import (
     awaiting_mass,
     peer_counts,
 )
-from coverage_ros.core.strategies.acvt.relocation import team_metric
+from coverage_ros.core.strategies.acvt.prediction import team_metric
 from coverage_ros.core.strategies.base import (
     Neighbour,
     Observation,

@@ -28,6 +28,7 @@ from coverage_ros.core.strategies.acvt.dropout import (
 )
 from coverage_ros.core.strategies.acvt.exchange import agent_regions, exchanges, swaps
 from coverage_ros.core.strategies.acvt.plans import heard_plan, plan_extras
+from coverage_ros.core.strategies.acvt.prediction import cvt_step, settle, team_metric
 from coverage_ros.core.strategies.acvt.relocation import (
     DEFAULT_LEVEL_WINDOW,
     JUMP_DISTANCE,
@@ -36,11 +37,8 @@ from coverage_ros.core.strategies.acvt.relocation import (
     MetricLevel,
     RelocationConfig,
     best_relocation,
-    cvt_step,
     insertion_point,
     movers,
-    settle,
-    team_metric,
 )
 from coverage_ros.core.world.robot import RobotSpec
 from coverage_ros.errors import ConfigError

@@ -2,6 +2,13 @@
 
 from __future__ import annotations
 
+import subprocess
+from pathlib import Path
+
+import numpy as np
+
+RERUN = Path(__file__).resolve().parents[1] / ".venv" / "bin" / "rerun"
+
 
 def read_rrd(path) -> dict[str, list[tuple[float | None, dict]]]:
     """``{entity: [(sim_time [s] or None if static, {component: value}), ...]}``, time-sorted."""
@@ -19,3 +26,16 @@ def read_rrd(path) -> dict[str, list[tuple[float | None, dict]]]:
     for entries in rows.values():
         entries.sort(key=lambda e: -1.0 if e[0] is None else e[0])
     return rows
+
+
+def cell_rgba(row: dict) -> np.ndarray:
+    """``(H, W, 4)`` cell layer of a /world/cells row, flipped back to ROS row order."""
+    fmt = row["GridMap:format"][0]
+    data = np.array(row["GridMap:data"][0], dtype=np.uint8)
+    return np.flipud(data.reshape(fmt["height"], fmt["width"], 4))
+
+
+def rerun_verify(path) -> subprocess.CompletedProcess:
+    exe = str(RERUN) if RERUN.exists() else "rerun"
+    return subprocess.run([exe, "rrd", "verify", str(path)], capture_output=True, text=True,
+                          timeout=60)

@@ -1,239 +1,22 @@
-"""The rerun bridge: its numpy helpers and layers without ROS, then the real node streaming a
-world node's team (plus messages a test client publishes as the robots) into a .rrd file."""
+"""The rerun bridge as a real node: it streams a world node's team (plus messages a test client
+publishes as the robots) into a .rrd file; its web viewer (the layers without ROS:
+unit/viz/test_live_team.py, test_viz_team.py, test_recording.py)."""
 
 from __future__ import annotations
 
 import math
-import os
 import signal
-import subprocess
 import sys
 from dataclasses import dataclass, field
 
 import numpy as np
 import pytest
-from conftest import REPO
 from rosutil import NodeProcess, RosClient, domain_id
-from rrdutil import read_rrd
+from rrdutil import cell_rgba, read_rrd, rerun_verify
 
-from coverage_ros.core.control.pose_history import PoseHistory
 from coverage_ros.core.world.grid import GridMap
 from coverage_ros.viz.colors import robot_color
-from coverage_ros.viz.team import Schedule, Trajectory, compose_cell_labels
 
-RERUN = REPO / ".venv" / "bin" / "rerun"
-
-
-# ---------------------------------------------------------------------------- reading a recording
-def cell_rgba(row: dict) -> np.ndarray:
-    """``(H, W, 4)`` cell layer of a /world/cells row, flipped back to ROS row order."""
-    fmt = row["GridMap:format"][0]
-    data = np.array(row["GridMap:data"][0], dtype=np.uint8)
-    return np.flipud(data.reshape(fmt["height"], fmt["width"], 4))
-
-
-def rerun_verify(path) -> subprocess.CompletedProcess:
-    exe = str(RERUN) if RERUN.exists() else "rerun"
-    return subprocess.run([exe, "rrd", "verify", str(path)], capture_output=True, text=True,
-                          timeout=60)
-
-
-# ---------------------------------------------------------------------------- unit tests
-def test_compose_cell_labels_places_crops_and_later_cells_win():
-    grid = GridMap(np.zeros((10, 12)), 0.5, (-1.0, 2.0, 0.0))
-    a = GridMap(np.full((4, 3), 100), 0.5, (0.0, 3.0, 0.0))  # rows 2..5, cols 2..4
-    b_occ = np.zeros((2, 4))
-    b_occ[:, 1:] = 100  # first column not in the cell
-    b = GridMap(b_occ, 0.5, (0.5, 4.5, 0.0))  # rows 5..6, cols 3..6, overlaps a at (5, 4)
-    off = GridMap(np.full((3, 3), 100), 0.5, (40.0, 40.0, 0.0))  # beyond the map
-    edge = GridMap(np.full((3, 3), 100), 0.5, (4.0, 6.0, 0.0))  # rows 8..10, cols 10..12
-    labels = compose_cell_labels(grid, [a, b, off, edge])
-    expected = np.full((10, 12), -1)
-    expected[2:6, 2:5] = 0
-    expected[5:7, 4:7] = 1
-    expected[8:10, 10:12] = 3
-    np.testing.assert_array_equal(labels, expected)
-    assert compose_cell_labels(grid, []).max() == -1
-
-
-def test_compose_cell_labels_resamples_a_rotated_coarser_cell():
-    grid = GridMap(np.zeros((40, 40)), 0.1)
-    cell = GridMap(np.full((2, 2), 100), 0.5, (2.0, 1.0, math.pi / 4))  # a 1 m square at 45 deg
-    labels = compose_cell_labels(grid, [cell])
-    X, Y = grid.all_cell_centers()
-    u = (X - 2.0) * math.cos(math.pi / 4) + (Y - 1.0) * math.sin(math.pi / 4)
-    v = -(X - 2.0) * math.sin(math.pi / 4) + (Y - 1.0) * math.cos(math.pi / 4)
-    inside = (u >= 0) & (u < 1.0) & (v >= 0) & (v < 1.0)
-    np.testing.assert_array_equal(labels == 0, inside)
-    assert inside.sum() == pytest.approx(100, rel=0.1)  # 1 m^2 of 0.01 m^2 cells
-
-
-def test_scan_hits_are_placed_with_the_robot_pose():
-    pytest.importorskip("sensor_msgs")
-    from coverage_ros.core.world import LidarSpec
-    from coverage_ros.nodes import conversions as conv
-
-    lidar = LidarSpec(beams=4, range_min=0.12, range_max=3.5)  # beams at -pi, -pi/2, 0, pi/2
-    msg = conv.laser_scan_msg(np.array([1.0, np.inf, 2.0, 0.05]), lidar, conv.to_time_msg(1.0),
-                              "robot_0/base_scan")
-    angles, _ = conv.laser_scan_to_ranges(msg)
-    np.testing.assert_allclose(angles, [-math.pi, -math.pi / 2, 0.0, math.pi / 2], atol=1e-6)
-    # Robot at (2, 1) facing +y: the beam ahead (2 m) hits (2, 3), the one behind (1 m) hits
-    # (2, 0); no return (+inf) and a range below range_min give no point.
-    points = conv.scan_to_points(msg, (2.0, 1.0, math.pi / 2))
-    np.testing.assert_allclose(points, [[2.0, 0.0], [2.0, 3.0]], atol=1e-6)
-
-
-def test_pose_history_interpolates_along_the_short_way():
-    h = PoseHistory()
-    assert h.at(1.0) is None and h.latest is None
-    h.add(1.0, (0.0, 0.0, 3.0))
-    h.add(2.0, (1.0, 2.0, -3.0))  # 0.28 rad counter-clockwise across +-pi
-    x, y, yaw = h.at(1.5)
-    assert (x, y) == pytest.approx((0.5, 1.0))
-    assert abs(math.remainder(yaw - math.pi, 2 * math.pi)) < 1e-9
-    assert h.at(2.3) == h.latest == (1.0, 2.0, -3.0)  # just after: the nearest sample
-    assert h.at(5.0) is None  # too far from any sample
-    h.add(1.5, (9.0, 9.0, 0.0))  # out of order: ignored
-    assert h.at(1.5)[0] == pytest.approx(0.5)
-
-
-def test_pose_history_velocity_is_the_mean_over_its_window():
-    h = PoseHistory()
-    assert h.velocity() == {}
-    h.add(0.0, (1.0, 1.0, 0.0))
-    h.add(0.01, (1.003, 1.004, 0.0))
-    assert h.velocity() == {}  # two samples 10 ms apart: too short a span
-    h = PoseHistory()
-    for k in range(21):  # 1 s at 20 Hz, 0.5 m/s along (0.6, 0.8), then 0.5 s standing
-        t = 0.05 * k
-        h.add(t, (1.0 + 0.3 * t, 1.0 + 0.4 * t, 0.9))
-    v = h.velocity()
-    assert (v["vx"], v["vy"]) == pytest.approx((0.3, 0.4))
-    for k in range(1, 11):
-        h.add(1.0 + 0.05 * k, (1.3, 1.4, 0.9))
-    assert (h.velocity()["vx"], h.velocity()["vy"]) == pytest.approx((0.0, 0.0))
-    # 0.1 s into the stop, the mean over the last 0.3 s: 0.2 s of motion in it
-    h = PoseHistory()
-    for k in range(21):
-        h.add(0.05 * k, (0.3 * 0.05 * k, 0.0, 0.0))
-    h.add(1.1, (0.3, 0.0, 0.0))
-    assert h.velocity()["vx"] == pytest.approx(0.3 * (1.0 - 0.8) / 0.3)
-
-
-def test_trajectory_pieces_join_without_gaps_and_stay_small():
-    traj = Trajectory(segment_points=5)
-    pts = np.column_stack([np.arange(14) * 0.1, np.zeros(14)])
-    for x, y in pts:
-        assert traj.add(x, y)
-    assert not traj.add(1.3 + 1e-4, 0.0)  # a robot at rest adds nothing
-    pieces = traj.take_finished()
-    assert [k for k, _ in pieces] == [0, 1, 2] and traj.take_finished() == []
-    assert all(len(p) == 5 for _, p in pieces)
-    joined = np.vstack([pieces[0][1]] + [p[1:] for _, p in pieces[1:]] + [traj.tail[1:]])
-    np.testing.assert_allclose(joined, pts)
-    traj.break_path()
-    assert [k for k, _ in traj.take_finished()] == [3] and len(traj.tail) == 0
-
-
-def test_schedule_runs_once_per_period_and_restarts_when_time_goes_back():
-    s = Schedule(0.5)
-    assert [s.due(t) for t in (0.0, 0.2, 0.5, 0.6, 1.0, 3.0, 3.1)] == \
-        [True, False, True, False, True, True, False]
-    assert s.due(0.1)  # the simulation was restarted
-    always = Schedule(0.0)
-    assert all(always.due(t) for t in (1.0, 1.0, 1.1))
-
-
-def test_live_team_layers_without_ros(tmp_path):
-    """LiveTeam -> .rrd: markers, trajectory, cells in the robots' colours, metrics."""
-    from coverage_ros.viz.live_metrics import LiveMetrics
-    from coverage_ros.viz.live_team import LiveRates, LiveTeam
-    from coverage_ros.viz.recording import CoverageRecorder
-
-    occ = np.zeros((40, 60), dtype=np.int8)
-    occ[:, 30] = 100  # a wall with a door
-    occ[18:22, 30] = 0
-    grid = GridMap(occ, 0.1)
-    warnings = []
-    rec = CoverageRecorder("unit-test")
-    rec.set_outputs(tmp_path / "team.rrd")
-    metrics = LiveMetrics(rec, 0.1, None, lambda key, text: warnings.append(text))
-    team = LiveTeam(rec, LiveRates(metrics_period=0.5, cells_period=0.0), metrics)
-    team.set_map(grid)
-    team.add_robot(3)
-    team.add_robot(7)
-    for k in range(21):
-        t = 0.1 * k
-        team.pose(3, t, (1.0 + 0.1 * k, 2.0, 0.0))
-        team.pose(7, t, (4.5, 2.0, math.pi))
-        team.advance(t)
-        while metrics.busy:
-            metrics._job.result()
-    # A scan that overtakes the pose of its own stamp waits for it.
-    assert team.scan(3, 2.05, lambda pose: np.array([[pose[0] + 1.0, pose[1]]]))
-    team.pose(3, 2.05, (3.05, 2.0, 0.0))
-    cell3 = GridMap(np.full((40, 30), 100), 0.1)  # the left half
-    team.cell(3, 2.0, cell3)
-    team.cell(7, 2.0, GridMap(np.full((40, 29), 100), 0.1, (3.1, 0.0, 0.0)))
-    with pytest.raises(ValueError, match="not finite"):
-        team.pose(3, 2.1, (math.nan, 0.0, 0.0))
-    team.remove_robot(7)
-    metrics.close()
-    rec.close()
-    assert not warnings
-    rows = read_rrd(tmp_path / "team.rrd")
-    last_robots = rows["/world/robots"][-1][1]
-    assert last_robots["Points3D:labels"] == ["robot_3"]  # 7 left
-    first_two = [r for _, r in rows["/world/robots"] if len(r["Points3D:labels"]) == 2]
-    assert first_two, "both robots were shown together"
-    scans = rows["/world/scans/robot_3"]
-    assert len(scans) == 1 and scans[0][0] == pytest.approx(2.05)
-    assert scans[0][1]["Points3D:positions"][0][:2] == pytest.approx([4.05, 2.0])
-    tail = rows["/world/trajectories/robot_3"][-1][1]["LineStrips3D:strips"][0]
-    assert tail[0][:2] == pytest.approx([1.0, 2.0]) and tail[-1][:2] == pytest.approx([3.0, 2.0])
-    # Computed cells first (the wall splits them at the door), then the published ones.
-    cells = [(t, cell_rgba(r)) for t, r in rows["/world/cells"]]
-    assert any(t < 2.0 for t, _ in cells)  # computed ones before the first published cell
-    published = cells[-1][1]  # logged at the latest sim time, 2.05 s
-    assert tuple(published[5, 5, :3]) == tuple(robot_color(3))
-    assert tuple(published[5, 40, :3]) == tuple(robot_color(7))
-    assert published[5, 30, 3] == 0  # the wall column is in nobody's published cell
-    H = [r["Scalars:scalars"][0] for t, r in rows["/metrics/H"] if t is not None]
-    assert len(H) >= 3 and all(h > 0 for h in H)
-    m3 = {t: r["Scalars:scalars"][0] for t, r in rows["/metrics/mass/robot_3"] if t is not None}
-    m7 = {t: r["Scalars:scalars"][0] for t, r in rows["/metrics/mass/robot_7"] if t is not None}
-    from coverage_ros.core.geodesic.domain import CoverageDomain
-
-    total = CoverageDomain.from_grid(grid, 0.1).mass_element.sum()
-    # The cells of the robots posed at t cover the free space (robot 7 may miss the first
-    # request, made when only robot 3's pose had arrived).
-    assert len(set(m3) & set(m7)) >= 2
-    for t in m3:
-        assert m3[t] + m7.get(t, 0.0) == pytest.approx(total)
-    assert rerun_verify(tmp_path / "team.rrd").returncode == 0
-
-
-def test_config_is_validated():
-    pytest.importorskip("rclpy")
-    from coverage_ros.errors import ConfigError
-    from coverage_ros.nodes.rerun_bridge import BridgeConfig
-
-    assert BridgeConfig(record_path="x.rrd").rates().scan_decimation == 2
-    for kwargs, message in [
-        ({}, "no output"),
-        ({"record_path": "/nonexistent/dir/x.rrd"}, "folder does not exist"),
-        ({"connect_url": "http://localhost:9876"}, "rerun gRPC URL"),
-        ({"serve_web": True, "web_port": 9876}, "must differ"),
-        ({"record_path": "x.rrd", "metrics_period": -1.0}, "metrics_period"),
-        ({"record_path": "x.rrd", "scan_decimation": 0}, "scan_decimation"),
-        ({"record_path": "x.rrd", "robot_prefix": "robot/"}, "robot_prefix"),
-    ]:
-        with pytest.raises(ConfigError, match=message):
-            BridgeConfig(**kwargs)
-
-
-# ---------------------------------------------------------------------------- the real node
 ROOM_0 = (0.5, 0.5, 3.5, 3.0)  # [m] xmin, ymin, xmax, ymax: robot 0's cell, bottom-left room
 ROOM_1 = (8.5, 5.0, 11.5, 7.5)  # robot 1's cell, top-right room
 CORRIDOR = (6.0, 4.0)  # in nobody's published cell
@@ -374,7 +157,6 @@ def run(tmp_path_factory):
         code = bridge.proc.wait(timeout=30)
         assert world.alive(), world.output()
         yield Run(rrd, code, bridge.output(), last, moved)
-
 
 
 @pytest.mark.integration
@@ -562,53 +344,3 @@ def test_web_viewer_listens_on_localhost_only_and_stops_with_the_bridge(tmp_path
     assert rerun_verify(rrd).returncode == 0
 
 
-def test_ros2_run_layout_has_the_console_script():
-    exe = REPO / "install" / "coverage_ros" / "lib" / "coverage_ros" / "rerun_bridge"
-    assert exe.exists(), "colcon's ros2 run layout has the console script"
-    out = subprocess.run([str(REPO / ".venv" / "bin" / "rerun_bridge")], capture_output=True,
-                         text=True, timeout=60,
-                         env={**os.environ, "ROS_DOMAIN_ID": str(domain_id(22)),
-                              "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"})
-    assert out.returncode == 2
-    assert out.stderr.strip() == ("rerun_bridge: error: record_path: no output: set "
-                                  "record_path, connect_url or serve_web (got '')")
-
-
-def test_a_saved_recording_opens_at_its_end_and_shows_the_region(tmp_path):
-    """The blueprint's time panel follows the newest data: a saved file opens on the team at
-    its end, not on an empty map at its first second. The region of interest is a layer."""
-    from rerun.chunk import RrdReader
-
-    from coverage_ros.viz.recording import CoverageRecorder
-
-    path = tmp_path / "r.rrd"
-    rec = CoverageRecorder()
-    rec.set_outputs(path)
-    rec.log_map(GridMap(np.zeros((10, 10), np.int8), 0.1))
-    rec.send_blueprint()
-    rec.set_time(1.0)
-    rec.log_robots([0], np.array([[0.5, 0.5]]), [0.1])
-    rec.log_region([np.array([[0.1, 0.1], [0.6, 0.1], [0.6, 0.6]])])
-    rec.close()
-    reader = RrdReader(path)
-    states = []
-    for bp in reader.blueprints():
-        for chunk in reader.store(store=bp).stream():
-            batch = chunk.to_record_batch()
-            if "TimePanelBlueprint:play_state" in batch.schema.names:
-                states += batch.column("TimePanelBlueprint:play_state").to_pylist()
-    assert states and all(s == [3] for s in states), states  # 3: following
-    region = read_rrd(path)["/world/region"]
-    strips = region[-1][1]["LineStrips3D:strips"][0]
-    assert len(strips) == 4  # closed triangle
-
-
-def test_a_recording_that_cannot_be_indexed_is_left_as_it_was(tmp_path):
-    from coverage_ros.viz.recording import index_recording
-
-    bad = tmp_path / "broken.rrd"
-    bad.write_bytes(b"not a recording at all")
-    problem = index_recording(bad)
-    assert problem is not None and "without rerun's chunk index" in problem
-    assert bad.read_bytes() == b"not a recording at all"
-    assert [p.name for p in tmp_path.iterdir()] == ["broken.rrd"]  # no half-written file left

@@ -1,5 +1,6 @@
-"""/tf like a real robot's: the frame math, tf2_msgs built with the upstream type hash, the
-world node's REP 105 chain per robot, and robots that take their pose from it."""
+"""/tf like a real robot's: the world node's REP 105 chain per robot, consistent with its
+ground truth (the frame math: unit/core/control/test_frames.py; tf2_msgs' type hash:
+unit/nodes/test_messages.py)."""
 
 from __future__ import annotations
 
@@ -8,57 +9,9 @@ import time
 
 import numpy as np
 import pytest
-from hypothesis import given
-from hypothesis import strategies as st
 from rosutil import NodeProcess, RosClient, domain_id
 
-from coverage_ros.core.control.frames import FrameTree, compose, invert
-
-#: tf2_msgs/msg/TFMessage as every Jazzy install reports it (ros2 topic info -v).
-UPSTREAM_HASH = "RIHS01_e369d0f05a23ae52508854b66f6aa0437f3449d652e8cbf22d5abe85d020f087"
-
-poses = st.tuples(st.floats(-50, 50), st.floats(-50, 50), st.floats(-math.pi, math.pi))
-
-
-@given(poses, poses, poses)
-def test_compose_is_associative_and_invert_undoes_it(a, b, c):
-    left, right = compose(compose(a, b), c), compose(a, compose(b, c))
-    assert left[:2] == pytest.approx(right[:2], abs=1e-9)
-    assert math.cos(left[2] - right[2]) == pytest.approx(1.0)
-    ident = compose(a, invert(a))
-    assert ident[:2] == pytest.approx((0.0, 0.0), abs=1e-9) and math.sin(ident[2]) == \
-        pytest.approx(0.0, abs=1e-12)
-
-
-def test_the_tree_walks_from_base_link_up_to_map():
-    tree = FrameTree()
-    assert tree.lookup("map", "r/base_link") is None
-    tree.set("map", "r/odom", (1.0, 0.0, math.pi / 2), 5.0)
-    tree.set("r/odom", "r/base_footprint", (2.0, 0.0, 0.0), 6.0)
-    tree.set("/r/base_footprint", "r/base_link", (0.0, 0.0, 0.0), -math.inf)  # static
-    pose, stamp = tree.lookup("map", "r/base_link")
-    assert pose == pytest.approx((1.0, 2.0, math.pi / 2)) and stamp == 5.0
-    tree.set("map", "r/odom", (9.0, 9.0, 0.0), 4.0)  # older than the one kept: ignored
-    assert tree.lookup("map", "r/base_link")[0] == pytest.approx((1.0, 2.0, math.pi / 2))
-    tree.set("r/base_link", "map", (0.0, 0.0, 0.0), 7.0)  # someone publishes a loop
-    assert tree.lookup("world", "r/base_link") is None  # bounded, not endless
-    with pytest.raises(ValueError, match="not finite"):
-        tree.set("map", "x", (math.nan, 0.0, 0.0), 1.0)
-    with pytest.raises(ValueError, match="two different frames"):
-        tree.set("a", "a", (0.0, 0.0, 0.0), 1.0)
-
-
-def test_tf2_msgs_is_built_with_the_upstream_type_hash():
-    from tf2_msgs.msg import TFMessage
-
-    client = RosClient(domain_id(9), "hash_check")
-    try:
-        client.node.create_publisher(TFMessage, "/tf", 10)
-        info = client.node.get_publishers_info_by_topic("/tf")
-        assert [str(i.topic_type_hash) for i in info] == [UPSTREAM_HASH]
-        assert info[0].topic_type == "tf2_msgs/msg/TFMessage"
-    finally:
-        client.close()
+from coverage_ros.core.control.frames import FrameTree
 
 
 @pytest.mark.integration

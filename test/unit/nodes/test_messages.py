@@ -1,6 +1,7 @@
 """The stack's own messages (interfaces/coverage_msgs): built, and with the type hashes that
 nodes built from this version announce - a change to a message changes its hash, and nodes of
-the old and the new version no longer talk (update the hash here on purpose, never by accident)."""
+the old and the new version no longer talk (update the hash here on purpose, never by accident);
+tf2_msgs, built here too, with the upstream hash."""
 
 from __future__ import annotations
 
@@ -40,3 +41,20 @@ def test_the_modes_of_a_coverage_state_are_the_strategies_modes():
     assert RobotState.MODE_NONE > len(MODES) and RobotState.MODE_OTHER > len(MODES)
     with pytest.raises(AttributeError):
         RobotState.MODE_NO_SUCH_MODE  # noqa: B018
+
+
+#: tf2_msgs/msg/TFMessage as every Jazzy install reports it (ros2 topic info -v).
+UPSTREAM_HASH = "RIHS01_e369d0f05a23ae52508854b66f6aa0437f3449d652e8cbf22d5abe85d020f087"
+
+
+def test_tf2_msgs_is_built_with_the_upstream_type_hash():
+    from tf2_msgs.msg import TFMessage
+
+    client = RosClient(domain_id(9), "hash_check")
+    try:
+        client.node.create_publisher(TFMessage, "/tf", 10)
+        info = client.node.get_publishers_info_by_topic("/tf")
+        assert [str(i.topic_type_hash) for i in info] == [UPSTREAM_HASH]
+        assert info[0].topic_type == "tf2_msgs/msg/TFMessage"
+    finally:
+        client.close()

@@ -202,3 +202,19 @@ def test_the_world_status_carries_every_robot_field():
     msg = conv.world_status_msg(conv.to_time_msg(2.0), "office", 1.0, 100, 0, [robot])
     assert conv.world_status_robots(msg) == {3: pytest.approx({k: float(v)
                                                                for k, v in robot.items()})}
+
+
+def test_scan_hits_are_placed_with_the_robot_pose():
+    pytest.importorskip("sensor_msgs")
+    from coverage_ros.core.world import LidarSpec
+    from coverage_ros.nodes import conversions as conv
+
+    lidar = LidarSpec(beams=4, range_min=0.12, range_max=3.5)  # beams at -pi, -pi/2, 0, pi/2
+    msg = conv.laser_scan_msg(np.array([1.0, np.inf, 2.0, 0.05]), lidar, conv.to_time_msg(1.0),
+                              "robot_0/base_scan")
+    angles, _ = conv.laser_scan_to_ranges(msg)
+    np.testing.assert_allclose(angles, [-math.pi, -math.pi / 2, 0.0, math.pi / 2], atol=1e-6)
+    # Robot at (2, 1) facing +y: the beam ahead (2 m) hits (2, 3), the one behind (1 m) hits
+    # (2, 0); no return (+inf) and a range below range_min give no point.
+    points = conv.scan_to_points(msg, (2.0, 1.0, math.pi / 2))
+    np.testing.assert_allclose(points, [[2.0, 0.0], [2.0, 3.0]], atol=1e-6)

@@ -1,0 +1,63 @@
+"""The launcher's options: impossible runs and faults refused before anything starts, with one
+line (coverage_ros/cli/team/options.py)."""
+
+from __future__ import annotations
+
+import subprocess
+
+import pytest
+from conftest import REPO
+from rosutil import domain_id, ros_env
+
+from coverage_ros.errors import ConfigError
+
+TEAM = [str(REPO / ".venv" / "bin" / "coverage-team")]
+
+
+@pytest.fixture(autouse=True)
+def own_lock_dir(tmp_path, monkeypatch):
+    """Locks of this test's runs only (the machine's real runs keep theirs)."""
+    monkeypatch.setenv("COVERAGE_ROS_LOCK_DIR", str(tmp_path / "locks"))
+
+
+@pytest.mark.parametrize(("args", "message"), [
+    (["--robots", "500", "--robots-per-process", "1", "--world", "l_shape"],
+     "--robots: 500 robots"),
+    (["--domain-id", "300"], "--domain-id: must be in 0..232"),
+    # Robots on other hosts while discovery stays on this one (LOCALHOST): never found.
+    (["--robots", "3", "--remote-robots", "2"], "--remote-robots: robots on other hosts need "
+     "DDS discovery beyond this host"),
+    (["--robots", "3", "--remote-robots", "3"], "--remote-robots: robot id out of range 0..2"),
+    (["--robots", "3", "--remote-robots", "1", "--discovery-server", "127.0.0.1",
+      "--restart", "1@5"], "--kill/--restart: cannot reach a robot on another host"),
+    (["--discovery-server", "localhost:x"], "--discovery-server: must be IPV4[:PORT]"),
+])
+def test_impossible_runs_are_refused_before_anything_starts(tmp_path, args, message):
+    out = tmp_path / "team"
+    proc = subprocess.run(TEAM + ["--out", str(out), *args], capture_output=True, text=True,
+                          timeout=120, env=ros_env(domain_id(26)))
+    assert proc.returncode == 2, proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and message in lines[0], proc.stderr
+    assert not (out / "logs").exists()
+
+
+def test_an_unknown_executor_in_the_environment_is_refused_before_anything_starts(tmp_path):
+    out = tmp_path / "team"
+    proc = subprocess.run(TEAM + ["--out", str(out)], capture_output=True, text=True,
+                          timeout=120, env=ros_env(domain_id(26), COVERAGE_ROS_EXECUTOR="bad"))
+    assert proc.returncode == 2, proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and "COVERAGE_ROS_EXECUTOR='bad'" in lines[0], proc.stderr
+    assert not (out / "logs").exists()
+
+
+def test_faults_are_checked_before_anything_starts():
+    from coverage_ros.cli.team.faults import parse_faults as _faults
+
+    assert [(f.time, f.robot, f.action) for f in _faults(["0@5"], ["1@3", "0@2"], 2)] == [
+        (2.0, 0, "restart"), (3.0, 1, "restart"), (5.0, 0, "kill")]
+    for kills, restarts, message in [([], ["2@3"], "out of range"), ([], ["1"], "ID@SECONDS"),
+                                     (["1@3"], ["1@4"], "killed"), ([], ["0@-1"], ">= 0")]:
+        with pytest.raises(ConfigError, match=message):
+            _faults(kills, restarts, 2)

@@ -1,4 +1,10 @@
-"""Shared test fixtures and helpers."""
+"""Shared test fixtures and helpers, and the markers a test's folder gives it.
+
+test/unit/ mirrors coverage_ros/ (a test sits under the part it tests); test/integration/ holds
+the tests that start real node processes and talk to them over DDS - each of them is marked
+``integration`` here, by its folder, never in the file. ``lockstep`` (a live team in lock-step,
+which may run beside other tests) and ``slow`` stay on the tests themselves.
+"""
 
 from __future__ import annotations
 
@@ -8,7 +14,8 @@ from pathlib import Path
 
 import pytest
 
-REPO = Path(__file__).resolve().parents[1]
+TESTS = Path(__file__).resolve().parent
+REPO = TESTS.parent
 SHARED_MAPS = REPO.parent / "shared" / "maps"
 WORLDS = REPO / "config" / "worlds"
 
@@ -43,3 +50,32 @@ def rng():
     import numpy as np
 
     return np.random.default_rng(12345)
+
+
+def _kind(path: Path) -> str:
+    """``unit`` or ``integration``: the top folder of a test file below test/."""
+    parts = path.resolve().relative_to(TESTS).parts
+    return parts[0] if len(parts) > 1 else ""
+
+
+@pytest.hookimpl(tryfirst=True)  # before -m deselects by marker
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Every test under test/integration gets ``integration``; a test elsewhere that says it is
+    one, a lock-step test outside integration, or a test file outside both folders is a
+    mistake that would put the test in the wrong phase of scripts/test."""
+    wrong = []
+    for item in items:
+        kind = _kind(Path(item.path))
+        if kind not in ("unit", "integration"):
+            wrong.append(f"{item.nodeid}: test files live in test/unit or test/integration")
+        elif item.get_closest_marker("integration") is not None:
+            wrong.append(f"{item.nodeid}: an integration test is one in test/integration "
+                         "(the folder marks it; no explicit mark)")
+        elif kind == "unit" and item.get_closest_marker("lockstep") is not None:
+            wrong.append(f"{item.nodeid}: lockstep marks a live team's test, in "
+                         "test/integration")
+        if kind == "integration":
+            item.add_marker(pytest.mark.integration)
+    if wrong:
+        raise pytest.UsageError("\n".join(wrong))
+

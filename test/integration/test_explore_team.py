@@ -17,7 +17,7 @@ from teamdiag import team_diagnosis
 from coverage_ros.core.world import load_world
 from coverage_ros.core.world.map_server import load_map_yaml
 
-pytestmark = [pytest.mark.integration, pytest.mark.slow, pytest.mark.lockstep]
+pytestmark = [pytest.mark.slow, pytest.mark.lockstep]
 
 TEAM = [str(REPO / ".venv" / "bin" / "coverage-team"), "--quiet", "--explore", "--lockstep",
         "--no-markers"]

@@ -15,7 +15,6 @@ from rosutil import NodeProcess, domain_id
 from teamdiag import team_diagnosis
 
 
-@pytest.mark.integration
 @pytest.mark.slow
 def test_a_team_with_its_own_navigation_and_localization_converges(tmp_path):
     """Three robots set up as on a Nav2 robot: drive: false, driven by a stand-in navigator

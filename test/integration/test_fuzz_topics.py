@@ -11,7 +11,7 @@ from rosutil import domain_id
 from coverage_ros.bench.fuzz import ROBOTS, FuzzReport, FuzzTeam
 from coverage_ros.bench.fuzz_messages import TOPICS
 
-pytestmark = [pytest.mark.integration, pytest.mark.slow]
+pytestmark = pytest.mark.slow
 
 
 def test_the_table_names_every_subscribed_topic_of_every_node():

@@ -17,7 +17,7 @@ from coverage_ros.bench.environment import have_tools
 from coverage_ros.bench.hosts import hosts_network, run_across_hosts
 from coverage_ros.cli.plan import main as plan_main
 
-pytestmark = [pytest.mark.integration, pytest.mark.slow]
+pytestmark = pytest.mark.slow
 
 RECEIVE = """
 import socket

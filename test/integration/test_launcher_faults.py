@@ -47,7 +47,6 @@ def _children(pid: int) -> list[psutil.Process]:
         return []
 
 
-@pytest.mark.integration
 @pytest.mark.parametrize("when", [2.0, 12.0])  # during start-up, in the middle of the run
 def test_an_interrupt_at_any_moment_leaves_nothing_behind(tmp_path, when):
     out = tmp_path / "team"
@@ -87,7 +86,6 @@ def test_an_interrupt_at_any_moment_leaves_nothing_behind(tmp_path, when):
             os.killpg(pid, signal.SIGKILL)
 
 
-@pytest.mark.integration
 @pytest.mark.parametrize("when", [3.0, 10.0])  # [s] after its first child
 def test_a_launcher_killed_during_a_big_start_up_leaves_nothing_behind(tmp_path, when):
     """SIGKILL gives the launcher no say: its children go because the kernel tells them
@@ -123,7 +121,6 @@ def test_a_launcher_killed_during_a_big_start_up_leaves_nothing_behind(tmp_path,
                 os.killpg(pid, signal.SIGKILL)
 
 
-@pytest.mark.integration
 @pytest.mark.slow
 def test_serve_web_takes_free_ports_and_shows_the_team_in_a_browser(tmp_path):
     """Another run holds the default ports (9090, 9876): the web viewer still comes up, on
@@ -190,7 +187,6 @@ def test_serve_web_takes_free_ports_and_shows_the_team_in_a_browser(tmp_path):
     assert "already in use" not in (out / "logs" / "bridge.log").read_text()
 
 
-@pytest.mark.integration
 @pytest.mark.slow
 def test_a_second_simulation_on_the_domain_stops_the_team_with_one_line(tmp_path):
     """Someone starts another world node on the team's domain mid-run: the launcher and the
@@ -221,7 +217,6 @@ def test_a_second_simulation_on_the_domain_stops_the_team_with_one_line(tmp_path
     assert last.startswith("coverage-team: error: ") and "/clock" in last, err[-2000:]
 
 
-@pytest.mark.integration
 @pytest.mark.slow
 def test_a_restarted_robot_rejoins_and_the_team_reconverges(tmp_path):
     """Robot 1's process is killed mid-run and started again with the same id (its body stays,

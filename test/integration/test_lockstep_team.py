@@ -17,7 +17,7 @@ from rosutil import NodeProcess, RosClient, domain_id
 from coverage_ros.bench.lockstep import cpu_hogs, differences
 from coverage_ros.cli.team.summary import WALL_CLOCK_KEYS, deterministic_part
 
-pytestmark = [pytest.mark.integration, pytest.mark.slow, pytest.mark.lockstep]
+pytestmark = [pytest.mark.slow, pytest.mark.lockstep]
 
 TEAM = [str(REPO / ".venv" / "bin" / "coverage-team"), "--quiet", "--lockstep", "--no-markers"]
 

@@ -20,7 +20,7 @@ from coverage_ros.bench.environment import (
 )
 from coverage_ros.cli.plan import main as plan_main
 
-pytestmark = [pytest.mark.integration, pytest.mark.slow]
+pytestmark = pytest.mark.slow
 
 ECHO = """
 import socket

@@ -13,7 +13,6 @@ from rosutil import RosClient, domain_id, spin_until_exit
 from coverage_ros.nodes import conversions as conv
 
 
-@pytest.mark.integration
 @pytest.mark.slow
 @pytest.mark.lockstep
 def test_a_team_shows_in_rviz_markers_and_a_robot_that_leaves_is_cleared(tmp_path):

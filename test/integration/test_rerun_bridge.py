@@ -159,7 +159,6 @@ def run(tmp_path_factory):
         yield Run(rrd, code, bridge.output(), last, moved)
 
 
-@pytest.mark.integration
 def test_bridge_exits_cleanly_with_a_complete_recording(run):
     assert run.exit_code == 0, run.output
     assert "Traceback" not in run.output, run.output
@@ -175,7 +174,6 @@ def test_bridge_exits_cleanly_with_a_complete_recording(run):
     assert [e.recording_id for e in RrdReader(run.rrd).recordings()] == ["bridge-test"]
 
 
-@pytest.mark.integration
 def test_recording_has_every_layer(run):
     from rerun.chunk import RrdReader
 
@@ -190,7 +188,6 @@ def test_recording_has_every_layer(run):
     assert expected <= paths, sorted(expected - paths)
 
 
-@pytest.mark.integration
 def test_robots_follow_ground_truth_and_leave(run):
     rows = read_rrd(run.rrd)["/world/robots"]
     assert run.moved > 0.05, "robot 0 did not drive"
@@ -203,7 +200,6 @@ def test_robots_follow_ground_truth_and_leave(run):
     assert len(tail) >= 2 and tail[-1][:2] == pytest.approx(run.truth[0], abs=0.03)
 
 
-@pytest.mark.integration
 def test_published_cells_plans_and_goals_are_drawn(run):
     from coverage_ros.core.world import load_world
     from coverage_ros.worlds import resolve_world_path
@@ -237,7 +233,6 @@ def test_published_cells_plans_and_goals_are_drawn(run):
     assert {"collisions", "path_length"} <= set(names) and "x" not in names
 
 
-@pytest.mark.integration
 def test_scans_lie_on_walls_or_other_robots(run):
     """Every lidar hit, placed with the robot's pose at the scan's stamp, is on the surface of
     a map obstacle or of another robot - robot 0 scans while it turns and drives."""
@@ -272,7 +267,6 @@ def test_scans_lie_on_walls_or_other_robots(run):
             assert np.mean(on_wall | on_robot) > 0.99, (rid, t, pts[~(on_wall | on_robot)])
 
 
-@pytest.mark.integration
 def test_metrics_cover_the_free_space(run):
     from coverage_ros.core.geodesic.domain import CoverageDomain
     from coverage_ros.core.world import load_world
@@ -318,7 +312,6 @@ def listening_addresses(port: int) -> set[str]:
     return found
 
 
-@pytest.mark.integration
 def test_web_viewer_listens_on_localhost_only_and_stops_with_the_bridge(tmp_path):
     pytest.importorskip("rclpy")
     import time

@@ -13,8 +13,6 @@ import pytest
 from conftest import REPO
 from rosutil import NodeProcess, RosClient, domain_id, ros_env
 
-pytestmark = pytest.mark.integration
-
 INSTALL = REPO / "install" / "coverage_ros"
 START = (1.0, 1.0, 0.0)  # office, bottom-left room
 

@@ -8,7 +8,7 @@ import pytest
 
 from coverage_ros.bench.soak import growth, soak_section
 
-pytestmark = [pytest.mark.integration, pytest.mark.slow]
+pytestmark = pytest.mark.slow
 
 
 def test_growth_is_measured_after_warm_up_and_ignores_short_lives():

@@ -13,7 +13,7 @@ from teamdiag import team_diagnosis
 
 from coverage_ros.cli.plan import main as plan_main
 
-pytestmark = [pytest.mark.integration, pytest.mark.slow]
+pytestmark = pytest.mark.slow
 
 WORLD = WORLDS / "l_shape.yaml"
 TEAM = [str(REPO / ".venv" / "bin" / "coverage-team"), "--world", str(WORLD), "--quiet",

@@ -17,7 +17,7 @@ from coverage_ros.core.geodesic.tessellation import Generator, tessellate
 from coverage_ros.core.world import load_world
 from coverage_ros.core.world.grid import OCCUPIED
 
-pytestmark = [pytest.mark.integration, pytest.mark.slow]
+pytestmark = pytest.mark.slow
 
 OFFICE = WORLDS / "office.yaml"
 ROOM = (0.0, 0.0, 4.0, 3.4)  # the office's bottom-left room (door at x 1.5..2.4, y 3.4)

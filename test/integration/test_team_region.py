@@ -31,7 +31,6 @@ def region_cost(world, square, positions) -> float:
     return float(tessellate(d, [Generator(p) for p in positions]).cost)
 
 
-@pytest.mark.integration
 @pytest.mark.slow
 @pytest.mark.lockstep
 def test_a_polygon_published_mid_run_draws_the_team_into_it(tmp_path):

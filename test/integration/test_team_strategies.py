@@ -17,7 +17,7 @@ from coverage_ros.core.geodesic.domain import CoverageDomain
 from coverage_ros.core.geodesic.tessellation import Generator, tessellate
 from coverage_ros.core.world import load_world
 
-pytestmark = [pytest.mark.integration, pytest.mark.slow, pytest.mark.lockstep]
+pytestmark = [pytest.mark.slow, pytest.mark.lockstep]
 
 TEAM = [str(REPO / ".venv" / "bin" / "coverage-team"), "--quiet", "--no-markers"]
 SEED = 5

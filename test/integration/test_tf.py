@@ -14,7 +14,6 @@ from rosutil import NodeProcess, RosClient, domain_id
 from coverage_ros.core.control.frames import FrameTree
 
 
-@pytest.mark.integration
 def test_the_world_publishes_each_robots_chain_consistent_with_ground_truth():
     """Two robots driving with odometry noise: for each, map -> odom -> base_link composed
     equals its ground truth at the same stamp, odom -> base_link is its odometry, and the

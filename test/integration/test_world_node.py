@@ -13,8 +13,6 @@ import pytest
 from conftest import REPO
 from rosutil import NodeProcess, RosClient, domain_id, ros_env
 
-pytestmark = pytest.mark.integration
-
 rclpy = pytest.importorskip("rclpy")
 from coverage_msgs.msg import WorldStatus  # noqa: E402
 from geometry_msgs.msg import Twist  # noqa: E402

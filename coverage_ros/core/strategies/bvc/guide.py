@@ -18,15 +18,14 @@ from coverage_ros.core.geodesic.domain import CoverageDomain
 from coverage_ros.core.strategies.base import Observation
 from coverage_ros.core.strategies.bvc.cells import BufferedCell
 from coverage_ros.core.strategies.bvc.guided_map import (
-    ObstacleMemory,
     WindowGraph,
-    bridge_shadows,
     guided_density,
     local_map,
     local_maximum_goal,
     navigation_function,
     without_discs,
 )
+from coverage_ros.core.strategies.bvc.memory import ObstacleMemory, bridge_shadows
 from coverage_ros.core.strategies.bvc.peaks import PeakRole, density_peaks, peak_role
 
 #: The density over the guided map's candidates counts as flat (no goal to be guided to) when
@@ -55,7 +54,7 @@ class Guide:
         self.radius = radius  # [m] the robot's
         self.sensor_radius = sensor_radius  # [m] R_sensor
         self.gamma = gamma  # [1/m] of Eq. 8
-        self.bridge_width = bridge_width  # [m] see guided_map.bridge_shadows
+        self.bridge_width = bridge_width  # [m] see memory.bridge_shadows
         self.seek_peaks = seek_peaks
         self.nf_cells = int(math.ceil(nf_radius / memory.resolution))
         self.graph = WindowGraph(2 * self.nf_cells + 1, memory.resolution)

@@ -58,7 +58,7 @@ from coverage_ros.core.strategies.bvc.cells import (
     convex_polygon_cells,
 )
 from coverage_ros.core.strategies.bvc.guide import Guide
-from coverage_ros.core.strategies.bvc.guided_map import ObstacleMemory
+from coverage_ros.core.strategies.bvc.memory import ObstacleMemory
 from coverage_ros.errors import ConfigError
 
 #: [m] lidar points this close to a neighbour's body are the neighbour, not a wall: they are
@@ -86,7 +86,7 @@ class BvcParams:
     grid_resolution: float = 0.1  # [m] cells of the obstacle memory and navigation function
     nf_radius: float | None = None  # [m] half-width of the navigation window (None: 2 R_sensor)
     #: [m] uniform density: the shadows of obstacles narrower than this (pillars, teammates)
-    #: count as seen free (0: only what the beams reached); see guided_map.bridge_shadows
+    #: count as seen free (0: only what the beams reached); see memory.bridge_shadows
     bridge_width: float = 0.5
     #: a robot with no peak of its own in range heads for one no robot attends, or covers
     #: round the owners (Lloyd) if none is left (.peaks)

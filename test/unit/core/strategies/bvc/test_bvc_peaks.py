@@ -20,7 +20,8 @@ from coverage_ros.core.strategies import (
     make_strategy,
     strategy_choice,
 )
-from coverage_ros.core.strategies.bvc.guided_map import ObstacleMemory, local_map, without_discs
+from coverage_ros.core.strategies.bvc.guided_map import local_map, without_discs
+from coverage_ros.core.strategies.bvc.memory import ObstacleMemory
 from coverage_ros.core.strategies.bvc.peaks import density_peaks, peak_role
 from coverage_ros.core.world import LidarSpec, RobotSpec, load_world, parse_world
 from coverage_ros.errors import ConfigError

@@ -19,7 +19,7 @@ from coverage_ros.core.strategies import (
     make_strategy,
     strategy_choice,
 )
-from coverage_ros.core.strategies.bvc.guided_map import ObstacleMemory, bridge_shadows
+from coverage_ros.core.strategies.bvc.memory import ObstacleMemory, bridge_shadows
 from coverage_ros.core.world.grid import OCCUPIED, GridMap
 from coverage_ros.core.world.robot import RobotSpec
 

@@ -51,12 +51,12 @@ from coverage_ros.core.strategies.bvc.cells import (
     visible_points,
 )
 from coverage_ros.core.strategies.bvc.guided_map import (
-    ObstacleMemory,
     WindowGraph,
     local_map,
     local_maximum_goal,
     navigation_function,
 )
+from coverage_ros.core.strategies.bvc.memory import ObstacleMemory
 from coverage_ros.core.world import (
     LidarSpec,
     RobotSpec,

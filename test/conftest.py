@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import os
 import sys
+import sysconfig
 from pathlib import Path
 
 import pytest
@@ -50,6 +51,21 @@ def rng():
     import numpy as np
 
     return np.random.default_rng(12345)
+
+
+def entry_point(name: str) -> str:
+    """Path of the console script ``name`` (coverage-team, coverage-plan, world_node, rerun ...)
+    of the Python environment running the tests, where ``pip install -e .`` put it."""
+    folders = list(dict.fromkeys([Path(sysconfig.get_path("scripts")),
+                                  Path(sys.executable).parent]))
+    for folder in folders:
+        path = folder / name
+        if path.is_file() and os.access(path, os.X_OK):
+            return str(path)
+    pytest.fail(f"console script {name!r} not found in {' or '.join(map(str, folders))}: "
+                f"coverage_ros is not installed into the Python running the tests "
+                f"({sys.executable}). ./scripts/test sets up .venv with everything installed; "
+                f"in another environment run `pip install -e .` from {REPO}", pytrace=False)
 
 
 def _kind(path: Path) -> str:

@@ -3,11 +3,9 @@
 from __future__ import annotations
 
 import subprocess
-from pathlib import Path
 
 import numpy as np
-
-RERUN = Path(__file__).resolve().parents[1] / ".venv" / "bin" / "rerun"
+from conftest import entry_point
 
 
 def read_rrd(path) -> dict[str, list[tuple[float | None, dict]]]:
@@ -36,6 +34,6 @@ def cell_rgba(row: dict) -> np.ndarray:
 
 
 def rerun_verify(path) -> subprocess.CompletedProcess:
-    exe = str(RERUN) if RERUN.exists() else "rerun"
-    return subprocess.run([exe, "rrd", "verify", str(path)], capture_output=True, text=True,
-                          timeout=60)
+    """``rerun rrd verify`` (rerun-sdk's command line) on the recording at ``path``."""
+    return subprocess.run([entry_point("rerun"), "rrd", "verify", str(path)],
+                          capture_output=True, text=True, timeout=60)

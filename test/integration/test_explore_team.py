@@ -9,7 +9,7 @@ import subprocess
 
 import numpy as np
 import pytest
-from conftest import REPO, WORLDS, shared_map
+from conftest import WORLDS, entry_point, shared_map
 from rosutil import domain_id
 from rrdutil import read_rrd
 from teamdiag import team_diagnosis
@@ -19,14 +19,17 @@ from coverage_ros.core.world.map_server import load_map_yaml
 
 pytestmark = [pytest.mark.slow, pytest.mark.lockstep]
 
-TEAM = [str(REPO / ".venv" / "bin" / "coverage-team"), "--quiet", "--explore", "--lockstep",
-        "--no-markers"]
+
+def team_cmd(*args: str) -> list[str]:
+    """coverage-team with ``args``."""
+    return [entry_point("coverage-team"), "--quiet", "--explore", "--lockstep",
+            "--no-markers", *args]
 
 
 def explore(tmp_path, world, *args: str, offset: int) -> tuple[dict, object]:
     out = tmp_path / "team"
-    proc = subprocess.run(TEAM + ["--world", str(world), "--out", str(out), "--domain-id",
-                                  str(domain_id(offset)), *args],
+    proc = subprocess.run(team_cmd("--world", str(world), "--out", str(out), "--domain-id",
+                                   str(domain_id(offset)), *args),
                           capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stderr[-3000:]
     return json.loads((out / "summary.json").read_text()), out
@@ -98,7 +101,7 @@ def test_an_impossible_exploration_is_refused_before_anything_starts(tmp_path):
     for args, message in ((["--strategy", "lloyd"], "unknown strategy for exploring"),
                           (["--until-explored", "1.5"], "--until-explored"),
                           (["--strategy-params", "{variant: fastest}"], "variant")):
-        proc = subprocess.run(TEAM + ["--world", "office", "--out", str(out), *args],
+        proc = subprocess.run(team_cmd("--world", "office", "--out", str(out), *args),
                               capture_output=True, text=True, timeout=60)
         assert proc.returncode == 2 and message in proc.stderr, proc.stderr
         assert not (out / "logs").exists()  # nothing was started

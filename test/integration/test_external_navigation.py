@@ -10,7 +10,7 @@ import sys
 
 import numpy as np
 import pytest
-from conftest import REPO
+from conftest import REPO, entry_point
 from rosutil import NodeProcess, domain_id
 from teamdiag import team_diagnosis
 
@@ -29,7 +29,7 @@ def test_a_team_with_its_own_navigation_and_localization_converges(tmp_path):
         out = tmp_path / "team"
         # At twice real time: three robots and the navigator keep up on two cores.
         proc = subprocess.run(
-            [str(REPO / ".venv" / "bin" / "coverage-team"), "--quiet", "--world", "empty",
+            [entry_point("coverage-team"), "--quiet", "--world", "empty",
              "--robots", "3", "--duration", "45", "--seed", "2", "--rtf", "2", "--out", str(out),
              "--domain-id", str(domain), "--robot-param", "drive:=false",
              "--robot-param", "pose_source:=tf"],

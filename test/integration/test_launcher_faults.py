@@ -14,13 +14,16 @@ import time
 
 import psutil
 import pytest
-from conftest import REPO
+from conftest import entry_point
 from rosutil import NodeProcess, domain_id, ros_env
 from teamdiag import team_diagnosis
 
 from coverage_ros.cli.team.domains import foreign_participants
 
-TEAM = [str(REPO / ".venv" / "bin" / "coverage-team")]
+
+def team_cmd(*args: str) -> list[str]:
+    """coverage-team with ``args``."""
+    return [entry_point("coverage-team"), *args]
 
 
 @pytest.fixture(autouse=True)
@@ -50,9 +53,9 @@ def _children(pid: int) -> list[psutil.Process]:
 @pytest.mark.parametrize("when", [2.0, 12.0])  # during start-up, in the middle of the run
 def test_an_interrupt_at_any_moment_leaves_nothing_behind(tmp_path, when):
     out = tmp_path / "team"
-    team = subprocess.Popen(TEAM + ["--world", "l_shape", "--robots", "4", "--duration", "120",
-                                    "--out", str(out), "--quiet",
-                                    "--domain-id", str(domain_id(27 if when < 10 else 28))],
+    team = subprocess.Popen(team_cmd("--world", "l_shape", "--robots", "4", "--duration", "120",
+                                     "--out", str(out), "--quiet",
+                                     "--domain-id", str(domain_id(27 if when < 10 else 28))),
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             env=ros_env(domain_id(27)), start_new_session=True)
     # ``when`` counts from the launcher's first child: the launcher itself takes 1.5-2.7 s
@@ -91,9 +94,10 @@ def test_a_launcher_killed_during_a_big_start_up_leaves_nothing_behind(tmp_path,
     """SIGKILL gives the launcher no say: its children go because the kernel tells them
     (PR_SET_PDEATHSIG), and a process half-way through creating its fifty robots stops at
     once instead of finishing them first."""
-    team = subprocess.Popen(TEAM + ["--world", "l_shape", "--robots", "200", "--duration", "120",
-                                    "--out", str(tmp_path / "team"), "--quiet", "--no-markers",
-                                    "--domain-id", str(domain_id(29))],
+    team = subprocess.Popen(team_cmd("--world", "l_shape", "--robots", "200",
+                                     "--duration", "120", "--out", str(tmp_path / "team"),
+                                     "--quiet", "--no-markers", "--domain-id",
+                                     str(domain_id(29))),
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                             env=ros_env(domain_id(29)), start_new_session=True)
     seen: dict[int, psutil.Process] = {}
@@ -142,7 +146,7 @@ def test_serve_web_takes_free_ports_and_shows_the_team_in_a_browser(tmp_path):
         held.append(sock)
     out = tmp_path / "team"
     proc = subprocess.Popen(
-        [str(REPO / ".venv" / "bin" / "coverage-team"), "--quiet", "--world", "empty",
+        [entry_point("coverage-team"), "--quiet", "--world", "empty",
          "--robots", "2", "--duration", "600", "--serve-web", "--no-markers", "--out", str(out),
          "--domain-id", str(domain_id(6))],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
@@ -195,7 +199,7 @@ def test_a_second_simulation_on_the_domain_stops_the_team_with_one_line(tmp_path
     domain = domain_id(7)
     out = tmp_path / "team"
     proc = subprocess.Popen(
-        [str(REPO / ".venv" / "bin" / "coverage-team"), "--world", "empty", "--robots", "2",
+        [entry_point("coverage-team"), "--world", "empty", "--robots", "2",
          "--duration", "120", "--no-markers", "--out", str(out), "--domain-id", str(domain)],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
     try:
@@ -224,7 +228,7 @@ def test_a_restarted_robot_rejoins_and_the_team_reconverges(tmp_path):
     spread out."""
     out = tmp_path / "team"
     proc = subprocess.run(
-        [str(REPO / ".venv" / "bin" / "coverage-team"), "--quiet", "--world", "empty",
+        [entry_point("coverage-team"), "--quiet", "--world", "empty",
          "--robots", "3", "--duration", "45", "--seed", "2", "--restart", "1@15",
          "--no-markers", "--out", str(out), "--domain-id", str(domain_id(29))],
         capture_output=True, text=True, timeout=300)

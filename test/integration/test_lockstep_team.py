@@ -11,7 +11,7 @@ import sys
 import time
 
 import pytest
-from conftest import REPO, shared_map
+from conftest import entry_point, shared_map
 from rosutil import NodeProcess, RosClient, domain_id
 
 from coverage_ros.bench.lockstep import cpu_hogs, differences
@@ -19,7 +19,10 @@ from coverage_ros.cli.team.summary import WALL_CLOCK_KEYS, deterministic_part
 
 pytestmark = [pytest.mark.slow, pytest.mark.lockstep]
 
-TEAM = [str(REPO / ".venv" / "bin" / "coverage-team"), "--quiet", "--lockstep", "--no-markers"]
+
+def team_cmd(*args: str) -> list[str]:
+    """coverage-team with ``args``."""
+    return [entry_point("coverage-team"), "--quiet", "--lockstep", "--no-markers", *args]
 
 
 def test_one_command_and_seed_give_the_same_summary_beside_a_cpu_hog(tmp_path):
@@ -32,7 +35,7 @@ def test_one_command_and_seed_give_the_same_summary_beside_a_cpu_hog(tmp_path):
     summaries = []
     for k in range(2):
         out = tmp_path / f"run{k}"
-        cmd = TEAM + ["--out", str(out), "--domain-id", str(domain_id(22 + k)), *args]
+        cmd = team_cmd("--out", str(out), "--domain-id", str(domain_id(22 + k)), *args)
         with cpu_hogs(2 if k else 0):
             proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
         assert proc.returncode == 0, proc.stderr[-3000:]

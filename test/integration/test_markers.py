@@ -7,7 +7,7 @@ import json
 import subprocess
 
 import pytest
-from conftest import REPO
+from conftest import entry_point
 from rosutil import RosClient, domain_id, spin_until_exit
 
 from coverage_ros.nodes import conversions as conv
@@ -24,7 +24,7 @@ def test_a_team_shows_in_rviz_markers_and_a_robot_that_leaves_is_cleared(tmp_pat
     arrays = client.subscribe("/coverage/markers", MarkerArray)
     # Lock-step at most twice real time: a silent robot's markers go after 3 s of wall time.
     proc = subprocess.Popen(
-        [str(REPO / ".venv" / "bin" / "coverage-team"), "--quiet", "--world", "empty",
+        [entry_point("coverage-team"), "--quiet", "--world", "empty",
          "--robots", "3", "--duration", "30", "--seed", "1", "--kill", "2@12", "--lockstep",
          "--rtf", "2",
          "--out", str(out), "--domain-id", str(domain)],

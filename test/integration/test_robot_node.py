@@ -10,7 +10,7 @@ import sys
 
 import numpy as np
 import pytest
-from conftest import REPO
+from conftest import REPO, entry_point
 from rosutil import NodeProcess, RosClient, domain_id, ros_env
 
 INSTALL = REPO / "install" / "coverage_ros"
@@ -236,7 +236,7 @@ def test_coverage_teleop_takes_the_robot_over_and_hands_it_back(team, end):
     cmds = client.subscribe("/robot_0/cmd_vel", Twist)
     start = len(robot.output())
     master, slave = pty.openpty()
-    teleop = subprocess.Popen([str(REPO / ".venv" / "bin" / "coverage-teleop"), "--robot", "0",
+    teleop = subprocess.Popen([entry_point("coverage-teleop"), "--robot", "0",
                                "--domain-id", str(domain_id(10))],
                               stdin=slave, stdout=slave, stderr=slave, start_new_session=True,
                               env=ros_env(domain_id(10)))

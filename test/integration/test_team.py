@@ -7,7 +7,7 @@ import subprocess
 
 import numpy as np
 import pytest
-from conftest import REPO, WORLDS
+from conftest import WORLDS, entry_point
 from rosutil import domain_id
 from teamdiag import team_diagnosis
 
@@ -16,8 +16,12 @@ from coverage_ros.cli.plan import main as plan_main
 pytestmark = pytest.mark.slow
 
 WORLD = WORLDS / "l_shape.yaml"
-TEAM = [str(REPO / ".venv" / "bin" / "coverage-team"), "--world", str(WORLD), "--quiet",
-        "--no-markers"]
+
+
+def team_cmd(*args: str) -> list[str]:
+    """coverage-team with ``args``."""
+    return [entry_point("coverage-team"), "--world", str(WORLD), "--quiet",
+            "--no-markers", *args]
 
 
 def best_plan_cost(robots: int, seeds, tmp_path) -> float:
@@ -33,8 +37,8 @@ def best_plan_cost(robots: int, seeds, tmp_path) -> float:
 
 def run_team(tmp_path, *args: str, offset: int) -> dict:
     out = tmp_path / "team"
-    proc = subprocess.run(TEAM + ["--out", str(out), "--domain-id", str(domain_id(offset)),
-                                  *args], capture_output=True, text=True, timeout=400)
+    proc = subprocess.run(team_cmd("--out", str(out), "--domain-id", str(domain_id(offset)),
+                                   *args), capture_output=True, text=True, timeout=400)
     assert proc.returncode == 0, proc.stderr[-3000:]
     return json.loads((out / "summary.json").read_text())
 
@@ -103,7 +107,7 @@ def test_each_robot_runs_with_its_own_spec_from_the_world_file(tmp_path):
     world_file.write_text(MIXED_WORLD)
     out = tmp_path / "team"
     proc = subprocess.run(
-        [str(REPO / ".venv" / "bin" / "coverage-team"), "--world", str(world_file), "--quiet",
+        [entry_point("coverage-team"), "--world", str(world_file), "--quiet",
          "--robots", "3", "--duration", "8", "--lockstep", "--out", str(out),
          "--domain-id", str(domain_id(14))], capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr[-3000:]

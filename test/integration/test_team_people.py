@@ -9,7 +9,7 @@ import subprocess
 
 import numpy as np
 import pytest
-from conftest import REPO, WORLDS
+from conftest import WORLDS, entry_point
 from rosutil import RosClient, domain_id, ros_env
 
 from coverage_ros.core.geodesic.domain import CoverageDomain
@@ -85,7 +85,7 @@ def test_a_human_driven_robot_is_covered_around_and_rejoins(tmp_path):
     domain = domain_id(15)
     out = tmp_path / "team"
     team = subprocess.Popen(
-        [str(REPO / ".venv" / "bin" / "coverage-team"), "--world", str(OFFICE), "--quiet",
+        [entry_point("coverage-team"), "--world", str(OFFICE), "--quiet",
          "--robots", "4", "--human", "0", "--starts", STARTS, "--duration", str(DURATION),
          "--rtf", str(RTF),
          "--out", str(out), "--domain-id", str(domain)],

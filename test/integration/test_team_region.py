@@ -10,7 +10,7 @@ import subprocess
 
 import numpy as np
 import pytest
-from conftest import REPO
+from conftest import REPO, entry_point
 from rosutil import RosClient, domain_id, spin_until_exit
 
 from coverage_ros.core.geodesic.tessellation import Generator, tessellate
@@ -18,7 +18,10 @@ from coverage_ros.core.geodesic.world_domain import world_domain
 from coverage_ros.core.world import load_world
 from coverage_ros.core.world.region import Region, parse_region_text
 
-TEAM = [str(REPO / ".venv" / "bin" / "coverage-team"), "--quiet"]
+
+def team_cmd(*args: str) -> list[str]:
+    """coverage-team with ``args``."""
+    return [entry_point("coverage-team"), "--quiet", *args]
 
 
 SQUARE = "5,5;7.5,5;7.5,7.5;5,7.5"
@@ -50,9 +53,9 @@ def test_a_polygon_published_mid_run_draws_the_team_into_it(tmp_path):
     pub = client.node.create_publisher(PolygonStamped, REGION_TOPIC, REGION_QOS)
     square = parse_region_text(SQUARE)
     # In lock-step at most four times real time (the polygon goes out at 12 s of sim time).
-    proc = subprocess.Popen(TEAM + ["--world", "empty", "--robots", "3", "--duration", "45",
-                                    "--seed", "1", "--lockstep", "--rtf", "4", "--out", str(out),
-                                    "--domain-id", str(domain)],
+    proc = subprocess.Popen(team_cmd("--world", "empty", "--robots", "3", "--duration", "45",
+                                     "--seed", "1", "--lockstep", "--rtf", "4", "--out", str(out),
+                                     "--domain-id", str(domain)),
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             start_new_session=True)
     try:

@@ -8,7 +8,7 @@ import subprocess
 
 import numpy as np
 import pytest
-from conftest import REPO, shared_map
+from conftest import entry_point, shared_map
 from rosutil import domain_id
 from teamdiag import team_diagnosis
 
@@ -19,7 +19,12 @@ from coverage_ros.core.world import load_world
 
 pytestmark = [pytest.mark.slow, pytest.mark.lockstep]
 
-TEAM = [str(REPO / ".venv" / "bin" / "coverage-team"), "--quiet", "--no-markers"]
+
+def team_cmd(*args: str) -> list[str]:
+    """coverage-team with ``args``."""
+    return [entry_point("coverage-team"), "--quiet", "--no-markers", *args]
+
+
 SEED = 5
 
 
@@ -43,8 +48,8 @@ def best_plan(sandbox, tmp_path_factory) -> float:
 
 def run_team(out, *args: str, offset: int) -> dict:
     """A lock-step run: the same summary whatever the machine's load."""
-    proc = subprocess.run(TEAM + ["--lockstep", "--out", str(out), "--domain-id",
-                                  str(domain_id(offset)), *args],
+    proc = subprocess.run(team_cmd("--lockstep", "--out", str(out), "--domain-id",
+                                   str(domain_id(offset)), *args),
                           capture_output=True, text=True, timeout=500)
     assert proc.returncode == 0, proc.stderr[-3000:]
     return json.loads((out / "summary.json").read_text())

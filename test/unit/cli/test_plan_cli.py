@@ -4,11 +4,10 @@ from __future__ import annotations
 
 import json
 import subprocess
-import sys
 
 import numpy as np
 import pytest
-from conftest import REPO, WORLDS, shared_map
+from conftest import REPO, WORLDS, entry_point, shared_map
 
 from coverage_ros.cli.arguments import attach_values
 from coverage_ros.cli.plan import main
@@ -103,10 +102,9 @@ def test_parse_poses():
 
 
 def test_console_script_runs(tmp_path):
-    exe = REPO / ".venv" / "bin" / "coverage-plan"
     ros2_run = REPO / "install" / "coverage_ros" / "lib" / "coverage_ros" / "coverage-plan"
     assert ros2_run.exists(), "colcon's ros2 run layout has the console script"
-    out = subprocess.run([str(exe if exe.exists() else sys.executable), "--map", "empty",
+    out = subprocess.run([entry_point("coverage-plan"), "--map", "empty",
                           "--robots", "2", "--json", str(tmp_path / "e.json"), "--quiet"],
                          capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr

@@ -7,7 +7,7 @@ import os
 import subprocess
 
 import pytest
-from conftest import REPO
+from conftest import REPO, entry_point
 from rosutil import domain_id
 
 
@@ -33,7 +33,7 @@ def test_config_is_validated():
 def test_ros2_run_layout_has_the_console_script():
     exe = REPO / "install" / "coverage_ros" / "lib" / "coverage_ros" / "rerun_bridge"
     assert exe.exists(), "colcon's ros2 run layout has the console script"
-    out = subprocess.run([str(REPO / ".venv" / "bin" / "rerun_bridge")], capture_output=True,
+    out = subprocess.run([entry_point("rerun_bridge")], capture_output=True,
                          text=True, timeout=60,
                          env={**os.environ, "ROS_DOMAIN_ID": str(domain_id(22)),
                               "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"})

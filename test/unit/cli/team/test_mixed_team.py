@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import REPO, WORLDS
+from conftest import REPO, WORLDS, entry_point
 
 from coverage_ros.cli.team.members import build_team
 from coverage_ros.cli.team.options import RunConfig, parse_config
@@ -221,7 +221,7 @@ def test_impossible_teams_are_refused_before_anything_starts(tmp_path):
             (["--human", "7"], "--human: robot id out of range 0..3"),
             (["--team", str(bad)], "robots[0].role: unknown role"),
             (["--team", str(TEAMS / "one_human.yaml"), "--robots", "5"], "--robots: differs")):
-        proc = subprocess.run([str(REPO / ".venv" / "bin" / "coverage-team"), "--world", "office",
+        proc = subprocess.run([entry_point("coverage-team"), "--world", "office",
                                "--out", str(out), *args], capture_output=True, text=True,
                               timeout=60)
         assert proc.returncode == 2 and message in proc.stderr, (args, proc.stderr)

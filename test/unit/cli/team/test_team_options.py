@@ -6,12 +6,15 @@ from __future__ import annotations
 import subprocess
 
 import pytest
-from conftest import REPO
+from conftest import entry_point
 from rosutil import domain_id, ros_env
 
 from coverage_ros.errors import ConfigError
 
-TEAM = [str(REPO / ".venv" / "bin" / "coverage-team")]
+
+def team_cmd(*args: str) -> list[str]:
+    """coverage-team with ``args``."""
+    return [entry_point("coverage-team"), *args]
 
 
 @pytest.fixture(autouse=True)
@@ -34,7 +37,7 @@ def own_lock_dir(tmp_path, monkeypatch):
 ])
 def test_impossible_runs_are_refused_before_anything_starts(tmp_path, args, message):
     out = tmp_path / "team"
-    proc = subprocess.run(TEAM + ["--out", str(out), *args], capture_output=True, text=True,
+    proc = subprocess.run(team_cmd("--out", str(out), *args), capture_output=True, text=True,
                           timeout=120, env=ros_env(domain_id(26)))
     assert proc.returncode == 2, proc.stderr
     lines = proc.stderr.strip().splitlines()
@@ -44,7 +47,7 @@ def test_impossible_runs_are_refused_before_anything_starts(tmp_path, args, mess
 
 def test_an_unknown_executor_in_the_environment_is_refused_before_anything_starts(tmp_path):
     out = tmp_path / "team"
-    proc = subprocess.run(TEAM + ["--out", str(out)], capture_output=True, text=True,
+    proc = subprocess.run(team_cmd("--out", str(out)), capture_output=True, text=True,
                           timeout=120, env=ros_env(domain_id(26), COVERAGE_ROS_EXECUTOR="bad"))
     assert proc.returncode == 2, proc.stderr
     lines = proc.stderr.strip().splitlines()

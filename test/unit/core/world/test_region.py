@@ -8,13 +8,16 @@ import subprocess
 
 import numpy as np
 import pytest
-from conftest import REPO
+from conftest import entry_point
 
 from coverage_ros.core.world.grid import OCCUPIED, GridMap
 from coverage_ros.core.world.region import Region, parse_region_text
 from coverage_ros.errors import ConfigError
 
-TEAM = [str(REPO / ".venv" / "bin" / "coverage-team"), "--quiet"]
+
+def team_cmd(*args: str) -> list[str]:
+    """coverage-team with ``args``."""
+    return [entry_point("coverage-team"), "--quiet", *args]
 
 
 def test_region_text_and_polygons_are_checked():
@@ -60,8 +63,8 @@ def test_the_density_is_kept_inside_the_union_of_the_polygons():
 
 
 def test_an_impossible_region_is_refused_before_anything_starts(tmp_path):
-    proc = subprocess.run(TEAM + ["--world", "empty", "--robots", "2", "--out",
-                                  str(tmp_path / "t"), "--region", "20,20;21,20;21,21"],
+    proc = subprocess.run(team_cmd("--world", "empty", "--robots", "2", "--out",
+                                   str(tmp_path / "t"), "--region", "20,20;21,20;21,21"),
                           capture_output=True, text=True, timeout=60)
     assert proc.returncode == 2
     assert proc.stderr.strip().splitlines() == [

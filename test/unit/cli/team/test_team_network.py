@@ -1,21 +1,27 @@
-"""The launcher's pieces for a team across hosts (no DDS here; test_hosts.py runs the team)."""
+"""The launcher's pieces for a team across hosts: robot ids, addresses, the remote command and
+the Fast DDS discovery server it starts (no nodes here; integration/test_hosts.py runs the
+team)."""
 
 from __future__ import annotations
 
+import socket
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
+from rosutil import domain_id
 
 from coverage_ros.cli.team.network import (
     check_reach,
     discovery_advice,
-    discovery_server_executable,
     parse_discovery_address,
     parse_remote_robots,
     remote_command,
+    start_discovery_server,
     write_remote_script,
 )
+from coverage_ros.cli.team.processes import ProcessSet
 from coverage_ros.errors import ConfigError
 
 
@@ -65,11 +71,38 @@ def test_the_remote_command_is_what_to_run_on_the_other_host(tmp_path):
     assert out.split() == ["142", "SUBNET"]
 
 
-def test_the_discovery_server_of_the_wheels_runs():
-    exe, env = discovery_server_executable()
-    proc = subprocess.run([exe, "--help"], capture_output=True, text=True, timeout=30,
-                          env={"PATH": "/usr/bin:/bin", **env})
-    assert "Server" in proc.stdout + proc.stderr, proc.stdout + proc.stderr
+def udp_port_in_use(port: int) -> bool:
+    """Whether a local UDP socket is bound to ``port`` (from /proc/net/udp)."""
+    rows = Path("/proc/net/udp").read_text().splitlines()[1:]
+    return any(int(row.split()[1].split(":")[1], 16) == port for row in rows)
+
+
+def test_the_discovery_server_runs_where_asked_and_a_taken_port_is_reported(tmp_path):
+    """The wheels' fast-discovery-server, started as the launcher starts it (with nothing of
+    the virtual environment on PATH, only the library folders it is given): it runs on the
+    address and port asked for, a second one on that port fails at once with the server's
+    reason, and SIGINT ends the first cleanly."""
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+        sock.bind(("127.0.0.1", 0))
+        port = sock.getsockname()[1]
+    env = {"PATH": "/usr/bin:/bin", "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
+           "ROS_DOMAIN_ID": str(domain_id(27))}
+    (tmp_path / "first").mkdir()
+    (tmp_path / "second").mkdir()
+    first, second = ProcessSet(env, tmp_path / "first"), ProcessSet(env, tmp_path / "second")
+    try:
+        start_discovery_server(first, ("127.0.0.1", port))
+        log = first.children["discovery"].log.read_text()
+        assert f"UDPv4:[127.0.0.1]:{port}" in log, log
+        assert udp_port_in_use(port)
+        taken = rf"(?s)127\.0\.0\.1:{port} did not start.*allocate the specified listening port"
+        with pytest.raises(RuntimeError, match=taken):
+            start_discovery_server(second, ("127.0.0.1", port))
+    finally:
+        first.stop()
+        second.stop()
+    assert first.children["discovery"].popen.returncode == 0
+    assert not udp_port_in_use(port)
 
 
 def test_big_teams_with_simple_discovery_are_told_of_the_discovery_server():

@@ -16,25 +16,23 @@ import json
 import sys
 import time
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
 from coverage_ros.cli.arguments import attach_values
-from coverage_ros.cli.plan_explore import plan_exploration
 from coverage_ros.core.geodesic.domain import CoverageDomain
-from coverage_ros.core.geodesic.tessellation import Generator, tessellate
 from coverage_ros.core.geodesic.world_domain import world_domain
-from coverage_ros.core.metrics import mass_deviation
 from coverage_ros.core.offline.lloyd_team import (
     SOLVERS,
     EuclideanTeam,
     GeodesicTeam,
+    TeamStep,
     solve_lloyd,
 )
-from coverage_ros.core.offline.runner import OfflineConfig, OfflineResult, run_offline
-from coverage_ros.core.strategies import EXPLORERS, STRATEGIES, StrategyContext, strategy_choice
 from coverage_ros.core.world import WorldSpec, load_world
 from coverage_ros.core.world.placement import team_starts
+from coverage_ros.core.world.robot import TB3_RADIUS
 from coverage_ros.core.world.yaml_io import yaml_mapping
 from coverage_ros.errors import ConfigError, CoverageError
 from coverage_ros.worlds import resolve_world_path
@@ -49,13 +47,13 @@ def build_parser() -> argparse.ArgumentParser:
                     "start poses if it lists one per robot, else a compact seeded cluster, so "
                     "the robots must spread)")
     ap.add_argument("--strategy", default="geodesic",
-                    choices=sorted(set(STRATEGIES) | set(EXPLORERS)),
-                    help="coverage strategy; exploring: geodesic or frontier")
+                    help="coverage strategy by name (an unknown name lists them); exploring: "
+                    "geodesic or frontier")
     ap.add_argument("--strategy-params", default="",
                     help="YAML mapping of strategy parameters, e.g. '{method: paper}'")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--robot-radius", type=float, default=None,
-                    help="[m] robot radius (default: the world's, TurtleBot3 0.105)")
+                    help=f"[m] robot radius (default: the world's, TurtleBot3 {TB3_RADIUS})")
     ap.add_argument("--max-iterations", type=int, default=300)
     ap.add_argument("--tolerance", type=float, default=0.02,
                     help="[m] converged when no robot moves more than this")
@@ -78,7 +76,19 @@ def build_parser() -> argparse.ArgumentParser:
     return ap
 
 
+class Run(NamedTuple):
+    """What a run left: the team's positions, start first (T + 1, n, 2) [m], and its steps."""
+
+    positions: np.ndarray
+    iterations: int
+    converged: bool
+    update_seconds: list[float]  # one robot's update, or one team step
+
+
 def run(args: argparse.Namespace) -> dict:
+    from coverage_ros.core.metrics import mass_deviation
+
+    t0 = time.perf_counter()
     say = (lambda *_: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
     if args.robots < 1:
         raise ConfigError.at("--robots", "must be >= 1", args.robots)
@@ -87,13 +97,19 @@ def run(args: argparse.Namespace) -> dict:
             out.parent.mkdir(parents=True, exist_ok=True)
     path = resolve_world_path(args.map, "--map")
     world = load_world(path)
-    choice = strategy_choice(args.strategy,
-                             yaml_mapping(args.strategy_params, "--strategy-params"),
-                             "--strategy-params", explore=args.explore)
+    settings = yaml_mapping(args.strategy_params, "--strategy-params")
     if args.solver != "decentralized" and (args.strategy not in ("lloyd", "geodesic")
                                            or args.explore):
         raise ConfigError.at("--solver", "needs --strategy lloyd or geodesic (and no --explore)",
                              args.solver, "decentralized")
+    choice = None
+    if args.solver == "decentralized" or args.strategy != "lloyd" or settings:
+        # the registry imports every strategy (and scipy): not for the Euclidean team's
+        # solver, with nothing to validate
+        from coverage_ros.core.strategies import strategy_choice
+
+        choice = strategy_choice(args.strategy, settings, "--strategy-params",
+                                 explore=args.explore)
     if args.until_explored is not None and not (args.explore and 0 < args.until_explored <= 1):
         raise ConfigError.at("--until-explored", "needs --explore and a fraction in (0, 1]",
                              args.until_explored)
@@ -104,54 +120,58 @@ def run(args: argparse.Namespace) -> dict:
     radius = max(s.radius for s in specs)
     starts = team_starts(world, specs, args.starts, args.seed)
     if args.explore:
+        from coverage_ros.cli.plan_explore import plan_exploration  # its simulator: only here
+
         summary = plan_exploration(args, world, path, choice, specs, starts, say)
         if args.json:
             args.json.write_text(json.dumps(summary, indent=2))
             say(f"  wrote {args.json}")
         return summary
     domain = world_domain(world, radius, connectivity=args.connectivity)
-    contexts = [StrategyContext(domain=domain, robot=specs[i], robot_id=i,
-                                convergence_tolerance=args.tolerance, seed=args.seed + i)
-                for i in range(args.robots)]
+    weights = [s.power_weight for s in specs]
     say(f"coverage-plan: {args.strategy}, {args.robots} robots on {path} "
         f"({domain.shape[1]} x {domain.shape[0]} cells at {domain.resolution:g} m)")
-    t0 = time.perf_counter()
 
     def progress(it: int, cost: float) -> None:
         if it == 1 or it % 10 == 0:
             say(f"  iteration {it:4d}: sum of cell costs {cost:.4g}")
 
     if args.solver == "decentralized":
-        result = run_offline(domain, choice, starts, contexts=contexts,
-                             config=OfflineConfig(max_iterations=args.max_iterations),
-                             progress=progress)
+        from coverage_ros.core.offline.runner import OfflineConfig, run_offline
+        from coverage_ros.core.strategies import StrategyContext
+
+        contexts = [StrategyContext(domain=domain, robot=specs[i], robot_id=i,
+                                    convergence_tolerance=args.tolerance, seed=args.seed + i)
+                    for i in range(args.robots)]
+        done = run_offline(domain, choice, starts, contexts=contexts,
+                           config=OfflineConfig(max_iterations=args.max_iterations),
+                           progress=progress)
+        result = Run(done.positions, done.iterations, done.converged, done.update_seconds)
+        first = last = None
     else:
         team = EuclideanTeam(domain) if args.strategy == "lloyd" else \
             GeodesicTeam(domain, choice.params.method)
-        result = _solve_team(args, team, [s.power_weight for s in specs], starts, progress)
-    final = result.positions[-1]
-    weights = [s.power_weight for s in specs]
-    tess = tessellate(domain, [Generator(p, w) for p, w in zip(final, weights, strict=True)])
-    H0 = tessellate(domain, [Generator(p, w) for p, w in
-                             zip(result.positions[0], weights, strict=True)]).cost
+        result, first, last = _solve_team(args, team, weights, starts, progress)
+    final, H0 = _score(domain, result.positions[-1], weights, last), \
+        _score(domain, result.positions[0], weights, first).cost
     ms = np.array(result.update_seconds) * 1e3
     summary = {
         "map": str(path), "strategy": args.strategy, "solver": args.solver,
         "robots": args.robots,
         "start_positions": result.positions[0].round(4).tolist(),
-        "positions": final.round(4).tolist(),
-        "H": float(tess.cost), "H_start": float(H0),
+        "positions": result.positions[-1].round(4).tolist(),
+        "H": float(final.cost), "H_start": float(H0),
         "iterations": int(result.iterations), "converged": bool(result.converged),
         "update_ms": {"median": float(np.median(ms)), "p90": float(np.percentile(ms, 90)),
                       "max": float(ms.max())},
         "grid": {"width": domain.shape[1], "height": domain.shape[0],
                  "resolution": domain.resolution},
-        "masses": tess.masses.round(6).tolist(),
-        "mass_deviation_I": mass_deviation(tess.masses),
+        "masses": final.masses.round(6).tolist(),
+        "mass_deviation_I": mass_deviation(final.masses),
         "wall_time_s": round(time.perf_counter() - t0, 3),
     }
     say(f"  {'converged' if result.converged else 'stopped'} after {result.iterations} "
-        f"iterations: H {H0:.4g} -> {tess.cost:.4g}; "
+        f"iterations: H {H0:.4g} -> {final.cost:.4g}; "
         f"{'one update' if args.solver == 'decentralized' else 'one team step'}: median "
         f"{summary['update_ms']['median']:.1f} ms")
     if args.json:
@@ -160,8 +180,8 @@ def run(args: argparse.Namespace) -> dict:
     if args.png:
         from coverage_ros.viz.png import density_underlay, render_plan
 
-        render_plan(world.grid, tess.labels, result.positions, args.png,
-                    title=f"{args.strategy}: {args.robots} robots, H = {tess.cost:.4g}",
+        render_plan(world.grid, final.labels, result.positions, args.png,
+                    title=f"{args.strategy}: {args.robots} robots, H = {final.cost:.4g}",
                     underlay=density_underlay(domain.density)
                     if domain.density.shape == world.grid.shape else None)
         say(f"  wrote {args.png}")
@@ -171,21 +191,34 @@ def run(args: argparse.Namespace) -> dict:
     return summary
 
 
+def _score(domain: CoverageDomain, positions: np.ndarray, weights: list[float],
+           step: TeamStep | None):
+    """The team's geodesic power Voronoi tessellation at ``positions`` (H, masses, labels), the
+    score of every strategy: a Euclidean team step where it is that tessellation (the team's
+    own, :attr:`EuclideanTeam.is_geodesic`), else the quickest exact search."""
+    if step is not None and step.geodesic:
+        return step
+    from coverage_ros.core.geodesic.tessellation import Generator, fast_tessellate
+
+    return fast_tessellate(domain, [Generator(p, w) for p, w in
+                                    zip(positions, weights, strict=True)])
+
+
 def _solve_team(args, team: EuclideanTeam | GeodesicTeam, weights: list[float],
-                starts: np.ndarray, progress) -> OfflineResult:
+                starts: np.ndarray, progress) -> tuple[Run, TeamStep, TeamStep]:
     """The whole team's (generalized) Lloyd step at once (``--solver``); update times are
-    whole team steps."""
+    whole team steps. Also the first and last team steps."""
     t0 = time.perf_counter()
     sol = solve_lloyd(team, starts[:, :2], np.array(weights), args.solver,
                       tolerance=args.tolerance, max_steps=args.max_iterations,
                       progress=progress)
     step = (time.perf_counter() - t0) / sol.steps
-    return OfflineResult(sol.positions, np.zeros(sol.positions.shape[:2]),
-                         np.array(sol.energies), sol.steps, sol.converged, [step] * sol.steps)
+    return Run(sol.positions, sol.steps, sol.converged, [step] * sol.steps), sol.first, sol.last
 
 
 def record(path: Path, domain: CoverageDomain, world: WorldSpec, result, n: int,
            radius: float) -> None:
+    from coverage_ros.core.geodesic.tessellation import Generator, tessellate
     from coverage_ros.viz.recording import CoverageRecorder
 
     rec = CoverageRecorder()

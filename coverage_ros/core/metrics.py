@@ -11,15 +11,16 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.spatial.distance import pdist
 
 from coverage_ros.core.geodesic.domain import CoverageDomain
-from coverage_ros.core.geodesic.euclidean import euclidean_labels
 from coverage_ros.core.geodesic.tangents import depth_bins, polar_depth, visible_from
-from coverage_ros.core.geodesic.tessellation import Generator
 from coverage_ros.core.world.grid import GridMap
+
+if TYPE_CHECKING:  # the tessellation's graph searches import scipy: only where used
+    from coverage_ros.core.geodesic.tessellation import Generator
 
 
 def mass_deviation(masses: Sequence[float] | np.ndarray) -> float:
@@ -32,6 +33,8 @@ def mass_deviation(masses: Sequence[float] | np.ndarray) -> float:
 
 
 def euclidean_cost(domain: CoverageDomain, gens: Sequence[Generator]) -> float:
+    from coverage_ros.core.geodesic.euclidean import euclidean_labels
+
     labels = euclidean_labels(domain, gens).ravel()
     ok = labels >= 0
     X, Y = domain.geometry.all_cell_centers()
@@ -93,4 +96,6 @@ def min_separation(positions: np.ndarray) -> float:
     P = np.asarray(positions, dtype=np.float64).reshape(-1, 2)
     if len(P) < 2:
         return float("inf")
+    from scipy.spatial.distance import pdist  # scipy's import is a tenth of a second
+
     return float(pdist(P).min())

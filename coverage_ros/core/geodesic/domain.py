@@ -23,7 +23,6 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import ndimage
 
 from coverage_ros.core.geodesic.graph import GridGraph, build_grid_graph
 from coverage_ros.core.geodesic.sight import LineOfSight
@@ -190,6 +189,8 @@ class CoverageDomain(LineOfSight):
             if not self.free.any():
                 raise ConfigError("domain: no free cell (is the robot radius larger than every "
                                   "passage?)")
+            from scipy import ndimage  # scipy's import is a tenth of a second: only when used
+
             _, idx = ndimage.distance_transform_edt(~self.free, return_indices=True)
             self._cache[key] = idx
         return self._cache[key]

@@ -8,7 +8,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy import ndimage
 
 from coverage_ros.core.geodesic.tangents import (
     SIGHT_TILE,
@@ -39,6 +38,8 @@ class LineOfSight:
         key = "occluders"
         if key not in self._cache:
             blocked = ~self.free
+            from scipy import ndimage  # scipy's import is a tenth of a second: only when used
+
             near_free = ndimage.binary_dilation(self.free, structure=np.ones((3, 3), bool))
             self._cache[key] = blocked & near_free
         return self._cache[key]

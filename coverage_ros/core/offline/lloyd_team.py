@@ -37,9 +37,7 @@ from functools import cached_property
 
 import numpy as np
 
-from coverage_ros.core.geodesic.cell import geodesic_cell
 from coverage_ros.core.geodesic.domain import CoverageDomain
-from coverage_ros.core.geodesic.tessellation import Generator
 from coverage_ros.core.offline.power_rows import RowNearest, RowSums, row_runs
 from coverage_ros.errors import ConfigError
 
@@ -56,6 +54,7 @@ class TeamStep:
     centroids: np.ndarray  # (n, 2) [m] mass centroids (a robot with no mass: its position)
     goals: np.ndarray  # (n, 2) [m] centroids projected to feasible cells
     cells: np.ndarray | Callable[[], np.ndarray] = field(repr=False)  # labels, or their maker
+    geodesic: bool = False  # the cells and costs are the geodesic tessellation's as well
 
     @cached_property
     def labels(self) -> np.ndarray:
@@ -92,6 +91,12 @@ class EuclideanTeam:
         self._free = domain.free.ravel()
         # a centroid's cell is a feasible goal where it is free with positive density
         self._feasible = domain.free & (domain.density > 0)
+        rows, cols = np.nonzero(domain.free)
+        box = domain.free[rows.min():rows.max() + 1, cols.min():cols.max() + 1] \
+            if len(rows) else domain.free
+        #: Straight lines are geodesics and the free cells fill a rectangle: every free cell
+        #: sees every point of it, so the geodesic (visibility) tessellation is this one.
+        self.is_geodesic = bool(domain.sees_straight and box.all())
         self._weighted = RowNearest(w > 0)  # else the nearest cell of the own cell there
         self._open = RowNearest(domain.free)  # or, in a cell without weight, the nearest free
 
@@ -179,7 +184,7 @@ class EuclideanTeam:
             if q is not None:
                 goals[i] = self._to_map(q)[0]
         return TeamStep(P, mass, costs, centroids, goals,
-                        lambda: np.where(self.domain.free, labels(), -1))
+                        lambda: np.where(self.domain.free, labels(), -1), self.is_geodesic)
 
     def _project(self, i: int, cf: np.ndarray, flat: np.ndarray) -> np.ndarray | None:
         """The obvious projection over robot i's labelled cells (:meth:`reference_step`)."""
@@ -208,6 +213,9 @@ class GeodesicTeam:
     def step(self, positions: np.ndarray, weights: np.ndarray | None = None) -> TeamStep:
         P = np.asarray(positions, dtype=np.float64).reshape(-1, 2)
         R = np.zeros(len(P)) if weights is None else np.asarray(weights, dtype=np.float64)
+        from coverage_ros.core.geodesic.cell import geodesic_cell  # graph searches: scipy, only
+        from coverage_ros.core.geodesic.tessellation import Generator  # for this team
+
         gens = [Generator(p, r) for p, r in zip(P, R, strict=True)]
         cells = [geodesic_cell(self.domain, g, gens[:i] + gens[i + 1:], method=self.method,
                                whole=True) for i, g in enumerate(gens)]
@@ -226,6 +234,7 @@ class LloydSolution:
     steps: int  # tessellations made (each one team step's cost)
     converged: bool
     last: TeamStep  # the tessellation at the final positions
+    first: TeamStep  # the tessellation at the start
 
     @property
     def cost(self) -> float:
@@ -261,7 +270,7 @@ def solve_lloyd(team: EuclideanTeam | GeodesicTeam, starts: np.ndarray,
             progress(len(energies), s.cost)
         return s
 
-    cur = evaluate(P)
+    cur = start = evaluate(P)
     path = [P.copy()]
     xs: list[np.ndarray] = []  # accepted positions (flattened) and their Lloyd residuals
     fs: list[np.ndarray] = []
@@ -295,7 +304,7 @@ def solve_lloyd(team: EuclideanTeam | GeodesicTeam, starts: np.ndarray,
         cur = nxt
         path.append(cur.positions.copy())
         converged = cur.step_length < tolerance
-    return LloydSolution(np.array(path), energies, len(energies), converged, cur)
+    return LloydSolution(np.array(path), energies, len(energies), converged, cur, start)
 
 
 def _anderson(xs: list[np.ndarray], fs: list[np.ndarray]) -> np.ndarray | None:

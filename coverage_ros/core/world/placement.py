@@ -17,8 +17,6 @@ import math
 from collections.abc import Sequence
 
 import numpy as np
-from scipy import ndimage
-from scipy.sparse.csgraph import dijkstra
 
 from coverage_ros.core.geodesic.graph import build_grid_graph
 from coverage_ros.core.world.grid import GridMap
@@ -115,6 +113,8 @@ def largest_free_region(grid: GridMap, radius: float) -> np.ndarray:
     """``(H, W) bool``: the cells of the largest 8-connected region where a robot of ``radius``
     [m] keeps ``CLUSTER_WALL_MARGIN`` from walls (all False if there is none)."""
     free = grid.inflated_free_mask(radius + CLUSTER_WALL_MARGIN)
+    from scipy import ndimage  # scipy's import is a tenth of a second: only when used
+
     labels, n = ndimage.label(free, structure=np.ones((3, 3)))
     if n == 0:
         return np.zeros(grid.shape, dtype=bool)
@@ -209,6 +209,8 @@ def cluster_starts(grid: GridMap, count: int, radius: float, rng: np.random.Gene
 def _grid_geodesic(free: np.ndarray, start: tuple[int, int]) -> np.ndarray:
     """``(H, W)`` 8-connected shortest-path lengths [cells] from ``start`` over ``free``."""
     graph = build_grid_graph(free, 1.0, connectivity=8)
+    from scipy.sparse.csgraph import dijkstra
+
     d = dijkstra(graph.csr, indices=int(graph.node_of_cell(np.array(start))))
     return d.reshape(free.shape)
 

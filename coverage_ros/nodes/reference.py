@@ -25,10 +25,10 @@ END = "<!-- end of the parameters of {node} -->"
 
 def node_tables() -> dict[str, ParameterTable]:
     """Every node's table, by executable name."""
+    from coverage_ros.nodes.bridge_config import PARAMETERS as BRIDGE
     from coverage_ros.nodes.marker_node import PARAMETERS as MARKERS
-    from coverage_ros.nodes.rerun_bridge import PARAMETERS as BRIDGE
-    from coverage_ros.nodes.robot_config import PARAMETERS as ROBOT
-    from coverage_ros.nodes.world_node import PARAMETERS as WORLD
+    from coverage_ros.nodes.robot_parameters import PARAMETERS as ROBOT
+    from coverage_ros.nodes.world_config import PARAMETERS as WORLD
 
     return {"robot_node": ROBOT, "world_node": WORLD, "rerun_bridge": BRIDGE,
             "marker_node": MARKERS}

@@ -90,7 +90,7 @@ class RobotLockstep:
         command = None
         if node.config.drive:
             command = c.command(now, tick.period)
-            node._publish_cmd(*command, now)
+            node.publish_cmd(*command, now)
         extra = {}
         if node.exchange is not None:
             every = ticks_per(1.0 / node.config.explore.observation_rate, tick.period)

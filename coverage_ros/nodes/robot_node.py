@@ -26,11 +26,9 @@ import sys
 import time
 
 from coverage_msgs.msg import RobotState
-from geometry_msgs.msg import PolygonStamped, Twist, TwistStamped
-from nav_msgs.msg import OccupancyGrid, Odometry, Path
+from nav_msgs.msg import OccupancyGrid, Odometry
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
-from std_srvs.srv import SetBool
 
 from coverage_ros.core.control.controller import RobotController
 from coverage_ros.core.control.listening import TeamListening
@@ -40,17 +38,17 @@ from coverage_ros.errors import ConfigError, CoverageError
 from coverage_ros.nodes import conversions as conv
 from coverage_ros.nodes.belief_exchange import BeliefExchange
 from coverage_ros.nodes.clock_guard import ClockGuard
-from coverage_ros.nodes.goal_output import GoalOutput
 from coverage_ros.nodes.lockstep_member import LockstepDriver
 from coverage_ros.nodes.neighbour_input import NeighbourInput
 from coverage_ros.nodes.parameters import declare_parameters
-from coverage_ros.nodes.qos import LOCKSTEP_STATE_QOS, MAP_QOS, TEAM_QOS, quiet_publisher
-from coverage_ros.nodes.region_input import RegionInput
-from coverage_ros.nodes.robot_config import PARAMETERS, load_robot_inputs
+from coverage_ros.nodes.qos import MAP_QOS, TEAM_QOS
+from coverage_ros.nodes.robot_config import load_robot_inputs
 from coverage_ros.nodes.robot_lockstep import RobotLockstep
+from coverage_ros.nodes.robot_output import RobotOutput
+from coverage_ros.nodes.robot_parameters import PARAMETERS
 from coverage_ros.nodes.robot_requests import RobotRequests
 from coverage_ros.nodes.robot_shared import SharedInputs
-from coverage_ros.nodes.runner import LAST_WORDS, FatalConfigError, run_node
+from coverage_ros.nodes.runner import FatalConfigError, run_node
 from coverage_ros.nodes.scan_input import ScanInput
 from coverage_ros.nodes.tf_input import TfPoseInput
 from coverage_ros.nodes.throttle import WarnThrottle
@@ -63,7 +61,7 @@ DISCOVERY_PERIOD = 1.0  # [s] wall time between looks at the ROS graph for new n
 LISTEN_FIRST = DISCOVERY_PERIOD + 0.5
 
 
-class RobotNode(RobotRequests, Node):
+class RobotNode(Node):
     """See module docstring."""
 
     def __init__(self, cli_args: list[str] | None = None,
@@ -89,36 +87,20 @@ class RobotNode(RobotRequests, Node):
         self._listen = TeamListening(LISTEN_FIRST, team, self.config.listen_timeout)
         self._pose_stamp = -math.inf  # [s] stamp of the last pose taken from pose_topic
         self._last_state = -math.inf
-        self._paused = False  # asked before the map came: applied when the controller is built
         self.tick_time: float | None = None  # [s] lock-step: the tick being worked on
         self.lockstep = RobotLockstep(self) if self.config.lockstep else None
         self.neighbours = NeighbourInput(self, self.config.robot_prefix, team, not hub,
                                          self._on_state, lambda: self.exchange,
                                          self.lockstep is not None)
 
-        def publisher(msg_type, topic):
-            return self.create_publisher(msg_type, topic, TEAM_QOS,
-                                         event_callbacks=quiet_publisher())
-
-        # drive: false - no cmd_vel publisher at all: the robot's own navigator owns cmd_vel.
-        self.cmd_pub = publisher(TwistStamped if self.config.use_stamped_cmd_vel else Twist,
-                                 "cmd_vel") if self.config.drive else None
-        self.goals = GoalOutput(publisher, self.config.drive, self.config.goal_topic,
-                                self.config.goal_resend_distance)
-        self.plan_pub, self.cell_pub = publisher(Path, "plan"), publisher(OccupancyGrid, "cell")
-        self.polygon_pub = publisher(PolygonStamped, "cell_polygon")
-        self.state_pub = self.create_publisher(
-            RobotState, "coverage_state", TEAM_QOS if self.lockstep is None else
-            LOCKSTEP_STATE_QOS, event_callbacks=quiet_publisher())
+        self.output = RobotOutput(self, self.config, self.frames, self._warn)
         if self.config.pose_source == "tf":  # map -> base_link, as AMCL or slam_toolbox give it
             self.tf_input = TfPoseInput(self, self.frames, self._take_pose, self._warn)
         else:
             self.create_subscription(Odometry, self.config.pose_topic, self._on_pose, TEAM_QOS)
-        if self.config.teleop_topic:
-            self.create_subscription(Twist, self.config.teleop_topic, self._on_teleop, TEAM_QOS)
-        self.create_service(SetBool, "set_manual", self._on_set_manual)
-        self.create_service(SetBool, "pause", self._on_pause)
-        self.regions = RegionInput(self, self._set_region, self._warn, self.config.region)
+        self.requests = RobotRequests(self, cc.robot_id, self.config.teleop_topic,
+                                      self.config.drive, self.config.region, self.output.goals,
+                                      lambda: self.controller, self._now, self._warn)
         self.scans: ScanInput | None = None  # the lidar, once the controller needs it
         self.exchange: BeliefExchange | None = None
         self.poses = PoseHistory()  # scans are placed from these (safety, belief)
@@ -169,10 +151,7 @@ class RobotNode(RobotRequests, Node):
                                     self.config.connectivity, belief is not None,
                                     None if belief is not None else metric)
         self.controller = RobotController(domain, self.config.controller, belief)
-        self.controller.set_manual(self.config.manual)
-        self.controller.set_paused(self._paused)
-        if not self.regions.region.everywhere:
-            self._set_region(self.regions.region)  # heard before the map came
+        self.requests.apply(self.controller, self.config.manual)
         if belief is not None:
             self.exchange = BeliefExchange(
                 self, belief, self.config.explore, self._throttle, self._now,
@@ -297,30 +276,10 @@ class RobotNode(RobotRequests, Node):
             self._warn("nopose", f"no pose yet on {self.config.pose_topic}")
             return
         try:
-            self._publish_update(c, result, now)
+            self.output.update(c, result, now)
         except Exception:
             if self.context.ok():  # shutting down mid-publish is not an error
                 raise
-
-    def _publish_update(self, c: RobotController, result, now: float) -> None:
-        # The state goes out at state_rate only (_on_tracking), with this update's values from
-        # now on: every state message wakes every neighbour, so their number must not grow
-        # with the update rate.
-        stamp = conv.to_time_msg(now)
-        d = result.decision
-        grid = c.domain.geometry
-        self.cell_pub.publish(conv.cell_grid_msg(grid, d.cell, stamp))
-        if d.cell_polygon is not None and len(d.cell_polygon):
-            self.polygon_pub.publish(conv.polygon_msg(stamp, d.cell_polygon))
-        # Self-steering strategies (tangentbug) have no goal for the planner, but a target.
-        goal = d.target
-        if c.manual or c.paused:
-            return  # a person drives it, or it holds: no goal or plan to show
-        self.goals.publish(stamp, goal, result.pose)
-        if result.path is not None:
-            self.plan_pub.publish(conv.path_msg(stamp, result.path))
-        elif d.goal is not None and d.velocity is None:
-            self._warn("plan", f"no path to goal ({d.goal[0]:.2f}, {d.goal[1]:.2f})")
 
     def _on_tracking(self) -> None:
         c = self.controller
@@ -332,35 +291,21 @@ class RobotNode(RobotRequests, Node):
         self._last_tick = now
         if self.config.drive:
             v, w = c.command(now, dt)
-            self._publish_cmd(v, w, now)
+            self.publish_cmd(v, w, now)
         if now - self._last_state >= 0.999 / self.config.state_rate:
             self._last_state = now
             self.publish_state(now, conv.to_time_msg(now))
 
     def publish_state(self, now: float, stamp, extra: dict[str, float] | None = None) -> None:
-        """The last update's values with the position and velocity fresh for neighbours'
-        safety filters (drive: false: the velocity from the poses); before the first update,
-        presence."""
+        """``coverage_state`` now (drive: false: the velocity from the poses); nothing before
+        the robot has a pose."""
         c = self.controller
-        if c is None or c.pose is None:
-            return
-        state = dict(c.last.state) if c.last is not None else c.presence_state()
-        motion = c.motion_state() if self.config.drive else self.poses.velocity()
-        state.update(x=float(c.pose[0]), y=float(c.pose[1]), **motion, **(extra or {}))
-        self.state_pub.publish(conv.coverage_state_msg(stamp, state, robot_id=self.robot_id))
+        if c is not None and c.pose is not None:
+            motion = c.motion_state() if self.config.drive else self.poses.velocity()
+            self.output.state(c, stamp, motion, extra)
 
-    def _publish_cmd(self, v: float, w: float, now: float, last: bool = False) -> None:
-        if self.cmd_pub is None:
-            return
-        msg = conv.command_to_twist(v, w)
-        if self.config.use_stamped_cmd_vel:
-            msg = TwistStamped(twist=msg)
-            msg.header.stamp = conv.to_time_msg(now)
-            msg.header.frame_id = self.frames.base_link
-        if last:  # the process ends next: the command must arrive (runner.LastWords)
-            LAST_WORDS.publish(self.cmd_pub, msg)
-        else:
-            self.cmd_pub.publish(msg)
+    def publish_cmd(self, v: float, w: float, now: float, last: bool = False) -> None:
+        self.output.command(v, w, now, last)
 
     def stop(self) -> None:
         """Best effort: finish the running update, leave the robot standing."""
@@ -377,7 +322,7 @@ class RobotNode(RobotRequests, Node):
             self.get_logger().info(f"sent the evidence of {self.exchange.sent_cells} cells, "
                                    f"heard {len(self.exchange.heard)} robots")
         if self.context.ok():
-            self._publish_cmd(0.0, 0.0, self._now(), last=True)
+            self.publish_cmd(0.0, 0.0, self._now(), last=True)
 
 
 def main(args=None) -> int:

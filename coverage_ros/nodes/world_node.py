@@ -11,7 +11,6 @@ Robots are added and removed at run time through ``/world/spawn`` and ``/world/r
 
 from __future__ import annotations
 
-import math
 import sys
 import time
 from dataclasses import dataclass, field
@@ -32,99 +31,15 @@ from coverage_ros.nodes.qos import MAP_QOS, SCAN_QOS, TEAM_QOS, TICK_QOS, quiet_
 from coverage_ros.nodes.runner import run_node
 from coverage_ros.nodes.tf_output import TfOutput
 from coverage_ros.nodes.throttle import WarnThrottle
-from coverage_ros.nodes.world_lockstep import LockstepConfig, WorldLockstep
-from coverage_ros.sim.world import Scan, SimConfig, World
+from coverage_ros.nodes.world_config import PARAMETERS, world_inputs
+from coverage_ros.nodes.world_lockstep import WorldLockstep
+from coverage_ros.sim.world import Scan, World
 from coverage_ros.worlds import resolve_world_path
 
 DEFAULT_NUM_ROBOTS = 4  # robots when the world lists no start poses
 WARN_PERIOD = 2.0  # [s] wall time between repeats of a throttled warning (the sim's inputs)
 TICK_BUDGET = 0.05  # [s] wall time one pacing tick may step before serving callbacks again
 MAX_LAG = 0.25  # [s] sim time behind schedule before the pacer gives up catching up
-
-
-@dataclass(frozen=True)
-class WorldNodeConfig:
-    """The node's parameters, validated (see README for meanings)."""
-
-    world: str = "office"
-    num_robots: int = -1  # -1: the world's start poses, else DEFAULT_NUM_ROBOTS
-    real_time_factor: float = 1.0
-    use_stamped_cmd_vel: bool = False
-    odom_rate_hz: float = 20.0  # [Hz] sim time
-    clock_rate_hz: float = 0.0  # [Hz] sim time; 0: every physics step
-    status_rate_hz: float = 1.0  # [Hz] wall time
-    robot_prefix: str = "robot_"
-    publish_map: bool = True
-    publish_tf: bool = True
-    sim: SimConfig = field(default_factory=SimConfig)
-    lockstep: LockstepConfig | None = None  # None: paced by the wall clock
-
-    def __post_init__(self) -> None:
-        if self.num_robots < -1:
-            raise ConfigError.at("num_robots", "must be >= 0 (or -1: the world's robots)",
-                                 self.num_robots)
-        if not (math.isfinite(self.real_time_factor) and self.real_time_factor >= 0):
-            raise ConfigError.at("real_time_factor", "must be >= 0 (0: as fast as possible)",
-                                 self.real_time_factor)
-        for name in ("odom_rate_hz", "status_rate_hz"):
-            if not getattr(self, name) > 0:
-                raise ConfigError.at(name, "must be > 0", getattr(self, name))
-        if not self.clock_rate_hz >= 0:
-            raise ConfigError.at("clock_rate_hz", "must be >= 0 (0: every physics step)",
-                                 self.clock_rate_hz)
-        if not self.robot_prefix or not self.robot_prefix.replace("_", "a").isalnum():
-            raise ConfigError.at("robot_prefix", "must be letters, digits and '_'",
-                                 self.robot_prefix)
-
-
-PARAMETERS = {  # name: (default, description)
-    "world": ("office", "a shipped world name (`config/worlds/<name>.yaml`, found through the "
-                        "ament index share dir, else the source tree), or a path to a world YAML "
-                        "or a map_server YAML"),
-    "num_robots": (-1, "robots at start-up; `-1`: one per start pose of the world, or 4 if it "
-                       "lists none"),
-    "starts": ("", "start poses `x,y,yaw;x,y,yaw;...` [m, rad] overriding the world's; "
-                   "`num_robots` -1 then means one robot per pose"),
-    "team": ("", "team YAML (each robot's `id`, `start` and spec keys, e.g. `coverage-team`'s "
-                 "`<out>/team.yaml`; see README \"World files\"); overrides `starts` and "
-                 "`num_robots`"),
-    "seed": (0, "seeds placement, odometry noise and lidar noise: the same seed gives the same "
-                "run"),
-    "real_time_factor": (1.0, "sim seconds per wall second; `0`: as fast as possible"),
-    "physics_rate_hz": (50.0, "fixed physics steps per simulated second"),
-    "cmd_timeout": (0.5, "[s] sim time without `cmd_vel` after which a robot brakes to a stop "
-                         "(within its acceleration limits)"),
-    "use_stamped_cmd_vel": (False, "subscribe `geometry_msgs/TwistStamped` instead of `Twist`"),
-    "odom_noise_trans": (0.0, "[m/sqrt(m)] odometry translation random walk: error std after "
-                              "driving d metres is `k * sqrt(d)`"),
-    "odom_noise_rot": (0.0, "[rad/sqrt(rad)] odometry heading random walk per radian turned"),
-    "scan_noise_std": (-1.0, "[m] Gaussian lidar range noise; `< 0`: the world's "
-                             "`lidar.noise_std`"),
-    "odom_rate_hz": (20.0, "[Hz, sim time] rate of `odom` and `ground_truth`"),
-    "clock_rate_hz": (0.0, "[Hz, sim time] rate of `/clock`; `0`: every physics step"),
-    "status_rate_hz": (1.0, "[Hz, wall time] rate of `/world/robots`"),
-    "robot_prefix": ("robot_", "robot namespaces and frame prefixes are `<prefix><id>`"),
-    "publish_map": (True, "publish the true map on `/map`; `false` when the robots explore an "
-                          "unknown map (the simulator still uses it)"),
-    "publish_tf": (True, "publish `/tf` (`map -> robot_<id>/odom -> robot_<id>/base_link` per "
-                         "robot) and `/tf_static` (`base_link -> base_scan`)"),
-    "lockstep": (False, "lock-step (README \"Lock-step simulation\"): sim time advances one "
-                        "`lockstep_period` only when every member - each robot with `lockstep: "
-                        "true`, and the observers - has answered the last tick on "
-                        "`/world/tick_report`; `/clock`, `odom` and `ground_truth` go out every "
-                        "tick, `/world/robots` every `status_rate_hz` of sim time, and "
-                        "`real_time_factor` > 0 caps the pace (0: as fast as the members answer)"),
-    "lockstep_period": (0.1, "[s] sim time per tick (a whole number of physics steps); robots "
-                             "track and command once per tick"),
-    "lockstep_timeout": (10.0, "[s] wall time a member that owes an answer may stay silent "
-                               "(robots send a heartbeat every second while they work) before the"
-                               " world goes on without it, with one warning; it may join again"),
-    "lockstep_start_timeout": (120.0, "[s] wall time the first tick waits for the robot of every "
-                                      "body and for the `lockstep_observers`; then it starts with"
-                                      " those that joined"),
-    "lockstep_observers": ("", "comma-separated observer members the first tick waits for "
-                               "(`coverage-team`'s monitor: `coverage_team`)"),
-}
 
 
 @dataclass
@@ -145,21 +60,9 @@ class WorldNode(Node):
 
     def __init__(self) -> None:
         super().__init__("world")
-        p = declare_parameters(self, PARAMETERS)
-        scan_noise = p.pop("scan_noise_std")
-        starts_text = p.pop("starts")
-        team_path = p.pop("team")
-        lockstep = LockstepConfig(
-            p.pop("lockstep_period"), p.pop("lockstep_timeout"), p.pop("lockstep_start_timeout"),
-            tuple(n.strip() for n in p.pop("lockstep_observers").split(",") if n.strip()))
-        if not p.pop("lockstep"):
-            lockstep = None
-        sim = SimConfig(seed=p.pop("seed"), physics_rate_hz=p.pop("physics_rate_hz"),
-                        cmd_timeout=p.pop("cmd_timeout"),
-                        odom_noise_trans=p.pop("odom_noise_trans"),
-                        odom_noise_rot=p.pop("odom_noise_rot"),
-                        scan_noise_std=scan_noise if scan_noise >= 0 else None)
-        self.config = WorldNodeConfig(sim=sim, lockstep=lockstep, **p)
+        inputs = world_inputs(declare_parameters(self, PARAMETERS))
+        self.config = inputs.config
+        starts_text, team_path = inputs.starts, inputs.team
         self.spec = load_planar_world(resolve_world_path(self.config.world), "world")
         self.sim = World(self.spec, self.config.sim)
         count = self.config.num_robots

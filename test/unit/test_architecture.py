@@ -62,7 +62,7 @@ def test_generated_parameter_files_match_the_tables():
 
 
 def test_robot_params_file_loads_as_the_declared_defaults():
-    from coverage_ros.nodes.robot_config import PARAMETERS
+    from coverage_ros.nodes.robot_parameters import PARAMETERS
 
     data = yaml.safe_load((REPO / "config" / "robot.yaml").read_text())
     shipped = data["/**"]["ros__parameters"]
@@ -77,7 +77,7 @@ def test_the_nodes_defaults_are_the_cores():
 
     from coverage_ros.core.control.controller import ControllerConfig
     from coverage_ros.core.strategies.base import StrategyContext
-    from coverage_ros.nodes.robot_config import PARAMETERS
+    from coverage_ros.nodes.robot_parameters import PARAMETERS
 
     shared = [(cls.__name__, f.name, f.default) for cls in (ControllerConfig, StrategyContext)
               for f in fields(cls) if f.name in PARAMETERS and f.default is not MISSING

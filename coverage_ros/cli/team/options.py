@@ -19,7 +19,7 @@ from coverage_ros.core.strategies import EXPLORERS, STRATEGIES, StrategyChoice, 
 from coverage_ros.core.world.region import Region, parse_region_text
 from coverage_ros.core.world.yaml_io import yaml_mapping
 from coverage_ros.errors import ConfigError
-from coverage_ros.nodes.robot_config import PARAMETERS
+from coverage_ros.nodes.robot_parameters import PARAMETERS
 from coverage_ros.nodes.runner import EXECUTORS, executor_kind
 
 

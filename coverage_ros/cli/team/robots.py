@@ -20,7 +20,7 @@ import yaml
 from coverage_ros.cli.team.processes import executable, ros_args
 from coverage_ros.core.world.robot import RobotSpec
 from coverage_ros.errors import ConfigError
-from coverage_ros.nodes.robot_config import PARAMETERS, SPEC_PARAMETERS
+from coverage_ros.nodes.robot_parameters import PARAMETERS, SPEC_PARAMETERS
 
 #: Fraction of the machine's cores the whole team may spend on coverage updates by default.
 UPDATE_SHARE = 0.15

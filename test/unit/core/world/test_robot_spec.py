@@ -20,7 +20,8 @@ from coverage_ros.core.world import load_team, parse_team, parse_world, write_te
 from coverage_ros.core.world.placement import team_starts
 from coverage_ros.core.world.robot import TB3_RADIUS, TB3_V_MAX, RobotSpec
 from coverage_ros.errors import ConfigError, WorldError
-from coverage_ros.nodes.robot_config import PARAMETERS, load_robot_inputs
+from coverage_ros.nodes.robot_config import load_robot_inputs
+from coverage_ros.nodes.robot_parameters import PARAMETERS
 
 MIXED = {
     "name": "mixed", "bounds": [0, 0, 8, 6],

@@ -49,31 +49,22 @@ from enum import StrEnum
 
 import numpy as np
 
-from coverage_ros.core.geometry import polygon_area, wrap_angle
+from coverage_ros.core.geometry import polygon_area
 from coverage_ros.core.strategies.tangentbug.scan_geometry import (
     closest_on_rays,
     free_lengths,
     scan_nodes,
     unit_directions,
 )
+from coverage_ros.core.strategies.tangentbug.steering import SAFETY_MARGIN, steer
 from coverage_ros.errors import ConfigError
 
 #: Fixed map-frame directions on which free lengths are evaluated (1 degree apart: as fine
 #: as the LDS-01's beams, so no gap the robot fits through falls between two directions).
 DIRECTIONS = 360
-#: [rad/s per rad] proportional heading gain (turns half the error per step at 5 Hz).
-HEADING_GAIN = 2.5
-#: [rad] heading errors beyond this are corrected by turning in place.
-TURN_IN_PLACE = math.radians(60.0)
-#: [s] the robot may drive at most its free length (at the physical safety radius) in this time.
-BRAKE_TIME = 1.0
-#: [1/s] approach speed per metre to an endpoint (goal, projection): no overshoot at 5 Hz.
-APPROACH_GAIN = 1.0
 #: A range jump of this many clearances between returns adjacent in bearing is an obstacle endpoint
 #: (a gap the robot's clearance disc could enter).
 NODE_JUMP_CLEARANCES = 2.0
-#: [m] physical margin added to the robot radius for the brake (stops short of contact).
-SAFETY_MARGIN = 0.02
 #: A loop must enclose at least this many loop_tolerance discs (not a walk in and out of a
 #: dead end).
 MIN_LOOP_DISCS = 1.0
@@ -387,13 +378,6 @@ class TangentBug:
     def _drive(self, yaw: float, heading: float, rel: np.ndarray, reach: float,
                approach: float | None) -> BugCommand:
         c = self.config
-        err = float(wrap_angle(heading - yaw))
-        w = float(np.clip(HEADING_GAIN * err, -c.w_max, c.w_max))
-        v = 0.0 if abs(err) > TURN_IN_PLACE else c.v_max * math.cos(err)
-        ahead = np.array([[math.cos(yaw), math.sin(yaw)]])
-        room = float(free_lengths(rel, ahead, c.robot_radius + SAFETY_MARGIN,
-                                  max(reach, c.lookahead))[0])
-        v = min(v, room / BRAKE_TIME)
-        if approach is not None:
-            v = min(v, APPROACH_GAIN * approach)
-        return BugCommand(max(v, 0.0), w, self.mode, heading)
+        v, w = steer(yaw, heading, rel, reach, approach, c.v_max, c.w_max, c.robot_radius,
+                     c.lookahead)
+        return BugCommand(v, w, self.mode, heading)

@@ -1,5 +1,5 @@
-"""What a live team did at the end, for a failing assertion's message: a CI run that fails on
-a team's H keeps only the test's output, so the message says where each robot stood, whether it
+"""What a live team did at the end, for a failing assertion's message: a run that fails on a
+team's H keeps only the test's output, so the message says where each robot stood, whether it
 was lost, and its log's last decision and recovery lines."""
 
 from __future__ import annotations

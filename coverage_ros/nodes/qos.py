@@ -39,8 +39,8 @@ def quiet_publisher() -> PublisherEventCallbacks:
     """``event_callbacks`` for a publisher without rclpy's default QoS event handlers.
 
     Every handler is a waitable that the Python executor adds to its wait set on every
-    wake-up; with a team's dozens of topics per process that was most of an idle robot's
-    CPU (measured: 13 % -> ~5 % of a core). Incompatible QoS is still reported by the
+    wake-up: with a team's dozens of topics per process, most of an idle robot's CPU.
+    Incompatible QoS is still reported by the
     subscribing side where it matters (map, pose and scan inputs keep their handlers)."""
     return PublisherEventCallbacks(use_default_callbacks=False)
 

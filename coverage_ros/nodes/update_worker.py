@@ -18,10 +18,8 @@ A robot's coverage update can take longer than its tracking period, so it runs o
 5. :class:`WarnThrottle` may be called from any thread.
 
 rclpy's ``MultiThreadedExecutor`` with a ``MutuallyExclusiveCallbackGroup`` for the update
-timer would give the same separation, but it hands *every* callback to a thread pool: with a
-robot's traffic (``scripts/bench_executor``: 15 neighbours' states, pose, clock and scan, 62
-messages/s) the listener spent 1.3-1.8x the CPU per message (0.97-1.06 ms against 0.59-0.75 ms
-for the single-threaded executor in two runs). A team on two cores is bound by exactly that
+timer would give the same separation, but it hands *every* callback to a thread pool, which
+costs more CPU per message (``scripts/bench_executor``); a team on two cores is bound by that
 per-message cost, so robot_node keeps the single-threaded executor and one update thread.
 """
 

@@ -58,8 +58,7 @@ def test_an_interrupt_at_any_moment_leaves_nothing_behind(tmp_path, when):
                                      "--domain-id", str(domain_id(27 if when < 10 else 28))),
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             env=ros_env(domain_id(27)), start_new_session=True)
-    # ``when`` counts from the launcher's first child: the launcher itself takes 1.5-2.7 s
-    # to start one here (imports, the team's checks), and a CI run once had none at 2.0 s.
+    # ``when`` [s] counts from the launcher's first child: its own start-up takes seconds.
     seen: dict[int, psutil.Process] = {}
     started, limit = None, time.monotonic() + 60.0
     while started is None or time.monotonic() < started + when:

@@ -20,9 +20,8 @@ def test_growth_is_measured_after_warm_up_and_ignores_short_lives():
 
 
 def test_a_team_whose_robots_restart_keeps_covering_with_flat_memory_and_logs(tmp_path):
-    # At twice real time: at 2.5x a CI run kept only 2.25x while a restarted robot's process
-    # started on the two cores, and one robot touched something (four runs on an idle machine
-    # since: 2.50x, no collision); the soak is about restarts, memory and logs, not speed.
+    # At twice real time, which two busy cores keep while a restarted robot's process starts:
+    # the soak is about restarts, memory and logs, not speed.
     r = soak_section(100.0, tmp_path, print, robots=4, world="office", period=35.0, rtf=2.0,
                      sample_period=1.0)
     print(r)

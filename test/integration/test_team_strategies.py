@@ -126,10 +126,8 @@ def test_a_mixed_team_from_a_team_file(tmp_path, sandbox):
     # Power cells of the final positions: the 1.2 m footprints hold more than the 0.6 m ones,
     # and those still hold a cell at least as large as their own body (weights far above the
     # robots' spacing would leave the small footprints no cell at all: the sandbox is about
-    # 20 m^2). Four runs here ended with 2.5-3.1 m^2 for each small one; in one (a CI run) a small
-    # robot ended pressed between a wall and a large footprint, whose power boundary then lies
-    # 0.15 m from it (d = 1.2 m), with a sliver of 0.2 m^2 - a power-centroidal configuration
-    # too, so only the body's area is asked for.
+    # 20 m^2). A small robot pressed between a wall and a large footprint holds a sliver, a
+    # power-centroidal configuration too, so only the body's area is asked for.
     final = {r["id"]: np.array(r["final"][:2]) for r in summary["robots"]}
     domain = CoverageDomain.from_grid(world.grid, 0.16)
     cells = tessellate(domain, [Generator(final[i], want[i][2]) for i in range(4)])

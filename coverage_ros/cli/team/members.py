@@ -13,10 +13,8 @@ from coverage_ros.core.world.placement import CLUSTER_GAP, team_starts
 from coverage_ros.core.world.spec import WorldSpec
 from coverage_ros.errors import ConfigError
 
-#: [MB] memory of one robot process (measured 230-305 MB with 16 robots, bench_team), of each
-#: further robot sharing a process (measured 8-14 MB: 16 robots in 363 MB, 8 in 339 MB on
-#: depot), the world node and the rerun bridge: what a team is estimated to need before it
-#: starts.
+#: [MB] memory of one robot process, of each further robot sharing a process, the world node
+#: and the rerun bridge (scripts/bench_team's peaks, rounded up): a team's estimate at start.
 ROBOT_MB = 300.0
 SHARED_ROBOT_MB = 20.0
 WORLD_MB = 150.0

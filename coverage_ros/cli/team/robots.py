@@ -24,21 +24,14 @@ from coverage_ros.nodes.robot_parameters import PARAMETERS, SPEC_PARAMETERS
 
 #: Fraction of the machine's cores the whole team may spend on coverage updates by default.
 UPDATE_SHARE = 0.15
-#: The same with several robots per process: one executor per process handles the team's
-#: messages for all of its robots, which leaves more for updates, and the robots' budgets are
-#: pooled and taken in turns (nodes/update_worker.UpdatePool). 64 robots in 4 processes on 2
-#: cores, bench_team: 0.4 - rtf 0.99-1.00, worst median update period 2.5-2.6 s; 0.5 - rtf
-#: 1.00, 1.7-2.5 s (four runs).
+#: The same with several robots per process: one executor handles all of its robots' messages,
+#: which leaves more for updates, pooled and taken in turns (nodes/update_worker.UpdatePool).
 POOLED_UPDATE_SHARE = 0.5
 #: [1/s] neighbours' coverage_state messages a robot alone in its process handles at most by
-#: default (the launcher lowers state_rate for it; every message costs its Python executor
-#: a callback). 32 robots in 32 processes on 2 cores, bench_team: state_rate 2.5 Hz - rtf
-#: 0.92-0.96, 5.4-5.6 % of a core per robot; 1.25 Hz - rtf 0.98, 5.1 %.
+#: default (the launcher lowers state_rate for it: each message costs its executor a callback).
 SOLO_STATES_PER_SECOND = 40.0
-#: Robots per core up to which every robot gets a process of its own by default (16 robots on
-#: 2 cores run at real time that way), and the robot processes per core beyond that (2 cores,
-#: bench_team on depot: 32 robots in 32 processes rtf 0.69-0.81, in 4 processes 1.00; 64 in 16
-#: processes 0.56, in 8 0.84, in 4 0.96).
+#: Robots per core up to which every robot gets a process of its own by default, and the robot
+#: processes per core beyond that (the real-time figures of scripts/bench_team).
 SOLO_PER_CORE = 8
 PROCESSES_PER_CORE = 2
 #: [m] robot_node search_reuse for robots sharing a process: a robot takes its cell from a

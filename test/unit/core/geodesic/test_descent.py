@@ -15,9 +15,8 @@ RES = 0.05
 def jamb_domain() -> tuple[CoverageDomain, int]:
     """A room (rows >= 21) over a corridor (rows <= 14), joined by a door in columns 0-5; the
     robot's vertex (row 20, column 6) is a notch at the door jamb: the wall is right of it and
-    below it, the way on into the corridor starts with a step to the left (as a robot of the
-    office exploration test was left standing in a CI run: its cell held the corridor and the
-    rooms beyond, its goal was 5 cm away)."""
+    below it, the way on into the corridor starts with a step to the left (a robot there held
+    the corridor and the rooms beyond in its cell, its goal 5 cm away)."""
     occ = np.zeros((40, 60), np.int8)
     occ[15:20, 6:] = OCCUPIED
     occ[20, 7:] = OCCUPIED

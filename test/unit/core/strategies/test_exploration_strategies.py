@@ -249,8 +249,9 @@ def test_fig19_a_person_holds_one_robot_in_a_room_of_an_unknown_office():
 def test_a_given_up_pocket_inside_furniture_is_banned_whole_and_stops_pulling():
     """The inside of a table whose outline the lidar left open is one small unexplored
     pocket: giving up its first target bans all of it, after which the robot is back in the
-    Lloyd mode and its goal is no longer pulled toward the table. A real frontier (a pocket larger than ``ban_pocket_area``) only
-    loses the vertices within ``ban_radius`` of the target."""
+    Lloyd mode and its goal is no longer pulled toward the table. A real frontier (a pocket
+    larger than ``ban_pocket_area``) only loses the vertices within ``ban_radius`` of the
+    target."""
     h, w = 60, 80  # a 3 m x 4 m room, all seen free but a 0.8 m table
     lattice = GridMap(np.full((h, w), -1, np.int8), RES)
     belief = Belief(lattice, 0)

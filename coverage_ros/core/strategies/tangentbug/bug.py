@@ -49,7 +49,7 @@ from enum import StrEnum
 
 import numpy as np
 
-from coverage_ros.core.geometry import polygon_area
+from coverage_ros.core.strategies.tangentbug.boundary import BoundaryRun
 from coverage_ros.core.strategies.tangentbug.scan_geometry import (
     closest_on_rays,
     free_lengths,
@@ -65,9 +65,6 @@ DIRECTIONS = 360
 #: A range jump of this many clearances between returns adjacent in bearing is an obstacle endpoint
 #: (a gap the robot's clearance disc could enter).
 NODE_JUMP_CLEARANCES = 2.0
-#: A loop must enclose at least this many loop_tolerance discs (not a walk in and out of a
-#: dead end).
-MIN_LOOP_DISCS = 1.0
 #: A projection run that travels this many loop lengths without reaching the recorded point
 #: falls back to motion-to-goal toward it (it is reachable: the robot was there).
 PROJECTION_LOOPS = 1.5
@@ -149,21 +146,11 @@ class TangentBug:
         self._loop_length = 0.0
         self._leave_point: np.ndarray | None = None
         self._node_side = 0
-        self._start_following(1)
+        self._run = BoundaryRun(1)
 
     @property
     def done(self) -> bool:
         return self.mode in (BugMode.REACHED, BugMode.PROJECTED)
-
-    def _start_following(self, side: int) -> None:
-        self._side = side  # +1: obstacle on the left
-        self._anchor: np.ndarray | None = None  # first position on the boundary
-        self._trace: list[np.ndarray] = []
-        self._travelled = 0.0  # [m] since the anchor
-        self._left_anchor = False
-        self._best_d = math.inf
-        self._best_s = 0.0
-        self._last: np.ndarray | None = None
 
     # ------------------------------------------------------------------ one control period
     def step(self, pose: np.ndarray, points: np.ndarray, horizon: float,
@@ -257,7 +244,7 @@ class TangentBug:
             if node is not None:
                 side = -1 if u_goal[0] * node[1] - u_goal[1] * node[0] > 0 else 1
             self.mode = BugMode.BOUNDARY_FOLLOWING
-            self._start_following(side)
+            self._run = BoundaryRun(side)
             return None, None
         return math.atan2(node[1], node[0]), None
 
@@ -298,19 +285,22 @@ class TangentBug:
             return None
         dist = np.hypot(*rel.T)
         near = int(np.argmin(dist))
+        run = self._run
         if self.mode is BugMode.BOUNDARY_FOLLOWING:
-            if self._anchor is None and dist[near] <= c.clearance + 0.5 * c.loop_tolerance:
-                self._anchor = x.copy()
-                self._last = x.copy()
-            if self._anchor is not None:
-                self._record(x)
-                if self.mode is not BugMode.BOUNDARY_FOLLOWING:
-                    return None  # loop closed
+            if run.anchor is None and dist[near] <= c.clearance + 0.5 * c.loop_tolerance:
+                run.touch(x)
+            if run.anchor is not None:
+                loop = run.record(x, self.target, c.loop_tolerance)
+                if run.best is not None:
+                    self.best = run.best
+                if loop is not None:
+                    self._close_loop(loop)
+                    return None
             # Leave for a goal really in sight or a seen point closer than any followed (a ray
             # free only to the horizon, or through a neighbour's shadow, would bring the robot
             # back to the same boundary to follow it afresh, for ever).
             d_reach, point = closest_on_rays(x, self._dirs, self._seen, self.target)
-            d_followed = min(self._best_d, float(np.hypot(*(self.target - x))))
+            d_followed = min(run.best_d, float(np.hypot(*(self.target - x))))
             if self._goal_visible(x, self._seen_rel, reach, horizon_counts=False) or (
                     d_reach < d_followed - min(c.leave_margin, 0.5 * d_followed)):
                 self.mode = BugMode.MOTION_TO_GOAL
@@ -319,56 +309,36 @@ class TangentBug:
                 return None
         K = len(L)
         k0 = int(round(math.atan2(rel[near, 1], rel[near, 0]) / (2.0 * math.pi) * K)) % K
-        ks = (k0 - self._side * np.arange(K)) % K
+        ks = (k0 - run.side * np.arange(K)) % K
         ok = np.flatnonzero(L[ks] >= min(c.lookahead, reach) - 1e-9)
         if len(ok) == 0:
             return None
         d = self._dirs[ks[ok[0]]]
         return math.atan2(d[1], d[0])
 
-    def _record(self, x: np.ndarray) -> None:
-        c = self.config
-        assert self._last is not None and self._anchor is not None
-        self._travelled += float(np.hypot(*(x - self._last)))
-        self._last = x.copy()
-        self._trace.append(x.copy())
-        d = float(np.hypot(*(self.target - x)))
-        if d < self._best_d:
-            self._best_d, self._best_s, self.best = d, self._travelled, x.copy()
-        gap = float(np.hypot(*(x - self._anchor)))
-        if gap > 2.0 * c.loop_tolerance:
-            self._left_anchor = True
-        elif self._left_anchor and gap <= c.loop_tolerance:
-            trace = np.array(self._trace)
-            if abs(polygon_area(trace)) >= MIN_LOOP_DISCS * math.pi * c.loop_tolerance ** 2:
-                self._close_loop(trace)
-
     def _close_loop(self, trace: np.ndarray) -> None:
         """One full loop without a leave point: the goal is unreachable. Head for the best
         point the shorter way round."""
-        self.loop, self.loop_side = trace, self._side
-        self._loop_length = self._travelled
-        side = self._side if self._best_s <= 0.5 * self._travelled else -self._side
-        best = self.best
+        run = self._run
+        self.loop, self.loop_side = trace, run.side
+        self._loop_length = run.travelled
+        side = run.side if run.best_s <= 0.5 * run.travelled else -run.side
         self.mode = BugMode.PROJECTING
         self.unreachable = True
-        self._start_following(side)
-        self.best = best
-        assert best is not None
-        self.target = best.copy()
-        self._last = trace[-1].copy()
+        self._run = BoundaryRun(side)
+        self._run.move_to(trace[-1])
+        assert self.best is not None
+        self.target = self.best.copy()
 
     def _project(self, x: np.ndarray, rel: np.ndarray, L: np.ndarray,
                  reach: float) -> tuple[float | None, float | None]:
         c = self.config
         to_best = self.target - x
         d = float(np.hypot(*to_best))
-        if self._last is not None:
-            self._travelled += float(np.hypot(*(x - self._last)))
-        self._last = x.copy()
+        self._run.move_to(x)
         if d <= c.loop_tolerance:
             return math.atan2(to_best[1], to_best[0]), d
-        if self._travelled > PROJECTION_LOOPS * self._loop_length:
+        if self._run.travelled > PROJECTION_LOOPS * self._loop_length:
             # Lost the contour: the point is reachable (the robot was there), go by TangentBug.
             self.mode = BugMode.MOTION_TO_GOAL
             return self._motion_to_goal(x, rel, L, reach)

@@ -160,7 +160,7 @@ def _report(plan: RunPlan, monitor: TeamMonitor | None, log: RunLog | None, proc
             say(f"  {child.name} exited with {child.popen.returncode}:\n{procs.tail(child)}")
         return 1
     summary = summarize(log, plan.team, plan.world, monitor.domain, config.strategy,
-                        config.seed, wall, interrupted)
+                        config.seed, wall, interrupted).as_dict()
     (out / "summary.json").write_text(json.dumps(summary, indent=2))
     if interrupted:
         print(f"coverage-team: interrupted at sim time {log.sim_time:.1f} s; wrote "

@@ -21,8 +21,9 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -104,11 +105,84 @@ def team_cost(domain: CoverageDomain, team: Sequence[TeamMember], log: RunLog) -
     return float(tessellate(domain, team, ids, np.array([log.poses[i][:2] for i in ids])).cost)
 
 
+@dataclass(frozen=True)
+class RobotResult:
+    """One robot in ``summary.json``: start and final pose ``(x, y, yaw)``, path [m],
+    collisions, its spec and role, the body the world simulated, when it was lost [s of sim
+    time] and restarted [s since ready]."""
+
+    id: int
+    start: list[float]
+    final: list[float] | None
+    path_length: float
+    collisions: int
+    robot_collisions: int
+    wall_collisions: int
+    spec: dict[str, float]
+    role: str
+    body: dict[str, float]
+    lost_at: float | None = None
+    restarted_at: list[float] | None = None
+
+    def as_dict(self) -> dict[str, Any]:
+        out = asdict(self)
+        for key in ("lost_at", "restarted_at"):
+            if out[key] is None:
+                del out[key]
+        return out
+
+
+@dataclass(frozen=True)
+class Metrics:
+    """The run's scores (module docstring); None where there was nothing to score."""
+
+    H: float | None
+    H_start: float
+    mass_deviation_I: float | None  # noqa: N815 - the summary.json key, Lee & Lee's I
+    coverage_ratio: float
+    min_separation: float | None
+    converged_at: float | None
+    H_series: list[list[float]]
+
+
+@dataclass(frozen=True)
+class TeamSummary:
+    """A run's ``summary.json``, typed: :meth:`as_dict` is the file's content."""
+
+    world: str
+    strategy: str
+    seed: int
+    sim_time: float
+    wall_time: float
+    rtf: float
+    ready_at: float | None
+    interrupted: bool
+    robots: list[RobotResult]
+    metrics: Metrics
+    region_polygons: list[list[list[float]]]
+    region_set_at: float | None
+    processes: dict | None = None
+    exploration: dict | None = None
+
+    def as_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = {
+            "world": self.world, "strategy": self.strategy, "seed": self.seed,
+            "sim_time": self.sim_time, "wall_time": self.wall_time, "rtf": self.rtf,
+            "ready_at": self.ready_at, "interrupted": self.interrupted,
+            "robots": [r.as_dict() for r in self.robots], "metrics": asdict(self.metrics),
+            "region": {"polygons": self.region_polygons, "set_at": self.region_set_at}}
+        if self.processes is not None:
+            out["processes"] = self.processes
+        if self.exploration is not None:
+            out["exploration"] = self.exploration
+        return out
+
+
 def summarize(log: RunLog, team: Sequence[TeamMember], world: WorldSpec,
               domain: CoverageDomain, strategy: str, seed: int, wall_time: float,
-              interrupted: bool) -> dict:
-    """``summary.json`` of a run (module docstring); ``domain``: the scoring's, with the
-    region of interest in force at the end."""
+              interrupted: bool) -> TeamSummary:
+    """The summary of a run (module docstring); ``domain``: the scoring's, with the region
+    of interest in force at the end."""
     n = len(team)
     alive = log.present(n)
     P = np.array([log.poses[i][:2] for i in alive]).reshape(-1, 2)
@@ -120,42 +194,31 @@ def summarize(log: RunLog, team: Sequence[TeamMember], world: WorldSpec,
     for i in range(n):
         st = log.status.get(i, {})
         final = log.poses.get(i)
-        robots.append({
-            "id": i, "start": starts[i].round(4).tolist(),
-            "final": None if final is None else np.round(final, 4).tolist(),
-            "path_length": round(st.get("path_length", 0.0), 4),
-            "collisions": int(st.get("collisions", 0)),
-            "robot_collisions": int(st.get("robot_collisions", 0)),
-            "wall_collisions": int(st.get("wall_collisions", 0)),
-            "spec": team[i].spec.numbers(), "role": team[i].role,
-            "body": {k: float(st[k]) for k in NUMBER_FIELDS if k in st},
-            **({"lost_at": round(log.lost[i], 2)} if i in log.lost else {}),
-            **({"restarted_at": log.restarted[i]} if i in log.restarted else {})})
+        robots.append(RobotResult(
+            i, starts[i].round(4).tolist(), None if final is None else np.round(final, 4).tolist(),
+            round(st.get("path_length", 0.0), 4), int(st.get("collisions", 0)),
+            int(st.get("robot_collisions", 0)), int(st.get("wall_collisions", 0)),
+            team[i].spec.numbers(), team[i].role,
+            {k: float(st[k]) for k in NUMBER_FIELDS if k in st},
+            round(log.lost[i], 2) if i in log.lost else None, log.restarted.get(i)))
     H = float(tess.cost) if tess is not None else math.nan
     min_sep = log.min_separation
     ready = log.ready_at or 0.0
-    return {
-        "world": str(world.source), "strategy": strategy, "seed": seed,
-        "sim_time": round(log.sim_time, 3), "wall_time": round(wall_time, 3),
-        "rtf": 0.0 if log.run_span is None else
-        round(log.run_span[0] / max(log.run_span[1], 1e-9), 3),
-        "ready_at": None if log.ready_at is None else round(log.ready_at, 3),
-        "interrupted": interrupted, "robots": robots,
-        "metrics": {
-            "H": H if math.isfinite(H) else None, "H_start": H_start,
-            "mass_deviation_I": mass_deviation(tess.masses) if tess is not None else None,
-            "coverage_ratio": coverage_ratio(world.grid, P, sensing),
-            "min_separation": min_sep if math.isfinite(min_sep) else None,
-            "converged_at": converged_at(log.H_samples, H, log.ready_at),
-            "H_series": [[round(t - ready, 2), round(h, 6)]
-                         for t, h in log.H_samples if math.isfinite(h)],
-        },
-        "region": {"polygons": [p.round(4).tolist() for p in log.region],
-                   "set_at": None if log.region_set_at is None or log.ready_at is None
-                   else round(max(log.region_set_at - log.ready_at, 0.0), 3)},
-        **({"processes": log.processes} if log.processes is not None else {}),
-        **({"exploration": log.exploration} if log.exploration is not None else {}),
-    }
+    metrics = Metrics(
+        H if math.isfinite(H) else None, H_start,
+        mass_deviation(tess.masses) if tess is not None else None,
+        coverage_ratio(world.grid, P, sensing),
+        min_sep if math.isfinite(min_sep) else None,
+        converged_at(log.H_samples, H, log.ready_at),
+        [[round(t - ready, 2), round(h, 6)] for t, h in log.H_samples if math.isfinite(h)])
+    return TeamSummary(
+        str(world.source), strategy, seed, round(log.sim_time, 3), round(wall_time, 3),
+        0.0 if log.run_span is None else round(log.run_span[0] / max(log.run_span[1], 1e-9), 3),
+        None if log.ready_at is None else round(log.ready_at, 3), interrupted, robots, metrics,
+        [p.round(4).tolist() for p in log.region],
+        None if log.region_set_at is None or log.ready_at is None
+        else round(max(log.region_set_at - log.ready_at, 0.0), 3),
+        log.processes, log.exploration)
 
 
 def picture(path: Path, log: RunLog, team: Sequence[TeamMember], world: WorldSpec,

@@ -84,7 +84,9 @@ def test_the_summary_scores_the_robots_present(tmp_path):
     expected = fast_tessellate(plan.domain, [Generator(moved[i, :2], 0.0) for i in (0, 1)])
     H = float(expected.cost)
     log.H_samples = [(2.0, 2 * H), (22.0, 1.01 * H), (42.0, H)]
-    summary = summarize(log, team, plan.world, plan.domain, "geodesic", 7, 11.0, False)
+    typed = summarize(log, team, plan.world, plan.domain, "geodesic", 7, 11.0, False)
+    assert typed.robots[2].lost_at == 30.0 and typed.metrics.H is not None
+    summary = typed.as_dict()
     m = summary["metrics"]
     assert m["H"] == pytest.approx(float(expected.cost))
     assert m["H"] == pytest.approx(team_cost(plan.domain, team, log))
@@ -94,6 +96,9 @@ def test_the_summary_scores_the_robots_present(tmp_path):
     assert [t for t, _ in m["H_series"]] == [0.0, 20.0, 40.0]
     robots = summary["robots"]
     assert robots[2]["lost_at"] == 30.0 and robots[1]["restarted_at"] == [12.5]
+    assert "lost_at" not in robots[0] and "restarted_at" not in robots[0]
+    assert list(summary) == ["world", "strategy", "seed", "sim_time", "wall_time", "rtf",
+                             "ready_at", "interrupted", "robots", "metrics", "region"]
     assert robots[1]["path_length"] == 0.5 and robots[0]["final"][0] == pytest.approx(
         moved[0, 0])
     assert summary["rtf"] == 4.0 and summary["seed"] == 7 and summary["ready_at"] == 2.0
@@ -108,7 +113,8 @@ def test_a_summary_of_a_team_that_never_came_up():
 
     world = load_planar_world(resolve_world_path("office"))
     team = (TeamMember(0, (2.0, 2.5, 0.0), world.robot_spec(0)),)
-    summary = summarize(RunLog(), team, world, world_domain(world, 0.105), "lloyd", 0, 1.0, True)
+    summary = summarize(RunLog(), team, world, world_domain(world, 0.105), "lloyd", 0, 1.0,
+                        True).as_dict()
     assert summary["interrupted"] and summary["metrics"]["H"] is None
     assert summary["metrics"]["converged_at"] is None and summary["rtf"] == 0.0
     assert math.isfinite(summary["metrics"]["H_start"])

@@ -8,7 +8,7 @@ Two loops, as on the real robot:
 * :meth:`RobotController.command` (the tracking period, ~10 Hz): the tracker follows the path
   (or the strategy's velocity is used), and the safety filter has the last word. It steers and
   checks from the pose carried forward to ``now`` under the last command when the pose is
-  older than that (a busy process reads its poses late; up to ``MAX_POSE_AGE``).
+  older than that (a busy process reads its poses late; :mod:`.pose_age`).
 
 Neighbours are known only from what they published (:class:`NeighbourTable`): entries with
 non-finite values, positions off the map, or older than ``neighbour_timeout`` are ignored.
@@ -29,16 +29,16 @@ from __future__ import annotations
 import math
 import threading
 import time
-from collections import deque
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from coverage_ros.core.control.neighbours import NeighbourTable, safety_discs
 from coverage_ros.core.control.planning import detour, plan_path
+from coverage_ros.core.control.pose_age import PoseAges
 from coverage_ros.core.control.recovery import ESCAPE_LOOK, ROBOT_AHEAD, StuckRecovery
 from coverage_ros.core.control.region_seek import seek_region
-from coverage_ros.core.control.safety import SafetyConfig, SafetyFilter, ScanMemory, unicycle
+from coverage_ros.core.control.safety import SafetyConfig, SafetyFilter, ScanMemory
 from coverage_ros.core.control.tracking import PathTracker, TrackerConfig
 from coverage_ros.core.exploration.belief import Belief
 from coverage_ros.core.exploration.maps import navigation_domain
@@ -61,10 +61,6 @@ from coverage_ros.errors import ConfigError
 
 #: [m] goal changes smaller than this keep the current path (no replanning jitter).
 REPLAN_DISTANCE = 0.05
-#: [s] a pose is carried forward under the last command by at most this much of its age.
-MAX_POSE_AGE = 0.5
-#: Pose ages kept for :meth:`RobotController.describe_pose_age`.
-POSE_AGES_KEPT = 4096
 
 
 @dataclass(frozen=True)
@@ -135,7 +131,7 @@ class RobotController:
                                       steer.turn_in_place)
         self.pose: np.ndarray | None = None
         self.pose_stamp: float | None = None  # [s] when the pose was true (None: now)
-        self.pose_ages: deque[float] = deque(maxlen=POSE_AGES_KEPT)  # [s] at each command
+        self.pose_ages = PoseAges()  # how late the poses of the commands were
         self.scan: Scan | None = None
         self.scan_pose: np.ndarray | None = None  # where the robot took self.scan
         self.scan_points: np.ndarray | None = None
@@ -308,7 +304,8 @@ class RobotController:
     def _command(self, now: float, dt: float) -> tuple[float, float]:
         if self.pose is None:
             return 0.0, 0.0
-        pose = self._pose_now(now)
+        pose = self.pose_ages.carried(self.pose, self.pose_stamp, self.tracker.v, self.tracker.w,
+                                      now)
         limits = self.config.robot
         autonomous = not (self.paused or self.manual)
         escape = self.recovery.command(pose, now) if autonomous else None
@@ -363,26 +360,9 @@ class RobotController:
         v, yaw = self.sent[0], float(self.pose[2])
         return {"vx": v * math.cos(yaw), "vy": v * math.sin(yaw)}
 
-    def _pose_now(self, now: float) -> np.ndarray:
-        """The pose carried forward from its stamp to ``now`` under the last command (the
-        tracker's), by at most MAX_POSE_AGE; the age is kept for describe_pose_age."""
-        if self.pose_stamp is None:
-            return self.pose
-        age = now - self.pose_stamp
-        self.pose_ages.append(age)
-        age = min(max(age, 0.0), MAX_POSE_AGE)
-        if age == 0.0:
-            return self.pose
-        return unicycle(self.pose, self.tracker.v, self.tracker.w, np.array([age]))[0]
-
     def describe_pose_age(self) -> str:
         """One line on how old the poses were when commands were computed ('' if unknown)."""
-        if not self.pose_ages:
-            return ""
-        a = 1e3 * np.asarray(self.pose_ages)
-        return (f"pose age at the last {len(a)} commands: median {np.median(a):.0f} ms, 95 % "
-                f"{np.percentile(a, 95):.0f} ms, max {a.max():.0f} ms (carried forward up to "
-                f"{1e3 * MAX_POSE_AGE:.0f} ms under the last command)")
+        return self.pose_ages.describe()
 
     def describe(self) -> list[str]:
         """Lines for the log at the end: the last decision, and the poses' ages."""

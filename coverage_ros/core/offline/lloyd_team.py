@@ -1,32 +1,13 @@
-"""The whole team's Lloyd step at once, vectorized, and an accelerated Lloyd solver
-(``coverage-plan --strategy lloyd --solver lloyd|accelerated``).
+"""The whole team's Lloyd step at once, vectorized (``coverage-plan --strategy lloyd|geodesic
+--solver lloyd|accelerated``); the solvers are in :mod:`coverage_ros.core.offline.lloyd_solvers`.
 
 :class:`EuclideanTeam` is the centralized form of every robot's decentralized ``lloyd`` update
 (:func:`coverage_ros.core.geodesic.euclidean.euclidean_cell`): every cell's mass, centroid and
 cost from its runs of grid cells row by row (:mod:`coverage_ros.core.offline.power_rows`: two
 look-ups in running sums per row instead of labelling every grid cell, which
 :meth:`EuclideanTeam.reference_step` does for the parity tests), each centroid projected to a
-feasible cell as the decentralized update does.
-
-The cost is the CVT energy ``H(P) = sum_i sum_{q in V_i} (|q - p_i|^2 - R_i^2) w(q) dA``,
-whose gradient is ``dH/dp_i = 2 m_i (p_i - c_i)`` (Du, Faber & Gunzburger 1999): Lloyd's step
-to the centroids is a gradient step of size ``1 / (2 m_i)``, and the fixed points are the CVTs.
-
-Solvers (:func:`solve_lloyd`):
-
-* ``lloyd`` - plain Lloyd, the reference: every robot to its (projected) centroid.
-* ``accelerated`` - Anderson acceleration of the Lloyd map with an energy safeguard
-  (Peng et al., "Anderson acceleration for geometry optimization and physics simulation",
-  2018, who apply it to CVTs): the next positions extrapolate the last ``memory`` Lloyd steps;
-  they are kept only if their energy is not above that of the last accepted positions, else
-  the plain Lloyd step is taken from there and the history starts again. It engages once every
-  robot's Lloyd step is shorter than ``start_below_cells`` grid cells: while the team spreads,
-  an extrapolation can jump into another basin (another local optimum: 10 % lower or 1.4 %
-  higher H than plain Lloyd's in our runs), so the spreading stays plain Lloyd's and only its
-  slow tail is accelerated. Every
-  tessellation counts as one step, rejected ones too.
-
-Both stop when no robot's Lloyd step is longer than ``tolerance``.
+feasible cell as the decentralized update does. :class:`GeodesicTeam` is the same with geodesic
+cells.
 """
 
 from __future__ import annotations
@@ -38,10 +19,9 @@ from functools import cached_property
 import numpy as np
 
 from coverage_ros.core.geodesic.domain import CoverageDomain
+from coverage_ros.core.offline.lloyd_solvers import SOLVERS, LloydSolution, solve_lloyd
 from coverage_ros.core.offline.power_rows import RowNearest, RowSums, row_runs
 from coverage_ros.errors import ConfigError
-
-SOLVERS = ("lloyd", "accelerated")
 
 
 @dataclass(frozen=True)
@@ -227,92 +207,5 @@ class GeodesicTeam:
                         np.array([c.goal for c in cells]), labels)
 
 
-@dataclass
-class LloydSolution:
-    positions: np.ndarray  # (T + 1, n, 2) [m]: the accepted positions, start first
-    energies: list[float]  # H of every tessellation made, in order
-    steps: int  # tessellations made (each one team step's cost)
-    converged: bool
-    last: TeamStep  # the tessellation at the final positions
-    first: TeamStep  # the tessellation at the start
-
-    @property
-    def cost(self) -> float:
-        return self.last.cost
-
-    def steps_within(self, H_target: float, share: float = 1e-3) -> int | None:
-        """Tessellations made until one had H <= (1 + share) H_target (None: never)."""
-        for k, h in enumerate(self.energies):
-            if h <= (1.0 + share) * H_target:
-                return k + 1
-        return None
-
-
-def solve_lloyd(team: EuclideanTeam | GeodesicTeam, starts: np.ndarray,
-                weights: np.ndarray | None = None,
-                solver: str = "lloyd", tolerance: float = 0.02, max_steps: int = 1000,
-                memory: int = 6, start_below_cells: float = 4.0,
-                progress: Callable[[int, float], None] | None = None) -> LloydSolution:
-    """Lloyd from ``starts (n, 2)`` until no robot's step exceeds ``tolerance`` [m] or
-    ``max_steps`` tessellations were made (module docstring)."""
-    if solver not in SOLVERS:
-        raise ConfigError.at("solver", "unknown Lloyd solver", solver, f"one of {SOLVERS}")
-    if max_steps < 1:
-        raise ConfigError.at("max_steps", "must be >= 1", max_steps)
-    P = np.asarray(starts, dtype=np.float64)[:, :2].copy()
-    start_below = start_below_cells * team.domain.resolution
-    energies: list[float] = []
-
-    def evaluate(X: np.ndarray) -> TeamStep:
-        s = team.step(X, weights)
-        energies.append(s.cost)
-        if progress is not None:
-            progress(len(energies), s.cost)
-        return s
-
-    cur = start = evaluate(P)
-    path = [P.copy()]
-    xs: list[np.ndarray] = []  # accepted positions (flattened) and their Lloyd residuals
-    fs: list[np.ndarray] = []
-    converged = cur.step_length < tolerance
-    while not converged and len(energies) < max_steps:
-        plain = cur.goals
-        nxt = None
-        rejected = False
-        if solver == "accelerated" and cur.step_length < start_below:
-            xs.append(cur.positions.ravel().copy())
-            fs.append((plain - cur.positions).ravel())
-            del xs[:-memory - 1], fs[:-memory - 1]
-            cand = _anderson(xs, fs)
-            if cand is not None:
-                cand = cand.reshape(-1, 2)
-                if all(team.domain.is_free_point(q) for q in cand):
-                    trial = evaluate(cand)
-                    if trial.cost <= cur.cost:
-                        nxt = trial
-                rejected = nxt is None
-        elif xs:  # not (or no longer) engaged: an old history would mix in stale steps
-            xs.clear()
-            fs.clear()
-        if nxt is None:
-            if len(energies) >= max_steps:
-                break
-            nxt = evaluate(plain)
-            if rejected:  # restart the history from the plain step
-                xs.clear()
-                fs.clear()
-        cur = nxt
-        path.append(cur.positions.copy())
-        converged = cur.step_length < tolerance
-    return LloydSolution(np.array(path), energies, len(energies), converged, cur, start)
-
-
-def _anderson(xs: list[np.ndarray], fs: list[np.ndarray]) -> np.ndarray | None:
-    """Anderson (type II) extrapolation of the fixed-point map ``x -> x + f(x)`` from the
-    last iterates ``xs`` and residuals ``fs``; None with fewer than two."""
-    if len(xs) < 2:
-        return None
-    dF = np.diff(np.array(fs), axis=0).T  # (d, m)
-    dX = np.diff(np.array(xs), axis=0).T
-    gamma, *_ = np.linalg.lstsq(dF, fs[-1], rcond=None)
-    return xs[-1] + fs[-1] - (dX + dF) @ gamma
+__all__ = ["SOLVERS", "EuclideanTeam", "GeodesicTeam", "LloydSolution", "TeamStep",
+           "solve_lloyd"]

@@ -1,0 +1,146 @@
+"""The accelerated team Lloyd solver against plain Lloyd on random scenarios
+(``scripts/bench_planner``).
+
+Every scenario is drawn from its seed alone: a 20 m square at 5 cm with a density of 1-5
+Gaussians (widths 0.5-5 m), a uniform density, or random box obstacles with a few Gaussians;
+8, 16 or 32 robots starting in a cluster in a random corner. Kinds and team sizes take turns so
+that every seed set has each pairing. Two disjoint seed sets: ``train`` (what the solver was
+tuned on) and ``held-out`` (what is reported).
+
+Per scenario, both solvers from the same starts until no robot moves more than ``TOLERANCE``:
+
+* ``steps`` - tessellations to converge (an accelerated solver's rejected tries count);
+* ``steps_within`` - tessellations until H was within 0.1 % of plain Lloyd's final H;
+* ``gap`` - final H / plain Lloyd's final H - 1.
+
+Summary: the median over scenarios of accelerated / plain steps to converge and of accelerated
+steps within 0.1 % over plain's steps to converge (and over plain's own steps within 0.1 %), the
+worst (largest) of these ratios, and the H gaps.
+"""
+
+from __future__ import annotations
+
+import statistics
+import time
+
+import numpy as np
+
+from coverage_ros.core.geodesic.domain import CoverageDomain
+from coverage_ros.core.offline.lloyd_team import EuclideanTeam, solve_lloyd
+from coverage_ros.core.world.density import GaussianMixture, UniformDensity
+from coverage_ros.core.world.grid import OCCUPIED, GridMap
+
+SIDE = 20.0  # [m]
+RESOLUTION = 0.05  # [m]
+RADIUS = 0.105  # [m] robot radius: the free space is inflated by it
+TOLERANCE = 1e-4  # [m]
+MAX_STEPS = 3000
+KINDS = ("gaussians", "uniform", "gaussians", "obstacles")
+TEAMS = (8, 16, 32)
+SEEDS = {"train": 1000, "held-out": 5000}
+
+
+def scenario(seed: int, index: int) -> tuple[CoverageDomain, np.ndarray, dict]:
+    """The domain, starts (n, 2) [m] and a description of scenario ``index`` drawn from
+    ``seed``."""
+    rng = np.random.default_rng(seed)
+    kind, robots = KINDS[index % len(KINDS)], TEAMS[index % len(TEAMS)]
+    cells = int(round(SIDE / RESOLUTION))
+    occ = np.zeros((cells, cells), dtype=np.int8)
+    if kind == "obstacles":
+        for _ in range(int(rng.integers(4, 10))):
+            w, h = rng.uniform(0.5, 4.0, 2)
+            x, y = rng.uniform(2.0, SIDE - 2.0, 2)
+            c0, c1 = int((x - w / 2) / RESOLUTION), int((x + w / 2) / RESOLUTION)
+            r0, r1 = int((y - h / 2) / RESOLUTION), int((y + h / 2) / RESOLUTION)
+            occ[max(r0, 0):r1, max(c0, 0):c1] = OCCUPIED
+    grid = GridMap(occ, RESOLUTION, (0.0, 0.0, 0.0))
+    if kind == "uniform":
+        density, parts = UniformDensity(), []
+    else:
+        k = int(rng.integers(1, 6)) if kind == "gaussians" else int(rng.integers(1, 4))
+        means = rng.uniform(1.0, SIDE - 1.0, (k, 2))
+        sigmas = rng.uniform(0.5, 5.0, (k, 2))
+        weights = rng.uniform(0.5, 1.5, k)
+        density = GaussianMixture(means, np.array([np.diag(s ** 2) for s in sigmas]), weights)
+        parts = [{"mean": m.round(2).tolist(), "sigma": s.round(2).tolist(), "weight": round(
+            float(w), 2)} for m, s, w in zip(means, sigmas, weights, strict=True)]
+    domain = CoverageDomain.from_grid(grid, RADIUS, density)
+    corner = rng.integers(0, 2, 2) * SIDE
+    inward = np.where(corner > 0, -1.0, 1.0)
+    reach = 0.6 * np.sqrt(robots)  # [m] a cluster about 0.5 m apart
+    starts: list[np.ndarray] = []
+    while len(starts) < robots:
+        p = corner + inward * (0.4 + rng.uniform(0.0, reach, 2))
+        if domain.is_free_point(p) and all(np.hypot(*(p - q)) > 0.3 for q in starts):
+            starts.append(p)
+    about = {"seed": seed, "kind": kind, "robots": robots, "corner": corner.tolist(),
+             "gaussians": parts}
+    return domain, np.array(starts), about
+
+
+def compare(domain: CoverageDomain, starts: np.ndarray, solvers=("lloyd", "accelerated"),
+            **options) -> dict:
+    """Both solvers from ``starts``; steps, steps within 0.1 % of plain's H, H gaps, times."""
+    team = EuclideanTeam(domain)
+    runs, walls = {}, {}
+    for solver in solvers:
+        t0 = time.perf_counter()
+        runs[solver] = solve_lloyd(team, starts, solver=solver, tolerance=TOLERANCE,
+                                   max_steps=MAX_STEPS, **options.get(solver, {}))
+        walls[solver] = time.perf_counter() - t0
+    ref = runs["lloyd"]
+    out = {}
+    for solver, r in runs.items():
+        out[solver] = {"steps": r.steps, "converged": r.converged, "H": r.cost,
+                       "steps_within": r.steps_within(ref.cost),
+                       "gap": r.cost / ref.cost - 1.0, "wall_s": round(walls[solver], 3)}
+    return out
+
+
+def run_sweep(seed_set: str, count: int, say, solvers=("lloyd", "accelerated"),
+              **options) -> dict:
+    """``count`` scenarios of ``seed_set``, each compared (module docstring); a summary."""
+    base = SEEDS[seed_set]
+    rows = []
+    for i in range(count):
+        seed = base + i
+        domain, starts, about = scenario(seed, i)
+        res = compare(domain, starts, solvers, **options)
+        p, a = res["lloyd"], res[solvers[-1]]
+        row = {**about, "plain": p, "accelerated": a,
+               "ratio_steps": a["steps"] / p["steps"],
+               "ratio_within": (a["steps_within"] or a["steps"]) / p["steps"],
+               "ratio_within_own": (a["steps_within"] or a["steps"]) / p["steps_within"]}
+        rows.append(row)
+        say(f"  seed {seed}: {about['kind']:9s} {about['robots']:2d} robots: plain "
+            f"{p['steps']:4d} steps ({p['steps_within']} within 0.1 %), accelerated "
+            f"{a['steps']:4d} ({a['steps_within']}), steps {row['ratio_steps']:.2f}, "
+            f"within {row['ratio_within']:.2f}, H gap {100 * a['gap']:+.3f} %")
+    summary = summarize(rows)
+    say(f"  {seed_set}: median accelerated / plain steps {summary['median_ratio_steps']:.2f} "
+        f"(worst {summary['worst_ratio_steps']:.2f}); within 0.1 % of plain's H after "
+        f"{summary['median_ratio_within']:.2f} of plain's steps (worst "
+        f"{summary['worst_ratio_within']:.2f}; {summary['median_ratio_within_own']:.2f} of "
+        f"plain's own steps to within 0.1 %); H gap median {summary['median_gap_percent']:+.4f}"
+        f" %, largest {summary['max_gap_percent']:+.4f} %")
+    return {"seed_set": seed_set, "seeds": [r["seed"] for r in rows], "tolerance_m": TOLERANCE,
+            "summary": summary, "scenarios": rows}
+
+
+def summarize(rows: list[dict]) -> dict:
+    def col(key: str) -> list[float]:
+        return [r[key] for r in rows]
+
+    gaps = [100 * r["accelerated"]["gap"] for r in rows]
+    return {"scenarios": len(rows),
+            "median_ratio_steps": statistics.median(col("ratio_steps")),
+            "worst_ratio_steps": max(col("ratio_steps")),
+            "median_ratio_within": statistics.median(col("ratio_within")),
+            "worst_ratio_within": max(col("ratio_within")),
+            "median_ratio_within_own": statistics.median(col("ratio_within_own")),
+            "worst_ratio_within_own": max(col("ratio_within_own")),
+            "median_gap_percent": statistics.median(gaps), "max_gap_percent": max(gaps),
+            "min_gap_percent": min(gaps),
+            "all_converged": all(r["plain"]["converged"] and r["accelerated"]["converged"]
+                                 for r in rows)}

@@ -1,0 +1,182 @@
+"""Plain and accelerated Lloyd on a whole team's steps (:func:`solve_lloyd`).
+
+The cost is the CVT energy ``H(P) = sum_i sum_{q in V_i} (|q - p_i|^2 - R_i^2) w(q) dA``, whose
+gradient is ``dH/dp_i = 2 m_i (p_i - c_i)`` (Du, Faber & Gunzburger 1999): Lloyd's step to the
+centroids is a gradient step preconditioned by ``1 / (2 m_i)``, and the fixed points are the
+CVTs. A team (:class:`Team`) makes one tessellation per call; every call counts as one step.
+
+* ``lloyd`` - plain Lloyd, the reference: every robot to its (projected) centroid.
+* ``accelerated`` - plain Lloyd while the team spreads, then L-BFGS on H (Liu et al., "On
+  centroidal Voronoi tessellation - energy smoothness and fast computation", 2009) with the
+  Lloyd step as its preconditioner: the initial inverse Hessian is ``1 / (2 m_i)`` per robot, so
+  with no curvature pairs the step is Lloyd's, and the residual ``goal - p`` (the projected
+  centroid where the centroid is not a feasible place) stands for the negative preconditioned
+  gradient. A step is kept only if every robot lands on a free cell and H drops by Armijo's
+  sufficient decrease; else the plain Lloyd step is taken from there and the curvature pairs
+  start again (a rejected try counts as a step).
+
+  When to switch: H has many local minima (CVTs) a few tenths of a percent apart, and an early
+  long step settles the team in another one than plain Lloyd would, as likely above it as below.
+  So it switches once plain Lloyd's own remaining decrease, estimated from its last decrements
+  as a geometric tail (``d rho / (1 - rho)``, ``rho`` the larger of the last two ratios of
+  decrements), is below ``settled`` of H: from there H only drops, so the end is at most about
+  that share above where plain Lloyd would end, and in practice the same minimum.
+
+Both stop when no robot's Lloyd step is longer than ``tolerance``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+import numpy as np
+
+from coverage_ros.errors import ConfigError
+
+SOLVERS = ("lloyd", "accelerated")
+#: Armijo's sufficient decrease: the share of the linear prediction an L-BFGS step must reach.
+ARMIJO = 1e-4
+
+
+class Team(Protocol):
+    """What the solvers need of a team: its domain (``is_free_point``) and its steps, each with
+    ``positions``, ``masses``, ``goals``, ``cost`` and ``step_length``."""
+
+    domain: Any
+
+    def step(self, positions: np.ndarray, weights: np.ndarray | None = None) -> Any: ...
+
+
+@dataclass
+class LloydSolution:
+    positions: np.ndarray  # (T + 1, n, 2) [m]: the accepted positions, start first
+    energies: list[float]  # H of every tessellation made, in order
+    steps: int  # tessellations made (each one team step's cost)
+    converged: bool
+    last: Any  # the team step at the final positions
+    first: Any  # the team step at the start
+    switched_at: int | None = None  # tessellations made when the acceleration began
+
+    @property
+    def cost(self) -> float:
+        return float(self.last.cost)
+
+    def steps_within(self, H_target: float, share: float = 1e-3) -> int | None:
+        """Tessellations made until one had H <= (1 + share) H_target (None: never)."""
+        for k, h in enumerate(self.energies):
+            if h <= (1.0 + share) * H_target:
+                return k + 1
+        return None
+
+
+def remaining_decrease(energies: list[float]) -> float:
+    """Plain Lloyd's remaining decrease of H estimated from its last four energies as a
+    geometric tail (inf while the decrements are not all positive and shrinking)."""
+    if len(energies) < 4:
+        return float("inf")
+    d = -np.diff(energies[-4:])
+    if np.any(d <= 0):
+        return float("inf")
+    rho = float(max(d[1] / d[0], d[2] / d[1]))
+    return float(d[2] * rho / (1.0 - rho)) if rho < 1.0 else float("inf")
+
+
+def solve_lloyd(team: Team, starts: np.ndarray, weights: np.ndarray | None = None,
+                solver: str = "lloyd", tolerance: float = 0.02, max_steps: int = 1000,
+                memory: int = 8, settled: float = 2e-3,
+                progress: Callable[[int, float], None] | None = None) -> LloydSolution:
+    """Lloyd from ``starts (n, 2)`` until no robot's step exceeds ``tolerance`` [m] or
+    ``max_steps`` tessellations were made (module docstring)."""
+    if solver not in SOLVERS:
+        raise ConfigError.at("solver", "unknown Lloyd solver", solver, f"one of {SOLVERS}")
+    if max_steps < 1:
+        raise ConfigError.at("max_steps", "must be >= 1", max_steps)
+    energies: list[float] = []
+
+    def evaluate(X: np.ndarray) -> Any:
+        s = team.step(X, weights)
+        energies.append(s.cost)
+        if progress is not None:
+            progress(len(energies), s.cost)
+        return s
+
+    cur = start = evaluate(np.asarray(starts, dtype=np.float64)[:, :2].copy())
+    path = [cur.positions.copy()]
+    plain = [cur.cost]  # energies of the plain steps before the switch
+    switched_at = None
+    pairs = _Curvature(memory)
+    grad = _gradient(cur)
+    while cur.step_length >= tolerance and len(energies) < max_steps:
+        nxt = None
+        if solver == "accelerated" and switched_at is None and \
+                remaining_decrease(plain) < settled * cur.cost:
+            switched_at = len(energies)
+        if switched_at is not None and pairs:
+            x = cur.positions.ravel()
+            d = pairs.direction(grad, cur.masses)
+            slope = float(grad @ d)
+            if slope < 0:
+                cand = (x + d).reshape(-1, 2)
+                if all(team.domain.is_free_point(q) for q in cand):
+                    trial = evaluate(cand)
+                    if trial.cost <= cur.cost + ARMIJO * slope:
+                        nxt = trial
+            if nxt is None:
+                pairs.clear()  # start again from the plain step
+        if nxt is None:
+            if len(energies) >= max_steps:
+                break
+            nxt = evaluate(cur.goals)
+            if switched_at is None:
+                plain.append(nxt.cost)
+        new = _gradient(nxt)
+        if solver == "accelerated":
+            pairs.add(nxt.positions.ravel() - cur.positions.ravel(), new - grad)
+        cur, grad = nxt, new
+        path.append(cur.positions.copy())
+    return LloydSolution(np.array(path), energies, len(energies),
+                         bool(cur.step_length < tolerance), cur, start, switched_at)
+
+
+def _gradient(step: Any) -> np.ndarray:
+    """``2 m_i (p_i - goal_i)`` flattened: dH/dp where the centroid is the goal."""
+    m = np.repeat(step.masses, 2)
+    return 2.0 * m * (step.positions - step.goals).ravel()
+
+
+class _Curvature:
+    """The last ``memory`` L-BFGS pairs (position change, gradient change) and the two-loop
+    recursion, with the Lloyd step ``1 / (2 m_i)`` as the initial inverse Hessian."""
+
+    def __init__(self, memory: int) -> None:
+        self.memory = memory
+        self.s: list[np.ndarray] = []
+        self.y: list[np.ndarray] = []
+
+    def __bool__(self) -> bool:
+        return bool(self.s)
+
+    def clear(self) -> None:
+        self.s.clear()
+        self.y.clear()
+
+    def add(self, s: np.ndarray, y: np.ndarray) -> None:
+        sy = float(s @ y)
+        if sy > 1e-12 * float(np.sqrt((s @ s) * (y @ y))):  # curvature: keeps H^-1 positive
+            self.s.append(s)
+            self.y.append(y)
+            del self.s[:-self.memory], self.y[:-self.memory]
+
+    def direction(self, grad: np.ndarray, masses: np.ndarray) -> np.ndarray:
+        q = grad.copy()
+        alphas = []
+        for s, y in zip(reversed(self.s), reversed(self.y), strict=True):
+            a = float(s @ q) / float(y @ s)
+            alphas.append(a)
+            q -= a * y
+        r = q / (2.0 * np.maximum(np.repeat(masses, 2), 1e-12))
+        for (s, y), a in zip(zip(self.s, self.y, strict=True), reversed(alphas), strict=True):
+            r += s * (a - float(y @ r) / float(y @ s))
+        return -r

@@ -1,0 +1,118 @@
+"""Plain and accelerated Lloyd (coverage_ros.core.offline.lloyd_solvers): where they end, that H
+never rises, that the safeguard throws out steps that raise H, and that where they stop is a
+centroidal Voronoi configuration."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from coverage_ros.core.geodesic.domain import CoverageDomain
+from coverage_ros.core.offline.lloyd_solvers import remaining_decrease, solve_lloyd
+from coverage_ros.core.offline.lloyd_team import EuclideanTeam
+from coverage_ros.core.world.density import GaussianMixture, UniformDensity
+from coverage_ros.core.world.grid import OCCUPIED, GridMap
+
+TOL = 1e-4  # [m]
+
+
+def _domain(kind: str) -> CoverageDomain:
+    """An 8 m square at 5 cm: two Gaussians, uniform, or two boxes and one Gaussian."""
+    occ = np.zeros((160, 160), dtype=np.int8)
+    density = GaussianMixture(np.array([[2.0, 5.5], [6.0, 2.5]]),
+                              np.array([np.diag([1.2, 0.8]) ** 2, np.eye(2) * 1.5 ** 2]),
+                              np.array([1.0, 0.7]))
+    if kind == "uniform":
+        density = UniformDensity()
+    if kind == "obstacles":
+        occ[60:100, 50:70] = OCCUPIED
+        occ[20:35, 100:140] = OCCUPIED
+        density = GaussianMixture(np.array([[5.0, 5.0]]), np.array([np.eye(2) * 2.0 ** 2]),
+                                  np.array([1.0]))
+    return CoverageDomain.from_grid(GridMap(occ, 0.05, (0.0, 0.0, 0.0)), 0.105, density)
+
+
+def _corner(n: int, seed: int) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    return 0.5 + rng.uniform(0.0, 1.5, (n, 2))
+
+
+@pytest.fixture(scope="module", params=[("gaussians", 6), ("uniform", 7), ("obstacles", 6)])
+def runs(request):
+    kind, n = request.param
+    team = EuclideanTeam(_domain(kind))
+    starts = _corner(n, n)
+    out = {s: solve_lloyd(team, starts, solver=s, tolerance=TOL, max_steps=2000)
+           for s in ("lloyd", "accelerated")}
+    out["team"] = team
+    return out
+
+
+def test_accelerated_ends_within_a_tenth_of_a_percent_of_plain(runs):
+    plain, fast = runs["lloyd"], runs["accelerated"]
+    assert plain.converged and fast.converged
+    assert fast.cost <= 1.001 * plain.cost
+    assert fast.switched_at is not None and fast.switched_at < fast.steps
+    assert fast.steps_within(plain.cost) is not None
+
+
+def test_energy_of_accepted_positions_never_rises(runs):
+    team = runs["team"]
+    for solver in ("lloyd", "accelerated"):
+        E = np.array([team.step(P).cost for P in runs[solver].positions])
+        assert np.all(np.diff(E) <= 1e-9 * E[:-1]), solver
+    fast = runs["accelerated"]
+    assert len(fast.positions) <= fast.steps == len(fast.energies)
+
+
+def test_a_fixed_point_is_a_centroidal_voronoi_configuration(runs):
+    """Where a solver stops, every robot is at the mass centroid of its own cell, with the cells
+    labelled cell by cell (the reference step), to the tolerance; and the gradient
+    2 m_i (p_i - c_i) vanishes to that order."""
+    team = runs["team"]
+    for solver in ("lloyd", "accelerated"):
+        P = runs[solver].positions[-1]
+        ref = team.reference_step(P)
+        off = np.hypot(*(ref.centroids - P).T)
+        assert off.max() < TOL, solver
+        assert all(team.domain.is_free_point(p) for p in P)
+        assert np.abs(2 * ref.masses * off).max() < 2 * TOL * ref.masses.max()
+
+
+class _Penalized:
+    """A team whose H is raised by 1 wherever the positions are not the Lloyd goals of the step
+    before: every extrapolation looks worse, and the safeguard must refuse it."""
+
+    def __init__(self, team: EuclideanTeam) -> None:
+        self.domain = team.domain
+        self._team = team
+        self._goals: list[np.ndarray] = []
+
+    def step(self, positions, weights=None):
+        s = self._team.step(positions, weights)
+        lloyd = any(np.array_equal(positions, g) for g in self._goals) or not self._goals
+        self._goals.append(s.goals)
+        if lloyd:
+            return s
+        return type(s)(s.positions, s.masses, s.costs + 1.0 / len(s.costs), s.centroids,
+                       s.goals, s.cells, s.geodesic)
+
+
+def test_safeguard_refuses_steps_that_raise_the_energy():
+    team = EuclideanTeam(_domain("gaussians"))
+    starts = _corner(6, 6)
+    plain = solve_lloyd(team, starts, solver="lloyd", tolerance=TOL, max_steps=2000)
+    fast = solve_lloyd(_Penalized(team), starts, solver="accelerated", tolerance=TOL,
+                       max_steps=4000)
+    # every accepted step was Lloyd's: the same path as plain Lloyd, the tries counted on top
+    assert np.array_equal(fast.positions, plain.positions)
+    assert fast.steps > plain.steps
+    assert fast.cost == pytest.approx(plain.cost, rel=1e-12)
+
+
+def test_remaining_decrease_of_a_geometric_tail():
+    H = [10.0 + 3.0 * 0.9 ** k for k in range(12)]
+    assert remaining_decrease(H) == pytest.approx(3.0 * 0.9 ** 11, rel=1e-9)
+    assert remaining_decrease(H[:3]) == float("inf")
+    assert remaining_decrease([5.0, 4.0, 4.0, 3.0]) == float("inf")  # a stall: not a tail
+    assert remaining_decrease([5.0, 4.5, 3.0, 1.0]) == float("inf")  # growing decrements

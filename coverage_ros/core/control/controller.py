@@ -33,6 +33,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from coverage_ros.core.control import published_state
 from coverage_ros.core.control.neighbours import NeighbourTable, safety_discs
 from coverage_ros.core.control.planning import detour, plan_path
 from coverage_ros.core.control.pose_age import PoseAges
@@ -54,7 +55,6 @@ from coverage_ros.core.strategies import (
     make_strategy,
     strategy_choice,
 )
-from coverage_ros.core.strategies.base import mode_code
 from coverage_ros.core.world.region import Region
 from coverage_ros.core.world.robot import RobotSpec
 from coverage_ros.errors import ConfigError
@@ -222,17 +222,8 @@ class RobotController:
                     path = detour(nav, path, P, self.safety.config.clearance_to(R))
                 if snapshot is not None:
                     self._planned_version = snapshot.version
-        shared = decision.shared
-        state = {"x": float(shared.position[0]), "y": float(shared.position[1]),
-                 "weight": float(shared.weight), "mass": float(decision.mass),
-                 "cost": float(decision.cost), "update_ms": update_ms,
-                 "radius": float(self.config.robot.radius),
-                 "v_max": float(self.config.robot.v_max),
-                 "manual": float(self.manual), "paused": float(self.paused),
-                 "mode": float(mode_code(decision.mode))}
-        if shared.virtual is not None:
-            state["virtual_x"], state["virtual_y"] = (float(v) for v in shared.virtual)
-        state.update({k: float(v) for k, v in shared.extra.items()})
+        state = published_state.after_update(decision, self.config.robot, update_ms, self.manual,
+                                             self.paused)
         result = UpdateResult(decision, path, state, [n.robot_id for n in nbrs], pose)
         with self._lock:
             self.velocity, self.goal, self.path = decision.velocity, goal, path
@@ -244,15 +235,9 @@ class RobotController:
         return result
 
     def presence_state(self) -> dict[str, float]:
-        """What to publish before the first update: who and where this robot is and its
-        strategy's first extras (acvt's ``dropout``: neighbours wait for its mass), without
-        a cell (no mass or cost yet)."""
-        x, y = (float(v) for v in self.pose[:2])
+        """What to publish before the first update (:func:`.published_state.before_update`)."""
         first = self.strategy.shared_state(Observation(self.config.robot_id, self.pose, 0.0))
-        return {"x": x, "y": y, "weight": float(self.config.robot.power_weight),
-                "radius": float(self.config.robot.radius),
-                "v_max": float(self.config.robot.v_max),
-                **{k: float(v) for k, v in first.extra.items()}}
+        return published_state.before_update(self.pose, self.config.robot, first)
 
     def set_manual(self, manual: bool) -> None:
         """Hand the robot to a person (True) or back to its strategy (False: it replans from
@@ -353,12 +338,8 @@ class RobotController:
         return v, w
 
     def motion_state(self) -> dict[str, float]:
-        """``vx``, ``vy`` [m/s] (map frame): the velocity of the last command sent, for the
-        neighbours' safety filters; empty before the first command."""
-        if self.sent is None or self.pose is None:
-            return {}
-        v, yaw = self.sent[0], float(self.pose[2])
-        return {"vx": v * math.cos(yaw), "vy": v * math.sin(yaw)}
+        """``vx``, ``vy`` of the last command sent (:func:`.published_state.motion`)."""
+        return published_state.motion(self.sent, self.pose)
 
     def describe_pose_age(self) -> str:
         """One line on how old the poses were when commands were computed ('' if unknown)."""

@@ -1,7 +1,7 @@
 """The nodes' parameters, each declared once: every node keeps one table ``{name: (default,
 description)}`` (the description starts with the unit in brackets where there is one). The
-table is what the node declares, and from it :mod:`.reference` writes ``config/robot.yaml``
-and the parameter tables of the reference in README.
+table is what the node declares; from it :mod:`.reference` writes ``config/robot.yaml`` and
+the documentation site's reference shows :func:`markdown_table` of it.
 """
 
 from __future__ import annotations

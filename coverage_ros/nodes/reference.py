@@ -1,26 +1,21 @@
-"""The files generated from the nodes' parameter tables (:mod:`.parameters`):
-``config/robot.yaml`` and README's parameter tables. ``python -m coverage_ros.nodes.reference
---write`` rewrites them; without ``--write`` it exits 1 naming each one that differs from its
-table (the tests check the same).
+"""The nodes' parameter tables (:mod:`.parameters`) by node, and the file generated from them:
+``config/robot.yaml``. ``python -m coverage_ros.nodes.reference --write`` rewrites it; without
+``--write`` it exits 1 when it differs from its table (a test checks the same). The
+documentation site's parameter tables are made from :func:`node_tables` while it builds
+(:mod:`coverage_ros.docgen.pages`), so they need no writing.
 """
 
 from __future__ import annotations
 
 import argparse
 import sys
-from collections.abc import Callable, Mapping
+from collections.abc import Callable
 from pathlib import Path
 
-from coverage_ros.nodes.parameters import ParameterTable, markdown_table, params_file_text
+from coverage_ros.nodes.parameters import ParameterTable, params_file_text
 
 REPO = Path(__file__).resolve().parents[2]
 ROBOT_YAML = REPO / "config" / "robot.yaml"
-README = REPO / "README.md"
-#: The README section generated from each node's table sits between these lines.
-BEGIN = "<!-- parameters of {node}: generated from its table (python -m " \
-    "coverage_ros.nodes.reference --write) -->"
-END = "<!-- end of the parameters of {node} -->"
-
 
 
 def node_tables() -> dict[str, ParameterTable]:
@@ -34,23 +29,10 @@ def node_tables() -> dict[str, ParameterTable]:
             "marker_node": MARKERS}
 
 
-def with_sections(text: str, tables: Mapping[str, ParameterTable], where: str) -> str:
-    """``text`` with each node's generated section replaced by its table now (ValueError naming
-    ``where`` and the node when a section's markers are missing)."""
-    for node, table in tables.items():
-        begin, end = BEGIN.format(node=node), END.format(node=node)
-        i, j = text.find(begin), text.find(end)
-        if i < 0 or j < i:
-            raise ValueError(f"{where}: no section for {node} (lines '{begin}' ... '{end}')")
-        text = text[:i] + begin + "\n\n" + markdown_table(table) + "\n\n" + text[j:]
-    return text
-
-
 def generated_files() -> dict[Path, Callable[[str], str]]:
     """Each generated file and how its text now becomes what its tables say."""
     tables = node_tables()
-    return {ROBOT_YAML: lambda _: params_file_text("robot_node", tables["robot_node"]),
-            README: lambda text: with_sections(text, tables, str(README))}
+    return {ROBOT_YAML: lambda _: params_file_text("robot_node", tables["robot_node"])}
 
 
 def stale_files() -> list[Path]:

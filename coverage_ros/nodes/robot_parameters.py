@@ -91,16 +91,12 @@ PARAMETERS: dict[str, tuple[Any, str]] = {  # name: (default, description)
                        "[m] a strategy whose goal moves less than this has converged"),
     "arrival_tolerance": (_CORE["arrival_tolerance"],
                           "[m] the robot stops this near its goal, and a robot at its goal "
-                          "follows a new one this far away. Lloyd-type goals creep a few cm"
-                          " per update near the end: robots that kept still for goals "
-                          "within 5 cm ended Lee & Lee's Fig. 17a-c at I 0.06-0.07 in three"
-                          " starts of five, with 0.02 at 0.034-0.038 in four (the paper "
-                          "bench sets 0.02); 0.02 is not the default yet: with it, an "
-                          "exploring robot touched a wall once in the tb3_sandbox "
-                          "exploration test (untraced)"),
+                          "follows a new one this far away. Lloyd-type goals creep a few cm "
+                          "per update near the end, so a smaller tolerance lets a team settle "
+                          "closer to its centroids (the papers' live experiments use 0.02)"),
     "robot_prefix": ("robot_", "namespace prefix of the team's robots (neighbour discovery)"),
     "connectivity": (8, "grid graph neighbourhood: 8 (Bhattacharya et al. 2014) or 16"),
-    "explore": (False, "explore an unknown map (README \"Exploring an unknown building\"): no "
+    "explore": (False, "explore an unknown map (docs: Concepts, Exploration): no "
                        "`/map`; the belief starts unknown on the lattice of `world` (its extent "
                        "and cells, not its content) or of `bounds`, and grows from the lidar and "
                        "the neighbours' `observations`; `strategy` is then `geodesic` or "
@@ -118,8 +114,8 @@ PARAMETERS: dict[str, tuple[Any, str]] = {  # name: (default, description)
                         " `/map` subscription; cells, goals and safety come from the lidar (Wang "
                         "et al.)"),
     "manual": (False, "start driven by a person: `cmd_vel` follows `teleop_topic` through the "
-                      "safety filter instead of the strategy (README \"Driving a robot "
-                      "yourself\"); switch with the `set_manual` service"),
+                      "safety filter instead of the strategy (docs: Tutorials, A mixed team and "
+                      "a person driving); switch with the `set_manual` service"),
     "teleop_topic": ("teleop/cmd_vel", "`geometry_msgs/Twist` from a person "
                                        "(`teleop_twist_keyboard`, `coverage-teleop`), used while "
                                        "manual"),
@@ -128,7 +124,7 @@ PARAMETERS: dict[str, tuple[Any, str]] = {  # name: (default, description)
                        "long"),
     "drive": (True, "drive the robot: `cmd_vel` from the strategy; `false`: no `cmd_vel` "
                     "publisher at all, the goal goes to the robot's own navigator on `goal_topic`"
-                    " (README \"Using it on your robots\")"),
+                    " (docs: Tutorials, On your own robots)"),
     "goal_topic": ("goal_pose", "`drive: false`: `geometry_msgs/PoseStamped` goals for the "
                                 "navigator (Nav2's bt_navigator listens on `goal_pose`)"),
     "goal_resend_distance": (0.25, "[m] `drive: false`: a goal is sent again only when it moved "
@@ -139,7 +135,7 @@ PARAMETERS: dict[str, tuple[Any, str]] = {  # name: (default, description)
                    "`|`: the importance density is kept inside it from the first update on "
                    "(`coverage-team --region` sets it; `/coverage/region` changes it at run time,"
                    " and a polygon already held changes nothing); `''`: everywhere"),
-    "lockstep": (False, "follow the world's lock-step ticks (README \"Lock-step simulation\"; "
+    "lockstep": (False, "follow the world's lock-step ticks (docs: Concepts, Lock-step; "
                         "`world_node` with `lockstep: true`) instead of timers: each tick uses "
                         "exactly the pose, scans and neighbours' states of that tick, the "
                         "coverage update comes every `control_rate` of sim time (first at tick 1,"

@@ -20,8 +20,8 @@ PARAMETERS = {  # name: (default, description)
     "starts": ("", "start poses `x,y,yaw;x,y,yaw;...` [m, rad] overriding the world's; "
                    "`num_robots` -1 then means one robot per pose"),
     "team": ("", "team YAML (each robot's `id`, `start` and spec keys, e.g. `coverage-team`'s "
-                 "`<out>/team.yaml`; see README \"World files\"); overrides `starts` and "
-                 "`num_robots`"),
+                 "`<out>/team.yaml`; docs: Reference, World and team files); overrides "
+                 "`starts` and `num_robots`"),
     "seed": (0, "seeds placement, odometry noise and lidar noise: the same seed gives the same "
                 "run"),
     "real_time_factor": (1.0, "sim seconds per wall second; `0`: as fast as possible"),
@@ -42,7 +42,7 @@ PARAMETERS = {  # name: (default, description)
                           "unknown map (the simulator still uses it)"),
     "publish_tf": (True, "publish `/tf` (`map -> robot_<id>/odom -> robot_<id>/base_link` per "
                          "robot) and `/tf_static` (`base_link -> base_scan`)"),
-    "lockstep": (False, "lock-step (README \"Lock-step simulation\"): sim time advances one "
+    "lockstep": (False, "lock-step (docs: Concepts, Lock-step): sim time advances one "
                         "`lockstep_period` only when every member - each robot with `lockstep: "
                         "true`, and the observers - has answered the last tick on "
                         "`/world/tick_report`; `/clock`, `odom` and `ground_truth` go out every "
@@ -64,7 +64,7 @@ _DEFAULTS: dict[str, Any] = {name: default for name, (default, _) in PARAMETERS.
 
 @dataclass(frozen=True)
 class WorldNodeConfig:
-    """The node's parameters, validated (see README for meanings)."""
+    """The node's parameters, validated (their meanings: :data:`PARAMETERS`)."""
 
     world: str = _DEFAULTS["world"]
     num_robots: int = _DEFAULTS["num_robots"]  # -1: the world's start poses, else 4

@@ -55,7 +55,8 @@ def test_modules_stay_small():
 
 
 def test_generated_parameter_files_match_the_tables():
-    """config/robot.yaml and README's parameter tables are what the nodes' tables say."""
+    """config/robot.yaml is what robot_node's table says (the documentation's parameter tables
+    are made from the tables while the site builds: test/unit/docs/)."""
     from coverage_ros.nodes.reference import stale_files
 
     assert stale_files() == []
@@ -84,19 +85,6 @@ def test_the_nodes_defaults_are_the_cores():
               and f.name != "robot_id"]  # the node's -1: "from the namespace"
     assert len(shared) >= 6
     assert [(c, n, d) for c, n, d in shared if PARAMETERS[n][0] != d] == []
-
-
-def test_a_stale_section_is_found_and_rewritten():
-    from coverage_ros.nodes.parameters import markdown_table
-    from coverage_ros.nodes.reference import BEGIN, END, with_sections
-
-    table = {"rate": (2.0, "[Hz] how often")}
-    text = f"intro\n{BEGIN.format(node='n')}\n| old |\n{END.format(node='n')}\nrest\n"
-    new = with_sections(text, {"n": table}, "README.md")
-    assert markdown_table(table) in new and "| old |" not in new and new.endswith("rest\n")
-    assert with_sections(new, {"n": table}, "README.md") == new
-    with pytest.raises(ValueError, match=r"README\.md: no section for m"):
-        with_sections(text, {"m": table}, "README.md")
 
 
 @pytest.mark.parametrize("module, forbidden", [

@@ -60,8 +60,8 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--lockstep", action="store_true",
                     help="lock-step simulation: the world advances a tick only when every "
                     "robot has answered the last, so the same command and seed give the same "
-                    "summary, as fast as the robots' work allows (README \"Lock-step "
-                    "simulation\")")
+                    "summary, as fast as the robots' work allows (docs: Concepts, "
+                    "Lock-step)")
     ap.add_argument("--rtf", type=float, default=None,
                     help="real-time factor of the simulation (0: as fast as possible; default "
                     "1, with --lockstep none: --rtf caps its pace)")

@@ -140,27 +140,6 @@ def test_neighbours_are_discovered_and_bad_states_dropped(team):
                       what="the cell to grow back after the neighbour went silent")
 
 
-@pytest.mark.parametrize("args, message", [
-    (["-r", "__ns:=/somewhere"], "robot_id: not set and the namespace '/somewhere'"),
-    (["-p", "robot_id:=0", "-p", "strategy:=magic"], "strategy: unknown strategy"),
-    (["-p", "robot_id:=0", "-p", "control_rate:=0.0"], "control_rate: must be a number > 0"),
-    (["-p", "robot_id:=0", "-p", "world:=nowhere"], "no shipped world of that name"),
-    (["-p", "robot_id:=0", "-p", "strategy_params:=justtext"], "strategy_params: must be a YAML"),
-    (["-p", "robot_id:=0", "-p", "strategy_params:=[1, 2]"], "'strategy_params'"),
-    (["-p", "robot_id:=0", "-p", "map_free:=true", "-p", "world:=office"],
-     "map_free: strategy geodesic needs a map"),
-    (["-p", "robot_id:=0", "-p", "map_free:=true", "-p", "strategy:=bvc"],
-     "map_free: needs the area: 'world' or 'bounds'"),
-])
-def test_bad_parameters_exit_with_one_line(args, message):
-    env = ros_env(domain_id(11))
-    out = subprocess.run([sys.executable, "-m", "coverage_ros.nodes.robot_node", "--ros-args",
-                          *args], env=env, capture_output=True, text=True, timeout=60, cwd=REPO)
-    assert out.returncode == 2
-    err = out.stderr.strip().splitlines()
-    assert len(err) == 1 and message in err[0], out.stderr
-
-
 def test_update_worker_keeps_within_its_cpu_budget():
     """By every start, the calls before it used at most burst + load x elapsed CPU seconds;
     busy requests are refused; a costly call is absorbed by the credit; an exception in a call
@@ -316,13 +295,3 @@ def test_a_robot_on_either_executor_covers_and_stops_cleanly(kind):
         last = commands[-1]
         assert (last.linear.x, last.angular.z) == (0.0, 0.0), last
         assert any("coverage updates, one every" in m.msg for m in logs)
-
-
-def test_an_unknown_executor_is_refused_with_one_line():
-    env = ros_env(domain_id(11), COVERAGE_ROS_EXECUTOR="fast")
-    out = subprocess.run([sys.executable, "-m", "coverage_ros.nodes.robot_node", "--ros-args",
-                          "-p", "robot_id:=0"], env=env, capture_output=True, text=True,
-                         timeout=60, cwd=REPO)
-    assert out.returncode == 2
-    err = out.stderr.strip().splitlines()
-    assert len(err) == 1 and "COVERAGE_ROS_EXECUTOR='fast'" in err[0], out.stderr

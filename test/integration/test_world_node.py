@@ -166,34 +166,6 @@ def test_robots_are_added_and_removed_at_run_time(world):
     assert "dropped /world/spawn" in proc.output()
 
 
-BAD_WORLDS = [
-    ("missing_map", "map: nowhere.yaml\n", "nowhere.yaml: file not found"),
-    ("malformed", "bounds: [0, 0, 5\nname: x\n", "malformed YAML"),
-    ("unknown_key", "bounds: [0, 0, 5, 5]\ncolour: red\n", "colour: unknown key"),
-    ("start_in_obstacle", "bounds: [0, 0, 5, 5]\nobstacles: [{type: circle, center: [2, 2], "
-     "radius: 0.5}]\nrobots: [[2, 2, 0]]\n", "inside an obstacle"),
-    ("start_outside", "bounds: [0, 0, 5, 5]\nrobots: [[9, 2, 0]]\n", "outside the map"),
-    ("bad_radius", "bounds: [0, 0, 5, 5]\nrobot: {radius: -0.1}\n", "radius: must be > 0"),
-
-]
-
-
-@pytest.mark.parametrize("case, world_yaml, expected", BAD_WORLDS,
-                         ids=[c[0] for c in BAD_WORLDS])
-def test_bad_world_gives_a_one_line_error(tmp_path, case, world_yaml, expected):
-    path = tmp_path / f"{case}.yaml"
-    path.write_text(world_yaml)
-    out = subprocess.run(
-        [sys.executable, "-m", "coverage_ros.nodes.world_node", "--ros-args", "-p",
-         f"world:={path}"], cwd=REPO, env=ros_env(domain_id(1)), capture_output=True, text=True,
-        timeout=30)
-    assert out.returncode != 0
-    lines = out.stderr.strip().splitlines()
-    assert len(lines) == 1, out.stderr
-    assert lines[0].startswith("world_node: error: ") and expected in lines[0]
-    assert case in lines[0] or case == "missing_map"  # names the file
-
-
 def test_ros2_run_layout_finds_and_runs_the_node():
     prefix = REPO / "install" / "coverage_ros"
     exe = prefix / "lib" / "coverage_ros" / "world_node"

@@ -12,6 +12,7 @@ import pytest
 from scipy.sparse import csgraph
 
 from coverage_ros.bench.papers import bhattacharya2014 as bh
+from coverage_ros.bench.papers.search_count import counting_searches
 from coverage_ros.core.geodesic import cell as cell_module
 from coverage_ros.core.geodesic.cell import geodesic_cell
 from coverage_ros.core.geodesic.domain import CoverageDomain
@@ -29,19 +30,19 @@ def test_the_counter_counts_every_vertex_a_search_settles_and_then_steps_aside()
     free = int(domain.free.sum())
     lone = Generator.of(2.0, 2.0)
     plain_mask = CoverageDomain.visible_mask
-    with bh.counting_searches() as count:  # a lone robot's cell is the whole map, unlimited
+    with counting_searches() as count:  # a lone robot's cell is the whole map, unlimited
         cell = geodesic_cell(domain, lone, [], method="paper")
     assert len(cell.nodes) == free and count.settled == free and count.sighted == 0
-    with bh.counting_searches() as count:  # every cell tested for sight, the hidden searched
+    with counting_searches() as count:  # every cell tested for sight, the hidden searched
         geodesic_cell(domain, lone, [], method="visibility")
     assert count.sighted >= free and 0 < count.settled < 2 * free
-    with bh.counting_searches() as count:
+    with counting_searches() as count:
         tessellate(domain, [lone, Generator.of(8.0, 8.0)], method="paper")
     assert count.settled == free
     assert cell_module.dijkstra is csgraph.dijkstra
     assert CoverageDomain.visible_mask is plain_mask
-    with bh.counting_searches(), pytest.raises(ConfigError, match="nested"), \
-            bh.counting_searches():
+    with counting_searches(), pytest.raises(ConfigError, match="nested"), \
+            counting_searches():
         pass
     assert cell_module.dijkstra is csgraph.dijkstra
 
@@ -56,7 +57,7 @@ def test_fig13_the_l_leaves_the_papers_37300_vertices_and_an_update_never_visits
     domain = bh.l_domain()
     for seed in (0, 1):
         starts = bh.spread_points(domain, 3, np.random.default_rng(seed), bh.FIG13_SEPARATION)
-        with bh.counting_searches() as count:
+        with counting_searches() as count:
             tessellate(domain, [Generator(p) for p in starts], method="paper")
         assert count.settled == pytest.approx(bh.FIG13_EXPANDED, rel=0.01)
         visits = bh.fig13_updates(domain, starts, "paper", iterations=6)

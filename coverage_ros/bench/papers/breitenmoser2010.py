@@ -3,10 +3,9 @@ environments with Lloyd on virtual generators and TangentBug: the paper's experi
 side with what its text reports (Figs. 2-5, Secs. II-B, V and VI).
 
 The paper gives its settings only as pictures without coordinates, so every world here is
-re-drawn from its text; the seed draws the starts (:func:`start_cluster`). Our robots are discs
-with a lidar (scans simulated on the grid), not the paper's point robots with infinite sensing;
-TangentBug keeps ``radius + follow_margin`` from the walls, so the projection p* of a virtual
-target t is the point of that clearance contour closest to t (:func:`clearance_projection`).
+re-drawn from its text and the seed draws the starts (:mod:`.breitenmoser2010_scenes`). Our
+robots are discs with a lidar (scans simulated on the grid), not the paper's point robots with
+infinite sensing.
 
 Team runs mirror :func:`~coverage_ros.core.offline.runner.run_offline` step for step
 (:func:`run_traced`, held to it by a parity test) and keep every update's real positions and
@@ -15,14 +14,27 @@ virtual generators, from which the cost curves H(real) and H(virtual) of Fig. 3 
 
 from __future__ import annotations
 
-import functools
 import math
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy import ndimage
 
 from coverage_ros.bench.papers import Experiment, Metric
+from coverage_ros.bench.papers.breitenmoser2010_scenes import (
+    EPUCK,
+    EPUCK_BUG,
+    EPUCK_CORNER,
+    EPUCK_SEPARATION,
+    EPUCK_SPREAD,
+    POINT,
+    POINT_BUG,
+    ROBOT,
+    centroid,
+    clearance_projection,
+    fig2b_start,
+    start_cluster,
+    world,
+)
 from coverage_ros.core.geodesic.domain import CoverageDomain
 from coverage_ros.core.geodesic.euclidean import euclidean_labels
 from coverage_ros.core.geodesic.tessellation import Generator
@@ -38,116 +50,20 @@ from coverage_ros.core.strategies import (
     strategy_choice,
 )
 from coverage_ros.core.strategies.tangentbug.strategy import team_costs
-from coverage_ros.core.world import LidarSpec, RobotSpec, parse_world
-from coverage_ros.core.world.spec import WorldSpec
-from coverage_ros.errors import ConfigError
+from coverage_ros.core.world import RobotSpec
 
 PAPER = "Breitenmoser et al. 2010"
-#: A TurtleBot3 whose lidar has 120 beams (3 degrees: a wall 3.5 m away returns every 18 cm,
-#: closer than the 0.41 m clearance disc; a third of the LDS-01's beams keeps runs fast).
-ROBOT = RobotSpec(lidar=LidarSpec(beams=120))
 DT = 0.5  # [s] control period of the robot node (2 Hz): one update of every robot
 TOL = 0.05  # [m] convergence tolerance (StrategyContext default): arrival radius
 FOLLOW_MARGIN = 0.10  # [m] tangentbug's default clearance beyond the robot radius
-N_ROBOTS = 5  # the paper's teams (Figs. 3-5)
-#: [m] (x0, y0, x1, y1): the start cluster's centre is drawn in this box of the bottom-left
-#: corner, where the robots of the shipped U world start (Figs. 3-5 start the robots together).
-CORNER = (0.6, 0.6, 1.2, 1.2)
-CLUSTER_SPREAD = 0.25  # [m] std of the robots about the cluster's centre
-CLUSTER_SEPARATION = 0.3  # [m] fewest distance between two robots of a cluster
 RISE_TOL = 1e-9  # relative to H(0): "H rises" beyond float noise of sums over ~30 000 cells
 MAX_ITERATIONS = 1600  # 800 s of robot time: a loop round the whole U world takes ~215 s
 NEAR_OPTIMUM = 1.05  # |p - t| within 5 % of |p* - t| counts as ending at the projection p*
-#: The re-drawn worlds: (bounds [m], obstacles, density, grid cell [m]). Fig. 3 is the shipped
-#: U world (config/worlds/u_shape.yaml); Fig. 4 a room with two free-standing blocks; Fig. 2b
-#: a U opening to the right (a bar from the right wall) under a density rising toward the
-#: branches' ends, so that the Euclidean centroid lies in the bar; Fig. 5 the 1 m x 1 m
-#: e-puck arena with a U like Fig. 3's.
-WORLDS = {
-    "fig3": ([0.0, 0.0, 10.0, 8.0], [{"type": "box", "center": [5.0, 5.25], "size": [3.0, 5.5]}],
-             None, 0.05),
-    "fig4": ([0.0, 0.0, 10.0, 8.0], [{"type": "box", "center": [5.0, 4.0], "size": [2.0, 2.0]},
-                                     {"type": "box", "center": [8.0, 2.0], "size": [1.5, 1.5]}],
-             None, 0.05),
-    "fig2b": ([0.0, 0.0, 6.0, 4.0], [{"type": "box", "center": [4.0, 1.95], "size": [4.0, 0.9]}],
-              {"type": "gaussian_mixture", "floor": 0.2,
-               "components": [{"mean": [6.0, 2.2], "sigma": 2.0}]}, 0.05),
-    "fig5": ([0.0, 0.0, 1.0, 1.0], [{"type": "box", "center": [0.5, 0.65], "size": [0.3, 0.7]}],
-             None, 0.01),
-}
-#: Fig. 2b: one robot starts in the U's base (x0, y0, x1, y1 [m]); runs per seed.
-BASE = (0.4, 0.4, 1.4, 3.6)
-STARTS_PER_SEED = 3
-#: Fig. 5 (Sec. VI): the e-puck - 7 cm across (paper); 1000 steps/s of its steppers on 41 mm
-#: wheels = 0.128 m/s; turning rate 2 v / 53 mm axle. Infinite sensing emulated by a lidar
-#: reaching across the arena.
-EPUCK = RobotSpec(radius=0.035, v_max=0.128, w_max=4.8,
-                  lidar=LidarSpec(beams=120, range_min=0.005, range_max=1.5))
-#: The paper's ideal simulation: as near a point robot as TangentBug's brake allows (its
-#: clearance must exceed the radius + 0.02 m safety margin).
-POINT = replace(EPUCK, radius=0.005)
-#: TangentBug scaled to the e-puck (defaults over the TurtleBot3 radius, times 0.035 / 0.105).
-EPUCK_BUG = {"follow_margin": 0.035, "lookahead": 0.07, "loop_tolerance": 0.05,
-             "leave_margin": 0.035}
-POINT_BUG = {**EPUCK_BUG, "follow_margin": 0.025}
+STARTS_PER_SEED = 3  # Fig. 2b: runs per seed, each from its own start in the U's base
 EPUCK_DT = 0.2  # [s] update period: a step of 2.6 cm, under the 7 cm lookahead
 EPUCK_TOL = 0.01  # [m] arrival radius (one grid cell)
-EPUCK_CORNER = (0.08, 0.08, 0.14, 0.14)  # [m] cluster centre box in the arena's corner
-EPUCK_SPREAD, EPUCK_SEPARATION = 0.04, 0.08  # [m] an e-puck diameter + 1 cm apart
 EPUCK_TRIALS = 7  # the paper's experimental trials
 EPUCK_MAX_ITERATIONS = 3000  # 10 min of robot time (the paper's runs took 4.56 min)
-
-
-# ---------------------------------------------------------------------------- worlds, starts
-@functools.lru_cache(maxsize=8)
-def world(name: str, radius: float = ROBOT.radius) -> tuple[WorldSpec, CoverageDomain]:
-    """A re-drawn world of :data:`WORLDS` (uniform density unless given, as the paper's
-    simulations) and its domain for a disc robot of ``radius`` [m]."""
-    bounds, obstacles, density, res = WORLDS[name]
-    data = {"name": name, "resolution": res, "bounds": bounds, "obstacles": obstacles}
-    if density is not None:
-        data["density"] = density
-    spec = parse_world(data)
-    return spec, CoverageDomain.from_grid(spec.grid, radius, spec.density)
-
-
-def start_cluster(seed: int, domain: CoverageDomain, k: int = N_ROBOTS,
-                  box: tuple[float, float, float, float] = CORNER,
-                  spread: float = CLUSTER_SPREAD,
-                  separation: float = CLUSTER_SEPARATION) -> np.ndarray:
-    """``(k, 3)`` start poses ``(x [m], y [m], yaw [rad])``: a cluster about a centre drawn in
-    ``box``, every robot on a free point and ``separation`` [m] from the others."""
-    rng = np.random.default_rng(seed)
-    centre = rng.uniform(box[:2], box[2:])
-    pts: list[np.ndarray] = []
-    for _ in range(10_000):
-        p = centre + rng.normal(0.0, spread, 2)
-        if domain.is_free_point(p) and all(math.hypot(*(p - q)) >= separation for q in pts):
-            pts.append(p)
-            if len(pts) == k:
-                return np.column_stack([np.array(pts), rng.uniform(-math.pi, math.pi, k)])
-    raise ConfigError.at("start_cluster", f"no {k} separated free starts near", centre.tolist())
-
-
-def clearance_projection(spec: WorldSpec, target: np.ndarray, clearance: float,
-                         upsample: int = 5) -> np.ndarray:
-    """``(2,)`` [m]: the point at least ``clearance`` [m] from every obstacle cell (and the
-    map's edge) closest to ``target (2,)`` - the projection p* for a robot that keeps that
-    clearance (distance transform on the grid refined ``upsample`` times)."""
-    grid = spec.grid
-    occ = np.kron(grid.occupied_mask(), np.ones((upsample, upsample), dtype=bool))
-    occ = np.pad(occ, 1, constant_values=True)
-    dist = ndimage.distance_transform_edt(~occ)[1:-1, 1:-1] * (grid.resolution / upsample)
-    rows, cols = np.nonzero(dist >= clearance)
-    xy = grid.grid_to_world(np.stack([(cols + 0.5) / upsample, (rows + 0.5) / upsample], -1))
-    return xy[int(np.argmin(np.hypot(*(xy - target).T)))]
-
-
-def centroid(domain: CoverageDomain) -> np.ndarray:
-    """``(2,)`` [m]: the mass centroid of the whole free space (one robot's Euclidean target)."""
-    w = domain.mass_element.ravel()
-    X, Y = domain.geometry.all_cell_centers()
-    return np.stack([X.ravel(), Y.ravel()], axis=-1).T @ w / w.sum()
 
 
 # ---------------------------------------------------------------------------- traced runs
@@ -228,12 +144,6 @@ def labels_cost(domain: CoverageDomain, partition_of: np.ndarray, positions: np.
 
 
 # ---------------------------------------------------------------------------- experiments
-def fig2b_start(seed: int, k: int) -> np.ndarray:
-    """``(1, 3)``: start ``k`` of ``seed`` in the base of the Fig. 2b U."""
-    rng = np.random.default_rng([seed, k])
-    return np.array([[*rng.uniform(BASE[:2], BASE[2:]), rng.uniform(-math.pi, math.pi)]])
-
-
 def fig2b_one(start: np.ndarray) -> dict[str, float]:
     """One robot from ``start (1, 3)`` with ``tangentbug`` and with ``geodesic``: for each,
     ``|p - t| / |p* - t|`` of its final position p (t: the Euclidean centroid, p*: its

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from coverage_ros.bench.papers import breitenmoser2010 as b
+from coverage_ros.bench.papers import breitenmoser2010_scenes as scenes
 from coverage_ros.bench.papers import experiments
 from coverage_ros.core.offline.runner import OfflineConfig, run_offline
 from coverage_ros.core.strategies import StrategyContext
@@ -31,19 +32,19 @@ def test_the_papers_values_are_registered():
 
 
 def test_redrawn_fig2b_puts_the_centroid_in_the_bar_and_p_star_on_its_upper_face():
-    spec, domain = b.world("fig2b")
-    t = b.centroid(domain)
+    spec, domain = scenes.world("fig2b")
+    t = scenes.centroid(domain)
     assert not domain.is_free_point(t) and 2.0 < t[0] < 6.0 and 1.5 < t[1] < 2.4
-    star = b.clearance_projection(spec, t, b.ROBOT.radius + b.FOLLOW_MARGIN)
+    star = scenes.clearance_projection(spec, t, scenes.ROBOT.radius + b.FOLLOW_MARGIN)
     # The bar's upper face is y = 2.4; the density's bump at y = 2.2 lifts t above the middle.
-    np.testing.assert_allclose(star, [t[0], 2.4 + b.ROBOT.radius + b.FOLLOW_MARGIN],
+    np.testing.assert_allclose(star, [t[0], 2.4 + scenes.ROBOT.radius + b.FOLLOW_MARGIN],
                                atol=spec.grid.resolution)
 
 
 def test_fig2b_geodesic_stops_at_a_compromise_and_tangentbug_reaches_p_star():
     """Fig. 2b over three starts: geodesic Lloyd stops in the U's base, balancing the two
     branches, far from p*; tangentbug circles the boundary and ends at p* (Theorem 2)."""
-    runs = [b.fig2b_one(b.fig2b_start(0, k)) for k in range(b.STARTS_PER_SEED)]
+    runs = [b.fig2b_one(scenes.fig2b_start(0, k)) for k in range(b.STARTS_PER_SEED)]
     assert all(r["tangentbug"] <= b.NEAR_OPTIMUM for r in runs)
     assert all(r["geodesic"] > 2.0 for r in runs)  # over twice the optimal distance
 
@@ -51,10 +52,10 @@ def test_fig2b_geodesic_stops_at_a_compromise_and_tangentbug_reaches_p_star():
 def test_traced_run_is_run_offline_and_its_virtual_cost_falls():
     """run_traced repeats run_offline step for step (it only keeps more); H of the virtual
     generators falls while the team spreads, and both costs start equal (g_virt = p_S)."""
-    _, domain = b.world("fig4")
-    starts = b.start_cluster(3, domain)
+    _, domain = scenes.world("fig4")
+    starts = scenes.start_cluster(3, domain)
     trace = b.run_traced(domain, "tangentbug", starts, max_iterations=30)
-    contexts = [StrategyContext(domain=domain, robot=b.ROBOT, robot_id=i)
+    contexts = [StrategyContext(domain=domain, robot=scenes.ROBOT, robot_id=i)
                 for i in range(len(starts))]
     res = run_offline(domain, "tangentbug", starts, contexts,
                       OfflineConfig(max_iterations=30, dt=b.DT))
@@ -69,10 +70,10 @@ def test_traced_run_is_run_offline_and_its_virtual_cost_falls():
 
 
 def test_clearance_projection_and_costs_of_a_given_partition():
-    spec, domain = b.world("fig4")
+    spec, domain = scenes.world("fig4")
     target = np.array([5.5, 4.2])  # in the middle block (x 4-6, y 3-5): nearest face x = 6
-    clearance = b.ROBOT.radius + b.FOLLOW_MARGIN
-    star = b.clearance_projection(spec, target, clearance)
+    clearance = scenes.ROBOT.radius + b.FOLLOW_MARGIN
+    star = scenes.clearance_projection(spec, target, clearance)
     np.testing.assert_allclose(star, [6.0 + clearance, 4.2], atol=spec.grid.resolution)
     P = np.array([[2.0, 2.0], [8.0, 6.0], [2.0, 6.0]])
     h_real, _ = team_costs(domain, P, P)

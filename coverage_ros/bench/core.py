@@ -17,7 +17,9 @@ n x n grids; equal n/k means equal cell area. First of all, the offline team ste
 Lloyd; before that, a robot's cold update in the largest cell of 16 robots on depot
 (:mod:`coverage_ros.bench.cold_update`).
 
-Progress goes to stderr; the last stdout line is JSON.
+Progress goes to stderr; the last stdout line is JSON. A whole run (not ``--cold-only`` or
+``--team-step-only``) also writes ``docs/results/core.json``: the figures and the benchmark's
+targets, each with whether it is met.
 """
 
 from __future__ import annotations
@@ -188,6 +190,8 @@ def main(argv: list[str] | None = None) -> int:
                     help="only the offline team step on the 'gaussians' world")
     ap.add_argument("--cold-only", action="store_true",
                     help="only the cold update of the largest cell (16 robots on depot)")
+    ap.add_argument("--no-results", action="store_true",
+                    help="do not write docs/results/core.json (a whole run writes it)")
     args = ap.parse_args(argv)
     from coverage_ros.bench.cold_update import bench_cold_update
     from coverage_ros.bench.team_step import bench_team_step
@@ -215,8 +219,44 @@ def main(argv: list[str] | None = None) -> int:
         _say("update time against own cell area (k x k robots on n x n cells)")
         result["scaling"] = bench_scaling([(200, 2), (400, 4), (800, 8), (200, 4), (400, 8)],
                                           12, args.seed)
+    if not args.no_results:
+        from coverage_ros.bench.results import write_results
+
+        write_results("core", {"rows": targets(result), **result}, argv, "scripts/bench_core")
     print(json.dumps(result))
     return 0
+
+
+def targets(result: dict) -> list[dict]:
+    """The benchmark's targets, each with its figure and whether it is met."""
+    rows = []
+
+    def row(what: str, value: float, unit: str, target: str, met: bool) -> None:
+        rows.append({"figure": what, "value": value, "unit": unit, "target": target,
+                     "met": bool(met)})
+
+    step = result["team_step"]
+    row("offline team step, lloyd (8 robots, 402 x 402 cells)", step["lloyd_ms"], "ms",
+        "<= 3 ms", step["lloyd_ms"] <= 3.0)
+    row("offline team step, geodesic (8 robots, 402 x 402 cells)", step["geodesic_ms"], "ms",
+        "<= 100 ms", step["geodesic_ms"] <= 100.0)
+    acc = step["accelerated"]["steps_within_0.1%_of_plain_H"]
+    row("accelerated Lloyd: team steps until H within 0.1 % of plain Lloyd's", acc, "steps",
+        "<= 60", acc is not None and acc <= 60)
+    for g in result["grids"]:
+        if g["size"] == 200:
+            row("one robot's geodesic update, 200 x 200 cells (paper mode)", g["update_ms"],
+                "ms", "<= 10 ms", g["update_ms"] <= 10.0)
+            row("its speed-up over the pseudo-code's reference, 200 x 200", g["speedup"], "x",
+                ">= 20x", g["speedup"] >= 20.0)
+        if g["size"] == 400:
+            row("one robot's geodesic update, 400 x 400 cells (paper mode)", g["update_ms"],
+                "ms", "<= 50 ms", g["update_ms"] <= 50.0)
+    for c in result["cold_update"]:
+        if c["configuration"] == "16 robots, start cluster":
+            row("first update in the largest cell, 16 robots on depot", c["cold_ms"], "ms",
+                "<= 100 ms", c["cold_ms"] <= 100.0)
+    return rows
 
 
 if __name__ == "__main__":

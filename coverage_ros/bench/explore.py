@@ -12,7 +12,8 @@
 3. With ``--live``: one ``coverage-team --explore`` run per method on the office world, for the
    record.
 
-Progress goes to stderr; the last stdout line is JSON.
+Progress goes to stderr; the last stdout line is JSON; each world, team size and method's
+row replaces that setting's row in ``docs/results/explore.json``.
 """
 
 from __future__ import annotations
@@ -167,6 +168,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1)
     ap.add_argument("--live", action="store_true", help="also one live team run per method")
     ap.add_argument("--no-sensor", action="store_true", help="skip the sensor model timing")
+    ap.add_argument("--no-results", action="store_true",
+                    help="do not update docs/results/explore.json")
     args = ap.parse_args(argv)
     result: dict = {}
     if not args.no_sensor:
@@ -202,8 +205,32 @@ def main(argv: list[str] | None = None) -> int:
           f"{'met' if result['met'] else 'not met'} ({result['best']})", file=sys.stderr)
     if args.live:
         result["live"] = live_runs(4, 300.0, 0)
+    if not args.no_results:
+        write_explore_results(result, args, argv)
     print(json.dumps(result))
     return 0
+
+
+def write_explore_results(result: dict, args: argparse.Namespace, argv: list[str] | None) -> None:
+    """``docs/results/explore.json``: a row per world, team size and method (replacing that
+    setting's row), and this run's targets."""
+    from coverage_ros.bench.results import update_rows
+
+    best = result["best"]
+    targets = [{"figure": "coordinated exploration (best: "
+                f"{best}): time to 95 % over the frontier baseline's, mean of this run's cases",
+                "value": result["ratio_95_mean"].get(best) if best else None,
+                "target": f"<= {TARGET_RATIO}", "met": result["met"]}]
+    sensor = result.get("sensor_model")
+    if sensor:
+        targets.insert(0, {"figure": "inverse sensor model, one 360-beam scan on 5 cm cells "
+                           f"[ms] (per-beam reference: {sensor['reference_ms']} ms)",
+                           "value": sensor["ms"], "target": "<= 2 ms", "met": sensor["met"]})
+    settings = (f"worlds {args.worlds}; {' and '.join(map(str, args.robots))} robots; seeds "
+                f"{' '.join(map(str, args.seeds))}; at most {args.duration:g} s of sim time per "
+                "run (a level never reached counts as that limit)")
+    update_rows("explore", result["table"], ("world", "robots", "method"), argv,
+                "scripts/bench_explore", extra={"targets": targets, "settings": settings})
 
 
 if __name__ == "__main__":

@@ -17,7 +17,8 @@ the time to convergence; the three-host runs (``bench/hosts.py``) and the restar
 against the same reference. Progress goes to stderr; the last stdout line is JSON:
 ``{"loss": {"0.1": {"H_ratio", "collisions", "converged_at", "H"}, ...}, "hosts": {"H_ratio",
 "collisions", ..., "discovery_server": {...}}, "restarts": {...}, "fuzz": {"messages",
-"node_crashes", ...}, "soak": {"rss_growth", "log_bytes", ...}, "lossless": {...}}``.
+"node_crashes", ...}, "soak": {"rss_growth", "log_bytes", ...}, "lossless": {...}}``; each
+fault's row replaces that fault's row in ``docs/results/faults.json``.
 """
 
 from __future__ import annotations
@@ -113,6 +114,8 @@ def main(argv: list[str] | None = None) -> int:
                     help="[s] sim time of the soak run")
     ap.add_argument("--fuzz-examples", type=int, default=60,
                     help="hypothesis examples per subscribed topic")
+    ap.add_argument("--no-results", action="store_true",
+                    help="do not update docs/results/faults.json")
     args = ap.parse_args(argv)
     problem = have_tools()
     if problem:
@@ -149,8 +152,51 @@ def main(argv: list[str] | None = None) -> int:
 
             results["soak"] = soak_section(args.soak_duration, tmp, say)
     report(results, say)
+    if not args.no_results:
+        from coverage_ros.bench.results import update_rows
+
+        settings = (f"{args.robots} robots on {Path(args.world).name}, {args.duration:g} s of "
+                    f"sim time at real time, seed {args.seed}, one run per fault; soak "
+                    f"{args.soak_duration:g} s")
+        update_rows("faults", result_rows(results), ("fault",), argv, "scripts/bench_faults",
+                    extra={"settings": settings})
     print(json.dumps(results))
     return 0
+
+
+def result_rows(results: dict) -> list[dict]:
+    """One row per fault for ``docs/results/faults.json``, with its target where it has one."""
+    rows = []
+
+    def team(name: str, f: dict | None, target: str = "", met: bool | None = None) -> None:
+        if f:
+            rows.append({"fault": name, "H": round(f["H"], 3), "H_ratio": f["H_ratio"],
+                         "collisions": f["collisions"], "converged_at": f["converged_at"],
+                         "target": target, "met": met})
+
+    team("none (the reference)", results.get("lossless"))
+    for level, f in results.get("loss", {}).items():
+        at20 = float(level) == 0.2
+        team(f"{float(level):.0%} of UDP packets dropped", f,
+             f"H ratio <= {TARGET_RATIO}, no collision" if at20 else "",
+             f["H_ratio"] <= TARGET_RATIO and f["collisions"] == 0 if at20 else None)
+    if "hosts" in results:
+        team("3 hosts, simple discovery", results["hosts"])
+        team("3 hosts, discovery server", results["hosts"].get("discovery_server"))
+    team("robots restarted", results.get("restarts"))
+    fuzz = results.get("fuzz")
+    if fuzz:
+        rows.append({"fault": f"malformed messages on every subscribed topic ({fuzz['messages']}"
+                     f" messages, {fuzz['topics']} topics)", "node_crashes": fuzz["node_crashes"],
+                     "problems": len(fuzz["problems"]), "target": "no node crash, no problem",
+                     "met": fuzz["node_crashes"] == 0 and not fuzz["problems"]})
+    soak = results.get("soak")
+    if soak:
+        growth = soak["rss_growth"]
+        rows.append({"fault": f"soak: {soak['robots']} robots, {soak['sim_time']:.0f} s, "
+                     f"{len(soak['restarts'])} restarts", "rss_growth": growth,
+                     "target": "memory growth < 5 %", "met": growth is not None and growth < 0.05})
+    return rows
 
 
 def report(results: dict, say) -> None:

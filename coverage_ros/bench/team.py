@@ -7,7 +7,9 @@ lock-step, as fast as the robots answer) and reports the team's achieved real-ti
 and how often the robots updated their cells: the largest of the robots' median periods between
 coverage updates, read back from their logs (each robot logs its update statistics when it
 stops). ``--robots-per-process K``, ``--discovery-server`` and ``--executor`` are passed to the
-launcher. Progress goes to stderr; the last stdout line is JSON.
+launcher. Progress goes to stderr; the last stdout line is JSON, and the run's row (one per
+setting: robots, processes, discovery, executor, lock-step, world, strategy) replaces the same
+setting's row in ``docs/results/team.json``.
 """
 
 from __future__ import annotations
@@ -21,8 +23,14 @@ import tempfile
 from pathlib import Path
 
 from coverage_ros.bench.environment import DEPOT
+from coverage_ros.bench.results import update_rows
 from coverage_ros.cli.team import main as team_main
 from coverage_ros.nodes.runner import EXECUTORS
+
+#: A real-time team keeps the clock: this real-time factor or more.
+TARGET_RTF = 0.95
+#: What makes a row of team.json a setting of its own.
+ROW_KEY = ("robots", "robot_processes", "discovery", "executor", "lockstep", "world", "strategy")
 
 #: A robot's update statistics line (nodes/update_worker.UpdateWorker.summary) in its log.
 UPDATES = re.compile(r"\[robot_(\d+)\.coverage_robot\]: (\d+) coverage updates, one every "
@@ -59,6 +67,8 @@ def main(argv: list[str] | None = None) -> int:
                     "answer (the rtf is what the team's work allows)")
     ap.add_argument("--rtf", type=float, default=None,
                     help="real-time factor (default 1; with --lockstep none: an upper bound)")
+    ap.add_argument("--no-results", action="store_true",
+                    help="do not write docs/results/team.json")
     args = ap.parse_args(argv)
     with tempfile.TemporaryDirectory(prefix="bench-team-") as tmp:
         out = args.keep or Path(tmp)
@@ -96,6 +106,13 @@ def main(argv: list[str] | None = None) -> int:
         "H_reduction": round(1 - summary["metrics"]["H"] / summary["metrics"]["H_start"], 3),
         "collisions": sum(r["collisions"] for r in summary["robots"]),
     }
+    if not args.lockstep and not args.no_results:
+        # A real-time team keeps up with the clock and touches nothing (lock-step runs have no
+        # such target: their pace is what the robots' work allows).
+        result["target"] = f"rtf >= {TARGET_RTF}, no collision"
+        result["met"] = result["rtf"] >= TARGET_RTF and result["collisions"] == 0
+    if not args.no_results:
+        update_rows("team", [result], ROW_KEY, argv, "scripts/bench_team")
     print(json.dumps(result))
     return 0
 

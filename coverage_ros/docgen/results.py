@@ -23,8 +23,11 @@ SCRIPTS = {"lockstep": "scripts/bench_lockstep", "team": "scripts/bench_team",
 PROVENANCE = ("machine", "cores", "python", "date", "commit", "command")
 #: Keys that say where a figure came from, not what it is: shown in the note under a table.
 QUIET = set(PROVENANCE) | {"note", "settings"}
+#: Longer lists of rows than this, beside a file's main rows, are left to the file.
+MAX_ROWS = 12
 #: Column headings that say more than the key: where a column is itself the target.
-LABELS = {"identical": "identical beside CPU hogs (target: yes)", "met": "target met"}
+LABELS = {"identical": "identical beside CPU hogs (target: yes)", "met": "target met",
+          "run": "commit"}
 
 
 def value_text(value: object) -> str:
@@ -69,7 +72,9 @@ def rows_table(rows: list[dict]) -> str:
     lines = ["| " + " | ".join(LABELS.get(c, c.replace("_", " ")) for c in columns) + " |",
              "|" + "---|" * len(columns)]
     for row in rows:
-        lines.append("| " + " | ".join(cell(value_text(row.get(c))) for c in columns) + " |")
+        lines.append("| " + " | ".join(cell(value_text(
+            row[c].get("commit") if c == "run" and isinstance(row.get(c), dict) else row.get(c)))
+            for c in columns) + " |")
     return "\n".join(lines)
 
 
@@ -93,11 +98,34 @@ def figures_table(data: dict) -> str:
     return "\n".join(lines)
 
 
+def is_rows(value: object) -> bool:
+    return isinstance(value, list) and bool(value) and all(isinstance(v, dict) for v in value)
+
+
 def part_markdown(data: dict, name: str) -> str:
-    """One results mapping: its rows (or figures) and where they came from."""
-    body = rows_table(data["rows"]) if isinstance(data.get("rows"), list) and data["rows"] \
-        else figures_table({k: v for k, v in data.items() if k != "rows"})
-    return body + "\n\n" + provenance_note(data, name)
+    """One results mapping: its targets, its rows, then every other list of rows and mapping
+    of figures under its key, and where they came from."""
+    blocks = []
+    if is_rows(data.get("targets")):
+        blocks.append("**Targets**\n\n" + rows_table(data["targets"]))
+    if is_rows(data.get("rows")):
+        blocks.append(rows_table(data["rows"]))
+    scalars = {}
+    for key, value in data.items():
+        if key in ("rows", "targets") or key in QUIET:
+            continue
+        title = f"**{key.replace('_', ' ')}**\n\n"
+        if is_rows(value) and len(value) > MAX_ROWS:
+            blocks.append(title + f"{len(value)} rows: see the results file.")
+        elif is_rows(value):
+            blocks.append(title + rows_table(value))
+        elif isinstance(value, dict):
+            blocks.append(title + figures_table(value))
+        else:
+            scalars[key] = value
+    if scalars:
+        blocks.insert(0, figures_table(scalars))
+    return "\n\n".join(blocks + [provenance_note(data, name)])
 
 
 def results_markdown(name: str, folder: Path = RESULTS) -> str:

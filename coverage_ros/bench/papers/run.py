@@ -117,6 +117,9 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--markdown", type=Path, default=None, help="also write the table here")
     ap.add_argument("--json", type=Path, default=None, help="also write the JSON here")
     ap.add_argument("--list", action="store_true", help="list the experiments and stop")
+    ap.add_argument("--no-results", action="store_true",
+                    help="do not update docs/results/papers.json (each row replaces the same "
+                    "paper, figure, setting and metric's row there)")
     return ap
 
 
@@ -144,6 +147,11 @@ def main(argv: list[str] | None = None) -> int:
         args.markdown.write_text(table + "\n")
     if args.json:
         args.json.write_text(json.dumps(payload, indent=1) + "\n")
+    if not args.no_results:
+        from coverage_ros.bench.results import update_rows
+
+        update_rows("papers", payload["rows"], ("paper", "figure", "setting", "metric"), argv,
+                    "scripts/bench_papers")
     print(table)
     ours = [r for r in rows if not r.baseline]
     counts = {v: sum(r.verdict == v for r in ours) for v in

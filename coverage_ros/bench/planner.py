@@ -175,6 +175,8 @@ def bench_end_to_end(rounds: int, say) -> dict:
                                      "side", **_medians(cc)}
         result["ratio_end_to_end_over"] = {k: round(statistics.median(v), 3)
                                            for k, v in ratios.items()}
+        result["end_to_end_at_most"] = {k: v <= 1.0 for k, v in
+                                        result["ratio_end_to_end_over"].items()}
     else:
         result["coveragecontrol"] = {"version": CC_VERSION, "not_installed": why, **CC_RECORDED}
         result["ratio_end_to_end_over"] = {"step": round(

@@ -36,6 +36,8 @@ import numpy as np
 from coverage_ros.errors import ConfigError
 
 SOLVERS = ("lloyd", "accelerated")
+#: Decrements the tail estimate looks at (:func:`remaining_decrease`).
+TAIL_WINDOW = 3
 #: Armijo's sufficient decrease: the share of the linear prediction an L-BFGS step must reach.
 ARMIJO = 1e-4
 
@@ -71,21 +73,22 @@ class LloydSolution:
         return None
 
 
-def remaining_decrease(energies: list[float]) -> float:
-    """Plain Lloyd's remaining decrease of H estimated from its last four energies as a
-    geometric tail (inf while the decrements are not all positive and shrinking)."""
-    if len(energies) < 4:
+def remaining_decrease(energies: list[float], window: int = TAIL_WINDOW) -> float:
+    """Plain Lloyd's remaining decrease of H estimated from its last ``window`` + 1 energies as a
+    geometric tail with the largest ratio of successive decrements among them (inf while the
+    decrements are not all positive and shrinking)."""
+    if len(energies) < window + 1:
         return float("inf")
-    d = -np.diff(energies[-4:])
+    d = -np.diff(energies[-window - 1:])
     if np.any(d <= 0):
         return float("inf")
-    rho = float(max(d[1] / d[0], d[2] / d[1]))
-    return float(d[2] * rho / (1.0 - rho)) if rho < 1.0 else float("inf")
+    rho = float(np.max(d[1:] / d[:-1]))
+    return float(d[-1] * rho / (1.0 - rho)) if rho < 1.0 else float("inf")
 
 
 def solve_lloyd(team: Team, starts: np.ndarray, weights: np.ndarray | None = None,
                 solver: str = "lloyd", tolerance: float = 0.02, max_steps: int = 1000,
-                memory: int = 8, settled: float = 2e-3,
+                memory: int = 8, settled: float = 2e-3, tail_window: int = TAIL_WINDOW,
                 progress: Callable[[int, float], None] | None = None) -> LloydSolution:
     """Lloyd from ``starts (n, 2)`` until no robot's step exceeds ``tolerance`` [m] or
     ``max_steps`` tessellations were made (module docstring)."""
@@ -111,7 +114,7 @@ def solve_lloyd(team: Team, starts: np.ndarray, weights: np.ndarray | None = Non
     while cur.step_length >= tolerance and len(energies) < max_steps:
         nxt = None
         if solver == "accelerated" and switched_at is None and \
-                remaining_decrease(plain) < settled * cur.cost:
+                remaining_decrease(plain, tail_window) < settled * cur.cost:
             switched_at = len(energies)
         if switched_at is not None and pairs:
             x = cur.positions.ravel()

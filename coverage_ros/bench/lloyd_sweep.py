@@ -130,8 +130,17 @@ def run_sweep(seed_set: str, count: int, say, solvers=("lloyd", "accelerated"),
         f"{summary['worst_ratio_within']:.2f}; {summary['median_ratio_within_own']:.2f} of "
         f"plain's own steps to within 0.1 %); H gap median {summary['median_gap_percent']:+.4f}"
         f" %, largest {summary['max_gap_percent']:+.4f} %")
+    met = summary["targets_met"]
+    targets = [
+        {"target": "median steps to within 0.1 % of plain's final H <= 0.5 x plain's steps",
+         "value": summary["median_ratio_within"],
+         "met": met["median_within_0.1%_in_half_plain_steps"]},
+        {"target": "final H never more than 0.1 % above plain's", "value": f"largest gap "
+         f"{summary['max_gap_percent']:+.4f} %", "met": met["never_more_than_0.1%_above_plain_H"]},
+        {"target": "worst case steps <= plain's", "value": summary["worst_ratio_steps"],
+         "met": met["worst_case_no_slower_than_plain"]}]
     return {"seed_set": seed_set, "seeds": [r["seed"] for r in rows], "tolerance_m": TOLERANCE,
-            "summary": summary, "scenarios": rows}
+            "targets": targets, "summary": summary, "scenarios": rows}
 
 
 def summarize(rows: list[dict]) -> dict:

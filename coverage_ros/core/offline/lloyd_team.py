@@ -77,8 +77,12 @@ class EuclideanTeam:
         #: Straight lines are geodesics and the free cells fill a rectangle: every free cell
         #: sees every point of it, so the geodesic (visibility) tessellation is this one.
         self.is_geodesic = bool(domain.sees_straight and box.all())
-        self._weighted = RowNearest(w > 0)  # else the nearest cell of the own cell there
-        self._open = RowNearest(domain.free)  # or, in a cell without weight, the nearest free
+
+    @cached_property
+    def _nearest(self) -> tuple[RowNearest, RowNearest]:
+        """Where an infeasible centroid goes: the nearest cell of the own cell with positive
+        weight, else (a cell without weight) the nearest free one; made when first needed."""
+        return RowNearest(self._w.reshape(self.domain.shape) > 0), RowNearest(self.domain.free)
 
     def _to_frame(self, positions: np.ndarray) -> np.ndarray:
         return self.domain.to_grid(positions) * self.domain.resolution
@@ -113,13 +117,13 @@ class EuclideanTeam:
         runs = row_runs(g[:, 0], g[:, 1], R * R, self._cx, self._cy)
 
         def project(i: int, cf: np.ndarray) -> np.ndarray | None:
-            for rows in (self._weighted, self._open):
+            for rows in self._nearest:
                 rc = rows.nearest(runs.start[i], runs.stop[i], cf, self._cx, self._cy)
                 if rc is not None:
                     return np.array([self._cx[rc[1]], self._cy[rc[0]]])
             return None
 
-        return self._finish(P, R, self._rows.moments(runs),
+        return self._finish(P, R, g, self._rows.moments(runs),
                             lambda: runs.labels(self.domain.shape[1]), project)
 
     def reference_step(self, positions: np.ndarray,
@@ -132,7 +136,8 @@ class EuclideanTeam:
         n = len(P)
         S = np.stack([np.bincount(flat, weights=v.ravel(), minlength=n)
                       for v in self._rows.cell_values()], axis=1)
-        return self._finish(P, R, S, lambda: lab, lambda i, cf: self._project(i, cf, flat))
+        return self._finish(P, R, self._to_frame(P), S, lambda: lab,
+                            lambda i, cf: self._project(i, cf, flat))
 
     @staticmethod
     def _inputs(positions: np.ndarray, weights: np.ndarray | None) -> tuple[np.ndarray, ...]:
@@ -140,13 +145,13 @@ class EuclideanTeam:
         R = np.zeros(len(P)) if weights is None else np.asarray(weights, dtype=np.float64)
         return P, R
 
-    def _finish(self, P: np.ndarray, R: np.ndarray, S: np.ndarray,
+    def _finish(self, P: np.ndarray, R: np.ndarray, g: np.ndarray, S: np.ndarray,
                 labels: Callable[[], np.ndarray],
                 project: Callable[[int, np.ndarray], np.ndarray | None]) -> TeamStep:
-        """The step from every cell's sums ``S (n, 4)`` (mass, first moments, second moment in
-        the grid frame), a maker of the ``(H, W)`` labels of every grid cell and ``project``:
-        robot i's goal (grid frame) for a centroid ``cf`` on a cell that is not feasible."""
-        g = self._to_frame(P)
+        """The step at ``P`` (``g`` in the grid frame) from every cell's sums ``S (n, 4)``
+        (mass, first moments, second moment in the grid frame), a maker of the ``(H, W)``
+        labels of every grid cell and ``project``: robot i's goal (grid frame) for a centroid
+        ``cf`` on a cell that is not feasible."""
         mass = S[:, 0]
         costs = S[:, 3] - 2.0 * (g * S[:, 1:3]).sum(axis=1) + ((g * g).sum(axis=1) - R * R) * mass
         safe = np.where(mass > 0, mass, 1.0)

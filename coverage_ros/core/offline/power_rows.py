@@ -19,11 +19,12 @@ of labelling every grid cell.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
 
-#: Largest (robots x robots x rows) block evaluated at once [elements]; bounds the memory.
+#: Largest (pairs x rows) block evaluated at once [elements]; bounds the memory.
 BLOCK = 1 << 21
 
 
@@ -59,45 +60,65 @@ def row_runs(gx: np.ndarray, gy: np.ndarray, r2: np.ndarray, cx: np.ndarray,
         return RowRuns(start, stop)
     pairs = neighbour_pairs(gx, gy, r2) if n >= NEIGHBOURS_FROM else None
     if pairs is None:
-        k, j = np.nonzero(~np.eye(n, dtype=bool))
-        has = np.ones(n, dtype=bool)
+        k, j = _all_pairs(n)
     else:
         k, j = pairs
-        has = np.bincount(k, minlength=n) > 0
-        stop[~has] = 0  # not a vertex of the regular triangulation: an empty cell
-    first = np.flatnonzero(np.diff(k, prepend=-1))  # pairs sorted by k: where each k begins
+        k, j = k[k < j], j[k < j]
+        stop[np.bincount(np.concatenate([k, j]), minlength=n) == 0] = 0  # no neighbour: no cell
+    # each pair once, as (left, right) on every row: it bounds left's run on the right and
+    # right's run on the left at the same crossing
+    swap = gx[k] > gx[j]
+    left, right = np.where(swap, j, k), np.where(swap, k, j)
+    da = 2.0 * (gx[right] - gx[left])  # a_left - a_right >= 0
+    crossing = da > 0
+    by_left, by_right = np.argsort(left[crossing], kind="stable"), np.argsort(
+        right[crossing], kind="stable")
+    lefts, rights = left[crossing][by_left], right[crossing][by_right]
+    first_l = np.flatnonzero(np.diff(lefts, prepend=-1))
+    first_r = np.flatnonzero(np.diff(rights, prepend=-1))
     step = cx[1] - cx[0] if W > 1 else 1.0
+    scale = (1.0 / (da[crossing] * step))[:, None]
+    left_wins = (left < right)[crossing][:, None]  # the lower index takes a centre on the line
     b = (gx * gx - r2)[:, None] + (cy[None, :] - gy[:, None]) ** 2  # (n, H)
-    da = 2.0 * (gx[j] - gx[k])  # a_k - a_j
-    upper, lower, parallel = da > 0, da < 0, da == 0  # upper: k left of the crossing
-    j_wins_tie = (j < k)[:, None]
-    with np.errstate(divide="ignore"):
-        scale = np.where(parallel, 0.0, 1.0 / (da * step))[:, None]
-    # the tie rule moves a bound by one column only where a centre is exactly on the crossing
-    up_tie = (upper[:, None] & ~j_wins_tie)
-    lo_tie = (lower[:, None] & j_wins_tie)
-    rows = max(1, BLOCK // len(k))
+    li, ri = left[crossing], right[crossing]
+    rows = max(1, BLOCK // max(len(li), 1))
     for r0 in range(0, H, rows):
         r1 = min(H, r0 + rows)
-        db = b[j, r0:r1] - b[k, r0:r1]  # (pairs, h): b_j - b_k
-        u = db * scale
-        u -= cx[0] / step  # the crossing in columns: centre c at u = c
-        c = np.ceil(u)
-        exact = c == u
-        hi = np.where(upper[:, None], c + (exact & up_tie), np.inf)
-        lo = np.where(lower[:, None], c + (exact & lo_tie), -np.inf)
-        hi = np.clip(np.minimum.reduceat(hi, first, axis=0), 0, W)
+        if len(li):
+            u = (b[ri, r0:r1] - b[li, r0:r1]) * scale  # the crossing, in columns
+            u -= cx[0] / step
+            c = np.ceil(u)
+            exact = c == u
+            if exact.any():  # a centre on the crossing: left's if left takes the tie
+                c += exact & left_wins
+            # left's run stops and right's starts at the first column past the crossing
+            stop[lefts[first_l], r0:r1] = np.clip(
+                np.minimum.reduceat(c[by_left], first_l, axis=0), 0, W)
+            start[rights[first_r], r0:r1] = np.clip(
+                np.maximum.reduceat(c[by_right], first_r, axis=0), 0, W)
+        parallel = ~crossing
         if parallel.any():  # robots above each other: the one below the other on the row
-            gone = parallel[:, None] & ((db < 0) | ((db == 0) & j_wins_tie))
-            hi[np.logical_or.reduceat(gone, first, axis=0)] = 0
-        stop[has, r0:r1] = hi
-        start[has, r0:r1] = np.clip(np.maximum.reduceat(lo, first, axis=0), 0, W)
+            pl, pr = left[parallel], right[parallel]
+            db = b[pr, r0:r1] - b[pl, r0:r1]  # > 0: left below right on the row
+            tie_left = (pl < pr)[:, None]
+            for loser, lose in ((pl, (db < 0) | ((db == 0) & ~tie_left)),
+                                (pr, (db > 0) | ((db == 0) & tie_left))):
+                gone = np.zeros((n, r1 - r0), dtype=bool)
+                np.logical_or.at(gone, loser, lose)
+                stop[:, r0:r1][gone] = 0
     return RowRuns(start, stop)
+
+
+@functools.cache
+def _all_pairs(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Every pair ``k < j`` of ``n`` robots."""
+    k, j = np.triu_indices(n, 1)
+    return k, j
 
 
 #: From this many robots on, a cell is bounded by its neighbours only (the regular
 #: triangulation's edges, about 6 per robot) instead of by every other robot.
-NEIGHBOURS_FROM = 12
+NEIGHBOURS_FROM = 24
 
 
 def neighbour_pairs(gx: np.ndarray, gy: np.ndarray,
@@ -132,9 +153,9 @@ class RowSums:
     def __init__(self, w: np.ndarray, cx: np.ndarray, cy: np.ndarray) -> None:
         H, W = w.shape
         self._w, self._cx, self._cy = w, cx, cy
-        q = np.zeros((4, H, W + 1))
-        q[:, :, 1:] = self.cell_values()
-        np.cumsum(q, axis=2, out=q)
+        q = np.zeros((H, W + 1, 4))  # the four sums of one cell side by side: one gather each
+        q[:, 1:, :] = self.cell_values().transpose(1, 2, 0)
+        np.cumsum(q, axis=1, out=q)
         self._q = q
         self._rows = np.arange(H)[None, :]
 
@@ -147,7 +168,7 @@ class RowSums:
         """``(n, 4)``: every cell's ``sum w``, ``sum w x``, ``sum w y``, ``sum w (x^2 + y^2)``."""
         stop = np.maximum(runs.stop, runs.start)
         q = self._q
-        return (q[:, self._rows, stop] - q[:, self._rows, runs.start]).sum(axis=2).T
+        return (q[self._rows, stop] - q[self._rows, runs.start]).sum(axis=1)
 
 
 class RowNearest:

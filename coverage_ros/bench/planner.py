@@ -127,6 +127,7 @@ def bench_end_to_end(rounds: int, say) -> dict:
     """Rounds of: our ``coverage-plan`` process, CoverageControl's run, CoverageControl's run
     with the objective every step (module docstring)."""
     cc_py, why = coveragecontrol_python(say)
+    load_before = os.getloadavg()[0]
     with tempfile.TemporaryDirectory() as tmpdir:
         tmp = Path(tmpdir)
         req = scenario(tmp)
@@ -174,7 +175,9 @@ def bench_end_to_end(rounds: int, say) -> dict:
     result = {"scenario": {"world": WORLD, "robots": ROBOTS, "tolerance_m": TOLERANCE,
                            "command": " ".join(["coverage-plan", *plan_command(Path("plan.json"))[
                                -14:]])},
-              "rounds": rounds, "coverage_plan": _medians(ours)}
+              "rounds": rounds, "load_average_1min": [round(load_before, 2),
+                                                      round(os.getloadavg()[0], 2)],
+              "coverage_plan": _medians(ours)}
     if cc:
         result["coveragecontrol"] = {"version": CC_VERSION, "source": "measured here, side by "
                                      "side", **_medians(cc)}

@@ -121,7 +121,8 @@ def plain_params() -> dict:
 
 
 def bench_map(name: str, args, stored: dict, say) -> dict:
-    world = coarse_world(load_world(resolve_world_path(str(MAPS[name]), "--maps")), args.resolution)
+    path = resolve_world_path(str(MAPS[name]), "--maps")
+    world = coarse_world(load_world(path), args.resolution)
     specs = [world.robot_spec(i) for i in range(args.robots)]
     radius = max(s.radius for s in specs)
     domain = world_domain(world, radius)

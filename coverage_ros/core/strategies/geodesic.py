@@ -1,8 +1,12 @@
 """Geodesic power Voronoi cells and the generalized Lloyd control (Bhattacharya et al. 2014);
-the machinery is in :mod:`coverage_ros.core.geodesic`."""
+the machinery is in :mod:`coverage_ros.core.geodesic`. With ``escape`` (the default), a settled
+robot whose cell is worth less than a split of a neighbour's moves there by handover
+(:mod:`coverage_ros.core.strategies.handover`): Lloyd's local optima with a robot shut in a
+dead-end room are left when a pairwise bound says H drops."""
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import ClassVar
@@ -19,6 +23,7 @@ from coverage_ros.core.strategies.base import (
     Strategy,
     StrategyDetails,
 )
+from coverage_ros.core.strategies.handover import Handover, HandoverSettings
 from coverage_ros.errors import ConfigError
 
 #: A monotone-step cost search reaches this many longest edges beyond the cell and the step
@@ -34,10 +39,41 @@ class GeodesicParams:
 
     #: sources and tangents: auto, visibility, paper or lookahead (see ``resolve_method``)
     method: str = "auto"
+    #: leave a cell for a neighbour's by handover when the pair's bound says H drops
+    escape: bool = True
+    #: least saving of the bound, as a share of the pair's cost (hysteresis against moves
+    #: that gain little)
+    escape_gain: float = 0.01
+    #: [m] a robot whose Lloyd step is shorter counts as settled (offers, claims)
+    escape_settle: float = 0.1
+    #: [updates] after a relocation or a dropped claim, before the robot claims again
+    escape_cooldown: int = 10
+    #: [updates] a claim waits this long for the neighbour's grant
+    escape_wait: int = 5
+    #: [updates] a relocating robot gives up its point after this many
+    escape_transit: int = 600
+    #: Lloyd steps of the second generator when a robot prices a split of its cell
+    escape_steps: int = 3
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
             raise ConfigError.at("method", "unknown method", self.method, f"one of {METHODS}")
+        if not isinstance(self.escape, bool):
+            raise ConfigError.at("escape", "must be true or false", self.escape)
+        for name in ("escape_gain", "escape_settle"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int | float) or not (
+                    math.isfinite(v) and v >= 0):
+                raise ConfigError.at(name, "must be a finite number >= 0", v)
+        for name in ("escape_cooldown", "escape_wait", "escape_transit", "escape_steps"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or v < 1:
+                raise ConfigError.at(name, "must be an integer >= 1", v)
+
+    def handover(self) -> HandoverSettings:
+        return HandoverSettings(gain=float(self.escape_gain), settle=float(self.escape_settle),
+                                cooldown=self.escape_cooldown, wait=self.escape_wait,
+                                transit=self.escape_transit, steps=self.escape_steps)
 
 
 @dataclass(frozen=True)
@@ -48,6 +84,8 @@ class GeodesicDetails(StrategyDetails):
     neighbours: tuple[int, ...]  # robot ids of the neighbours whose cells border the own
     cell_radius: float  # max geodesic distance over the own cell
     next_vertex: np.ndarray  # (2,) [m] graph neighbour best aligned with the control (paper)
+    relocations: int = 0  # handovers this robot made so far (escape)
+    claim: int = -1  # robot id of the cell it claims or moves into (-1: none)
 
 
 class GeodesicStrategy(Strategy):
@@ -60,28 +98,41 @@ class GeodesicStrategy(Strategy):
     def __init__(self, context, params: GeodesicParams | None = None) -> None:
         super().__init__(context, params)
         self.cache = SearchCache()
+        self.handover = Handover(context.robot_id, context.domain, self.params.handover(),
+                                 self.params.method) if self.params.escape else None
 
     def update(self, obs: Observation, neighbours: Sequence[Neighbour]) -> Decision:
         own = Generator(obs.position, self.context.weight)
         others = [Generator(n.position, n.state.weight) for n in neighbours]
         cell = geodesic_cell(self.context.domain, own, others, cache=self.cache,
                              method=self.params.method, reuse=self.context.search_reuse)
-        step = float(np.hypot(*(cell.goal - obs.position)))
+        bordering = tuple(neighbours[k].robot_id for k in cell.neighbours)
+        goal, extra, busy = cell.goal, {}, False
+        if self.handover is not None:
+            move = self.handover.step(obs.position, self.context.weight, cell, neighbours,
+                                      bordering, self.context.convergence_tolerance)
+            goal = cell.goal if move.goal is None else move.goal
+            extra, busy = move.extra, move.busy
+        relocating = goal is not cell.goal
+        step = float(np.hypot(*(goal - obs.position)))
         return Decision(
-            goal=cell.goal, velocity=None, cell=cell.nodes,
+            goal=goal, velocity=None, cell=cell.nodes,
             shared=SharedState(position=obs.position.copy(), weight=self.context.weight,
-                               mass=cell.mass),
-            converged=step < self.context.convergence_tolerance, cost=cell.cost,
-            mass=cell.mass, mode="lloyd",
+                               mass=cell.mass, extra=extra),
+            converged=step < self.context.convergence_tolerance and not busy, cost=cell.cost,
+            mass=cell.mass, mode="relocate" if relocating else "lloyd", settling=busy,
             details=GeodesicDetails(
                 method=self.params.method, passes=cell.passes, searched=cell.searched_nodes,
-                neighbours=tuple(neighbours[k].robot_id for k in cell.neighbours),
-                cell_radius=cell.cell_radius, next_vertex=cell.next_vertex))
+                neighbours=bordering, cell_radius=cell.cell_radius,
+                next_vertex=cell.next_vertex,
+                relocations=self.handover.relocations if self.handover else 0,
+                claim=self.handover.claim if self.handover else -1))
 
     def cost_about(self, decision: Decision, point: np.ndarray) -> float | None:
         details = decision.details
-        if not isinstance(details, GeodesicDetails) or len(decision.cell) == 0:
-            return None
+        if not isinstance(details, GeodesicDetails) or len(decision.cell) == 0 \
+                or decision.mode == "relocate":
+            return None  # a handover leaves the own cell: its cost says nothing of the move
         domain = self.context.domain
         # One search limit for every point between the robot and its goal.
         goal = decision.goal if decision.goal is not None else decision.shared.position

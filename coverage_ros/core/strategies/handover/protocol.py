@@ -1,0 +1,257 @@
+"""Closet escape by handover: a settled robot leaves its cell for a neighbour's when the pair's
+bound says H drops (:mod:`.bounds`), after a claim its neighbour grants.
+
+Every robot publishes, with its state (``SharedState.extra``):
+
+* ``settled`` (1/0): its Lloyd step is shorter than ``escape_settle``, or it moved less than the
+  convergence tolerance since its last update;
+* ``offer_gain``, ``offer_x``, ``offer_y``, ``offer_base``: settled, what splitting its own cell
+  with a second generator at (x, y) would save, and its cell's cost (:func:`.bounds.split_offer`;
+  gain 0: no offer);
+* ``claim`` (a robot id, -1: none) and ``claim_gain``: the cell it asks to move into and the
+  bound's saving;
+* ``grant``: the one claimant it lets in (-1: none).
+
+Robot i claims neighbour j (any robot it hears: the offer is j's, the removal i's own, so the
+bound needs no common border) when i and all its bordering neighbours are settled, no
+neighbour claims i or claims with a higher priority (saving, then lower id), j neither claims
+nor grants another, and ``offer_gain(j) - removal_increase(i)`` exceeds ``escape_gain`` times
+the pair's cost ``H_i + H_j``. Robot j grants the claim of the highest priority among those on
+it unless it claims itself. Granted, i drives to j's offered point (mode ``relocate``), keeping
+its claim, so that j lets nobody else in and i's neighbours do not leave meanwhile; there it
+drops the claim and waits ``escape_cooldown`` updates before it may claim again (hysteresis).
+A claim not granted within ``escape_wait`` updates, or whose target grants another, is
+dropped the same way.
+
+Each move is backed by a configuration next to it with H lower by at least ``escape_gain`` of
+a pair's cost (:mod:`.bounds`), and the cooldown keeps a robot from moving back and forth.
+What a robot uses is its own cell, the generators and published values of the robots it
+hears (its bordering neighbours' cells are tessellated from them), nothing else; the protocol
+is deterministic.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from coverage_ros.core.geodesic.cell import CellResult
+from coverage_ros.core.geodesic.domain import CoverageDomain
+from coverage_ros.core.strategies.base import Neighbour
+from coverage_ros.core.strategies.handover.bounds import (
+    SplitOffer,
+    removal_increase,
+    split_offer,
+)
+
+#: Power weights closer than this [m] count as equal (the bound assumes equal weights).
+WEIGHT_MATCH = 1e-9
+#: A relocating robot has arrived within this many convergence tolerances of its point ...
+ARRIVAL_TOLERANCES = 3.0
+#: ... or this many grid cells, whichever is more (a goal is a cell centre).
+ARRIVAL_CELLS = 2.0
+NONE = -1.0  # published for "no robot" in claim and grant
+
+
+@dataclass(frozen=True)
+class HandoverSettings:
+    """The ``escape_*`` settings of the geodesic strategy (validated there)."""
+
+    gain: float  # least saving of the bound, as a share of the pair's cost H_i + H_j
+    settle: float  # [m] a robot whose Lloyd step is shorter is settled
+    cooldown: int  # [updates] after a relocation or a dropped claim, before the next claim
+    wait: int  # [updates] a claim waits this long for its grant
+    transit: int  # [updates] a relocating robot gives up after this many
+    steps: int  # Lloyd steps of the split
+
+
+@dataclass(frozen=True)
+class HandoverStep:
+    """What the protocol makes of one update."""
+
+    goal: np.ndarray | None  # (2,) [m] the relocation point, None: the Lloyd goal stands
+    extra: dict[str, float]  # what to publish
+    busy: bool  # a claim, grant or relocation is under way (the team has not settled)
+
+
+@dataclass
+class Handover:
+    """One robot's side of the protocol (module docstring)."""
+
+    robot_id: int
+    domain: CoverageDomain
+    settings: HandoverSettings
+    method: str = "auto"
+    claim: int = -1  # robot id of the cell claimed
+    claim_gain: float = 0.0
+    claim_age: int = 0  # [updates]
+    target: np.ndarray | None = None  # (2,) [m] the claimed cell's offered point
+    relocating: bool = False
+    cooldown: int = 0  # [updates]
+    relocations: int = 0  # moves made
+    _last: np.ndarray | None = field(default=None, repr=False)  # (2,) [m] previous position
+    _offer: tuple[np.ndarray, SplitOffer | None] | None = field(default=None, repr=False)
+    _removal: tuple[np.ndarray, dict[int, float]] | None = field(default=None, repr=False)
+
+    def step(self, position: np.ndarray, weight: float, cell: CellResult,
+             neighbours: Sequence[Neighbour], bordering: Sequence[int],
+             convergence_tolerance: float) -> HandoverStep:
+        """One update: ``cell`` is the own cell at ``position`` [m], ``bordering`` the ids of
+        the neighbours whose cells border it."""
+        s = self.settings
+        by_id = {n.robot_id: n for n in neighbours}
+        if self.relocating:
+            return self._transit(position, by_id, convergence_tolerance)
+        if self.cooldown > 0:
+            self.cooldown -= 1
+        step = float(np.hypot(*(cell.goal - position)))
+        # standing still counts too: a step the robot does not take (monotone rule, blocked)
+        moved = math.inf if self._last is None else float(np.hypot(*(position - self._last)))
+        self._last = np.array(position, dtype=np.float64)
+        settled = step < s.settle or moved < convergence_tolerance
+        key = _key(position, neighbours)
+        offer = None
+        if settled and self.claim < 0:
+            offer = self._cached_offer(key, cell, weight)
+        claimants = sorted(((_f(n, "claim_gain"), -n.robot_id) for n in neighbours
+                            if _f(n, "claim", NONE) == self.robot_id), reverse=True)
+        mine = (self.claim_gain, -self.robot_id)
+        if self.claim >= 0 and claimants and claimants[0] > mine:
+            self._drop()  # a neighbour with a higher priority wants into this cell
+        if self.claim >= 0:
+            self._follow_claim(by_id)
+        elif (settled and self.cooldown == 0 and not claimants
+              and all(_f(by_id[j], "settled") > 0 for j in bordering if j in by_id)):
+            self._consider(key, position, weight, cell, neighbours, bordering)
+        grant = NONE if self.claim >= 0 or not claimants else float(-claimants[0][1])
+        if self.relocating:
+            self.relocations += 1
+        extra = {"settled": float(settled and self.claim < 0), "claim": float(self.claim),
+                 "claim_gain": self.claim_gain if self.claim >= 0 else 0.0, "grant": grant,
+                 "offer_gain": 0.0, "offer_x": 0.0, "offer_y": 0.0, "offer_base": 0.0}
+        if offer is not None and grant == NONE and self.claim < 0:
+            extra.update(offer_gain=offer.gain, offer_x=float(offer.point[0]),
+                         offer_y=float(offer.point[1]), offer_base=offer.base)
+        busy = self.claim >= 0 or grant != NONE
+        return HandoverStep(self.target.copy() if self.relocating else None, extra, busy)
+
+    def _transit(self, position: np.ndarray, by_id: dict[int, Neighbour],
+                 convergence_tolerance: float) -> HandoverStep:
+        """Under way to the claimed cell's point: done on arrival, after ``transit`` updates,
+        or when the claimed robot is gone."""
+        self.claim_age += 1
+        arrive = max(ARRIVAL_TOLERANCES * convergence_tolerance,
+                     ARRIVAL_CELLS * self.domain.resolution)
+        near = float(np.hypot(*(self.target - position))) < arrive
+        if near or self.claim_age > self.settings.transit or self.claim not in by_id:
+            self._drop()
+            return HandoverStep(None, _idle(), busy=True)
+        extra = _idle()
+        extra.update(claim=float(self.claim), claim_gain=self.claim_gain)
+        return HandoverStep(self.target.copy(), extra, busy=True)
+
+    def _follow_claim(self, by_id: dict[int, Neighbour]) -> None:
+        """A claim made earlier: relocate once granted, drop it when refused or stale."""
+        j = by_id.get(self.claim)
+        self.claim_age += 1
+        grant = NONE if j is None else _f(j, "grant", NONE)
+        if j is not None and grant == self.robot_id:
+            self.relocating, self.claim_age = True, 0
+        elif j is None or grant != NONE or self.claim_age > self.settings.wait:
+            self._drop()
+
+    def _consider(self, key: np.ndarray, position: np.ndarray, weight: float,
+                  cell: CellResult, neighbours: Sequence[Neighbour],
+                  bordering: Sequence[int]) -> None:
+        """Claim the neighbour whose offer beats the own removal most, if by enough and no
+        neighbour claims with a higher priority."""
+        offers = [n for n in neighbours if _f(n, "offer_gain") > 0 and _f(n, "claim", NONE) < 0
+                  and _f(n, "grant", NONE) == NONE
+                  and abs(n.state.weight - weight) < WEIGHT_MATCH
+                  and math.isfinite(_f(n, "offer_x", math.nan))
+                  and math.isfinite(_f(n, "offer_y", math.nan))
+                  and self.domain.is_free_point(np.array([_f(n, "offer_x"),
+                                                          _f(n, "offer_y")]))]
+        if not offers:
+            return
+        # the removal bound per target: one held fixed when it borders the own cell
+        removal = {n.robot_id: self._cached_removal(key, position, weight, cell, neighbours,
+                                                    bordering, n.robot_id)
+                   for n in offers}
+        offers = [n for n in offers if math.isfinite(removal[n.robot_id])]
+        if not offers:
+            return
+        best = max(offers, key=lambda n: (_f(n, "offer_gain") - removal[n.robot_id],
+                                          -n.robot_id))
+        saving = _f(best, "offer_gain") - removal[best.robot_id]
+        if saving <= self.settings.gain * (cell.cost + _f(best, "offer_base")):
+            return
+        rivals = [(_f(n, "claim_gain"), -n.robot_id) for n in neighbours
+                  if _f(n, "claim", NONE) >= 0]
+        if rivals and max(rivals) > (saving, -self.robot_id):
+            return
+        self.claim, self.claim_gain, self.claim_age = best.robot_id, saving, 0
+        self.target = np.array([_f(best, "offer_x"), _f(best, "offer_y")])
+
+    def _drop(self) -> None:
+        self.claim, self.claim_gain, self.claim_age = -1, 0.0, 0
+        self.relocating, self.target = False, None
+        self.cooldown = self.settings.cooldown
+
+    def _cached_offer(self, key: np.ndarray, cell: CellResult, weight: float
+                      ) -> SplitOffer | None:
+        """The own split offer, computed again only when some generator moved by a cell."""
+        if self._offer is None or not _same(self._offer[0], key, self.domain.resolution):
+            offer = split_offer(self.domain, cell.nodes, cell.distances, cell.cost, weight,
+                                cell.cell_radius, self.settings.steps, self.method)
+            self._offer = (key, offer)
+        return self._offer[1]
+
+    def _cached_removal(self, key: np.ndarray, position: np.ndarray, weight: float,
+                        cell: CellResult, neighbours: Sequence[Neighbour],
+                        bordering: Sequence[int], target: int) -> float:
+        """The own removal bound with ``target`` held fixed if it borders the own cell (one
+        bound for all other targets), computed again only when some generator moved by a
+        cell."""
+        if self._removal is None or not _same(self._removal[0], key, self.domain.resolution):
+            self._removal = (key, {})
+        fixed = target if target in bordering else -1
+        values = self._removal[1]
+        if fixed not in values:
+            if any(abs(n.state.weight - weight) >= WEIGHT_MATCH for n in neighbours):
+                values[fixed] = math.inf  # the bound assumes equal power weights
+            else:
+                ids = [n.robot_id for n in neighbours]
+                gens = np.vstack([position[None], [n.position for n in neighbours]])
+                near = [1 + ids.index(j) for j in bordering if j in ids]
+                values[fixed] = removal_increase(
+                    self.domain, gens, weight, near,
+                    [1 + ids.index(fixed)] if fixed >= 0 else [], cell.cell_radius,
+                    self.settings.steps, self.method).increase
+        return values[fixed]
+
+
+def _f(n: Neighbour, key: str, default: float = 0.0) -> float:
+    """A neighbour's published value ``key`` (``default`` when it published none)."""
+    v = n.state.extra.get(key, default)
+    return float(v) if v is not None else default
+
+
+def _idle() -> dict[str, float]:
+    return {"settled": 0.0, "claim": NONE, "claim_gain": 0.0, "grant": NONE,
+            "offer_gain": 0.0, "offer_x": 0.0, "offer_y": 0.0, "offer_base": 0.0}
+
+
+def _key(position: np.ndarray, neighbours: Sequence[Neighbour]) -> np.ndarray:
+    """``(1 + m, 3)`` the own position and the neighbours' (id, x, y), sorted by id."""
+    rows = [(-1.0, *position)] + sorted((float(n.robot_id), *n.position) for n in neighbours)
+    return np.array(rows, dtype=np.float64)
+
+
+def _same(a: np.ndarray, b: np.ndarray, tolerance: float) -> bool:
+    """Same robots, none moved by ``tolerance`` [m] or more."""
+    return a.shape == b.shape and bool(np.all(a[:, 0] == b[:, 0])) and \
+        float(np.abs(a[:, 1:] - b[:, 1:]).max()) < tolerance

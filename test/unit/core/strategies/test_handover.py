@@ -1,0 +1,259 @@
+"""The geodesic strategy's closet escape (handover): on a small ward with dead-end rooms plain
+generalized Lloyd from a start cluster leaves robots shut in small rooms; with the escape the
+team ends within 5 % of the best of random restarts, never above plain Lloyd, on free space;
+the bound is an upper bound of the true change of H at the configuration it names; claims go
+one robot to a cell; a robot's claim depends only on its neighbourhood and the offers it
+hears."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from functools import cache
+
+import numpy as np
+import pytest
+
+from coverage_ros.core.geodesic.cell import geodesic_cell
+from coverage_ros.core.geodesic.tessellation import Generator, fast_tessellate
+from coverage_ros.core.geodesic.world_domain import world_domain
+from coverage_ros.core.offline.runner import OfflineConfig, run_offline
+from coverage_ros.core.strategies import (
+    Neighbour,
+    Observation,
+    StrategyContext,
+    make_strategy,
+    strategy_choice,
+)
+from coverage_ros.core.strategies.geodesic import GeodesicParams, GeodesicStrategy
+from coverage_ros.core.strategies.handover import removal_increase, split_offer
+from coverage_ros.core.world import parse_world
+from coverage_ros.core.world.placement import largest_free_region, team_starts
+from coverage_ros.errors import ConfigError
+
+ROBOTS = 6
+RESTARTS = 8
+TOLERANCE = 0.02  # [m] coverage-plan's convergence tolerance
+
+
+def _wall(a, b):
+    return {"type": "wall", "from": list(a), "to": list(b), "thickness": 0.1}
+
+
+#: 10 m x 6 m: a 1 m corridor at y 2.5-3.5, rooms of 4 and 2 m below and 5, 2 and 3 m above,
+#: each with one 0.8 m door; the 2 m rooms are dead ends of 5 m^2.
+WARD = {"name": "mini_ward", "resolution": 0.1, "bounds": [0.0, 0.0, 10.0, 6.0], "obstacles": [
+    _wall((0.0, 2.5), (1.5, 2.5)), _wall((2.3, 2.5), (4.6, 2.5)), _wall((5.4, 2.5), (8.0, 2.5)),
+    _wall((8.8, 2.5), (10.0, 2.5)), _wall((0.0, 3.5), (2.5, 3.5)), _wall((3.3, 3.5), (5.6, 3.5)),
+    _wall((6.4, 3.5), (8.2, 3.5)), _wall((9.0, 3.5), (10.0, 3.5)), _wall((4.0, 0.0), (4.0, 2.5)),
+    _wall((6.0, 0.0), (6.0, 2.5)), _wall((5.0, 3.5), (5.0, 6.0)), _wall((7.0, 3.5), (7.0, 6.0))]}
+
+
+@cache
+def ward():
+    world = parse_world(WARD)
+    return world, world_domain(world, world.robot_spec(0).radius)
+
+
+def run(starts: np.ndarray, escape: bool, **settings):
+    _, domain = ward()
+    contexts = [StrategyContext(domain=domain, robot_id=i, convergence_tolerance=TOLERANCE)
+                for i in range(len(starts))]
+    choice = strategy_choice("geodesic", {"escape": escape, **settings})
+    return run_offline(domain, choice, starts, contexts, OfflineConfig(max_iterations=300))
+
+
+def cost(positions: np.ndarray) -> tuple[float, np.ndarray]:
+    tess = fast_tessellate(ward()[1], [Generator(p) for p in positions])
+    return tess.cost, tess.masses
+
+
+@cache
+def best_of_restarts() -> float:
+    """The least H of plain Lloyd from RESTARTS random starts over the free space."""
+    world, _ = ward()
+    rng = np.random.default_rng(7)
+    cells = np.argwhere(largest_free_region(world.grid, world.robot_spec(0).radius))
+    best = math.inf
+    for _ in range(RESTARTS):
+        starts = world.grid.cell_centers(cells[rng.choice(len(cells), ROBOTS, replace=False)])
+        best = min(best, cost(run(starts, escape=False).positions[-1])[0])
+    return best
+
+
+def cluster(seed: int) -> np.ndarray:
+    world, _ = ward()
+    return team_starts(world, [world.robot_spec(i) for i in range(ROBOTS)], None, seed)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_escape_ends_near_the_best_where_plain_lloyd_is_shut_in(seed):
+    best = best_of_restarts()
+    plain = run(cluster(seed), escape=False)
+    escaped = run(cluster(seed), escape=True)
+    H_plain, m_plain = cost(plain.positions[-1])
+    H_escape, _ = cost(escaped.positions[-1])
+    # plain Lloyd converges with a robot in a small room: its cell a fraction of the largest
+    assert plain.converged and H_plain > 1.05 * best
+    assert m_plain.min() < 0.35 * m_plain.max()
+    assert escaped.converged
+    assert H_escape <= 1.05 * best
+    assert H_escape <= H_plain
+    assert sum(d.details.relocations for d in escaped.decisions) >= 1
+    # no robot ever leaves the free space
+    _, domain = ward()
+    assert all(domain.is_free_point(p) for p in escaped.positions.reshape(-1, 2))
+
+
+def test_escape_is_deterministic():
+    a = run(cluster(2), escape=True)
+    b = run(cluster(2), escape=True)
+    assert np.array_equal(a.positions, b.positions)
+
+
+def _cells(positions: np.ndarray):
+    _, domain = ward()
+    gens = [Generator(p) for p in positions]
+    return [geodesic_cell(domain, gens[i], gens[:i] + gens[i + 1:]) for i in range(len(gens))]
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_bound_is_above_the_true_change_of_H(seed):
+    """For every pair (i leaves, j splits) of plain Lloyd's end state: i at j's offered point
+    and i's movable neighbours where the removal put them change H by no more than
+    removal_increase(i) - split_gain(j); with no step of the neighbours, so does i's move
+    alone."""
+    _, domain = ward()
+    P = run(cluster(seed), escape=False).positions[-1]
+    H0 = cost(P)[0]
+    cells = _cells(P)
+    offers = [split_offer(domain, c.nodes, c.distances, c.cost, 0.0, c.cell_radius, 3)
+              for c in cells]
+    checked = 0
+    for i, ci in enumerate(cells):
+        ids = [k for k in range(len(P)) if k != i]
+        gens = np.vstack([P[i][None], P[ids]])
+        bordering = [1 + ids.index(ids[k]) for k in ci.neighbours]
+        for j, offer in enumerate(offers):
+            if j == i or offer is None:
+                continue
+            fixed = [1 + ids.index(j)] if 1 + ids.index(j) in bordering else []
+            for steps in (0, 3):
+                removal = removal_increase(domain, gens, 0.0, bordering, fixed,
+                                           ci.cell_radius, steps)
+                if not math.isfinite(removal.increase):
+                    continue
+                moved = P.copy()
+                moved[i] = offer.point
+                for k, p in zip(removal.movers, removal.positions, strict=True):
+                    moved[ids[k - 1]] = p
+                assert cost(moved)[0] - H0 <= removal.increase - offer.gain + 1e-9 * H0
+                checked += 1
+    assert checked >= len(P)
+
+
+def _round(strategies, positions, published):
+    """One lock-step round: every robot updates from what the others published last."""
+    decisions = []
+    for i, s in enumerate(strategies):
+        obs = Observation(i, np.array([*positions[i], 0.0]), 0.0)
+        nbrs = [Neighbour(j, dataclasses.replace(published[j], position=positions[j]))
+                for j in range(len(positions)) if j != i]
+        decisions.append(s.update(obs, nbrs))
+    return decisions
+
+
+def _team(positions):
+    _, domain = ward()
+    return [make_strategy(strategy_choice("geodesic"),
+                          StrategyContext(domain=domain, robot_id=i,
+                                          convergence_tolerance=TOLERANCE))
+            for i in range(len(positions))]
+
+
+def test_one_claimant_per_cell_and_claims_follow_grants():
+    """Robots standing still at plain Lloyd's end: claims and grants round by round; each
+    cell lets in at most one robot, a robot relocates only on its target's grant."""
+    P = run(cluster(2), escape=False).positions[-1]
+    team = _team(P)
+    published = [s.shared_state(Observation(i, np.array([*P[i], 0.0]), 0.0))
+                 for i, s in enumerate(team)]
+    relocated = False
+    for _ in range(6):
+        decisions = _round(team, P, published)
+        claims = [int(d.shared.extra["claim"]) for d in decisions]
+        grants = [int(d.shared.extra["grant"]) for d in decisions]
+        for i, d in enumerate(decisions):
+            if d.mode == "relocate":
+                relocated = True
+                assert int(published[claims[i]].extra["grant"]) == i
+        targets = [c for i, c in enumerate(claims) if decisions[i].mode == "relocate"]
+        assert len(targets) == len(set(targets))
+        for j, g in enumerate(grants):
+            if g >= 0:
+                assert claims[g] == j and claims[j] < 0
+        published = [d.shared for d in decisions]
+    assert relocated
+
+
+def test_a_claim_uses_only_the_bordering_neighbours_and_the_offers():
+    """The robot that claims first makes the same claim, in the same state, from a neighbour
+    list cut down to the robots whose cells border its own or theirs (the cells it
+    re-tessellates) and the robot whose offer it takes."""
+    P = run(cluster(2), escape=False).positions[-1]
+    team = _team(P)
+    published = [s.shared_state(Observation(i, np.array([*P[i], 0.0]), 0.0))
+                 for i, s in enumerate(team)]
+    for _ in range(6):
+        before = [dataclasses.replace(s.handover) for s in team]
+        decisions = _round(team, P, published)
+        claimants = [i for i, d in enumerate(decisions) if d.shared.extra["claim"] >= 0]
+        if claimants:
+            break
+        published = [d.shared for d in decisions]
+    else:
+        pytest.fail("nobody claimed a cell")
+    claimant = claimants[0]
+    target = int(decisions[claimant].shared.extra["claim"])
+    bordering = set(decisions[claimant].details.neighbours)
+    # the bordering neighbours' cells, which it tessellates from their own neighbours
+    second = {j for k in bordering for j in decisions[k].details.neighbours}
+    keep = (bordering | second | {target}) - {claimant}
+    assert len(keep) < len(P) - 1  # the cut list leaves robots out
+    alone = _team(P)[claimant]
+    alone.handover = before[claimant]
+    obs = Observation(claimant, np.array([*P[claimant], 0.0]), 0.0)
+    nbrs = [Neighbour(j, dataclasses.replace(published[j], position=P[j]))
+            for j in sorted(keep)]
+    local = alone.update(obs, nbrs)
+    assert local.shared.extra["claim"] == target
+    assert local.shared.extra["claim_gain"] == pytest.approx(
+        decisions[claimant].shared.extra["claim_gain"], rel=1e-9)
+
+
+def test_update_takes_only_the_observation_and_the_neighbours():
+    import inspect
+
+    params = list(inspect.signature(GeodesicStrategy.update).parameters)
+    assert params == ["self", "obs", "neighbours"]
+
+
+@pytest.mark.parametrize("name,value", [
+    ("escape", "yes"), ("escape_gain", -0.1), ("escape_gain", math.inf),
+    ("escape_settle", -1.0), ("escape_cooldown", 0), ("escape_wait", 0),
+    ("escape_transit", 0), ("escape_steps", 0), ("escape_steps", 1.5)])
+def test_settings_are_checked_by_name(name, value):
+    with pytest.raises(ConfigError, match=name):
+        GeodesicParams(**{name: value})
+    with pytest.raises(ConfigError, match=name):
+        strategy_choice("geodesic", {name: value})
+
+
+def test_without_escape_nothing_extra_is_published():
+    P = cluster(0)[:, :2]
+    team = [make_strategy(strategy_choice("geodesic", {"escape": False}),
+                          StrategyContext(domain=ward()[1], robot_id=i)) for i in range(ROBOTS)]
+    published = [s.shared_state(Observation(i, np.array([*P[i], 0.0]), 0.0))
+                 for i, s in enumerate(team)]
+    for d in _round(team, P, published):
+        assert dict(d.shared.extra) == {} and d.mode == "lloyd"

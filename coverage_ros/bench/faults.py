@@ -156,8 +156,11 @@ def main(argv: list[str] | None = None) -> int:
         from coverage_ros.bench.results import update_rows
 
         settings = (f"{args.robots} robots on {Path(args.world).name}, {args.duration:g} s of "
-                    f"sim time at real time, seed {args.seed}, one run per fault; soak "
-                    f"{args.soak_duration:g} s")
+                    f"sim time at real time, seed {args.seed}, one run per fault; parts run: "
+                    f"{', '.join(args.only)}" + (f"; soak {args.soak_duration:g} s"
+                                                 if "soak" in args.only else "")
+                    + (f"; {args.fuzz_examples} malformed messages per topic"
+                       if "fuzz" in args.only else ""))
         update_rows("faults", result_rows(results), ("fault",), argv, "scripts/bench_faults",
                     extra={"settings": settings})
     print(json.dumps(results))

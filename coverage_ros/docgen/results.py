@@ -64,11 +64,21 @@ def provenance_note(data: dict, name: str) -> str:
     return text
 
 
-def rows_table(rows: list[dict]) -> str:
-    """Rows of mappings as a Markdown table, one column per key (in first-seen order)."""
+#: The columns a page shows of a file's rows, where the file holds more than a page can
+#: (the file keeps them all).
+COLUMNS = {"team": ("robots", "world", "strategy", "robot_processes", "discovery", "executor",
+                    "lockstep", "rtf", "rss_mb_per_robot", "cpu_percent_per_robot",
+                    "update_period_worst_median_s", "H_reduction", "collisions", "target", "met",
+                    "run")}
+
+
+def rows_table(rows: list[dict], only: tuple[str, ...] | None = None) -> str:
+    """Rows of mappings as a Markdown table, one column per key (in first-seen order), or the
+    keys ``only`` names."""
     columns: list[str] = []
     for row in rows:
-        columns += [k for k in row if k not in columns and k not in QUIET]
+        columns += [k for k in row if k not in columns and k not in QUIET
+                    and (only is None or k in only)]
     lines = ["| " + " | ".join(LABELS.get(c, c.replace("_", " ")) for c in columns) + " |",
              "|" + "---|" * len(columns)]
     for row in rows:
@@ -109,7 +119,7 @@ def part_markdown(data: dict, name: str) -> str:
     if is_rows(data.get("targets")):
         blocks.append("**Targets**\n\n" + rows_table(data["targets"]))
     if is_rows(data.get("rows")):
-        blocks.append(rows_table(data["rows"]))
+        blocks.append(rows_table(data["rows"], COLUMNS.get(name)))
     scalars = {}
     for key, value in data.items():
         if key in ("rows", "targets") or key in QUIET:

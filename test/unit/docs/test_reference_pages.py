@@ -23,6 +23,20 @@ def rendered(page: str) -> str:
     return pages.expand((DOCS / page).read_text(), page)
 
 
+LINK = re.compile(r"!?\[[^\]]*\]\(([^)\s#]+)(?:#[^)]*)?\)")
+
+
+def test_every_relative_link_and_picture_of_the_pages_exists():
+    """Links and pictures point at files of the site (mkdocs --strict checks the same, but
+    only where its warnings are not silenced)."""
+    broken = []
+    for path in DOCS.rglob("*.md"):
+        for target in LINK.findall(path.read_text()):
+            if "://" not in target and not (path.parent / target).exists():
+                broken.append(f"{path.relative_to(DOCS)}: {target}")
+    assert broken == []
+
+
 def test_every_marker_of_every_page_renders():
     markers = 0
     for path in DOCS.rglob("*.md"):

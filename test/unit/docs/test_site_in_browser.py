@@ -23,7 +23,8 @@ pytestmark = pytest.mark.slow
 def site(tmp_path_factory):
     """The site built with --strict into a temporary folder, served on 127.0.0.1."""
     out = tmp_path_factory.mktemp("site")
-    proc = subprocess.run([sys.executable, "-m", "mkdocs", "build", "--strict", "--quiet",
+    # not --quiet: it hides the warnings (a broken link) that --strict counts
+    proc = subprocess.run([sys.executable, "-m", "mkdocs", "build", "--strict",
                            "--site-dir", str(out)], cwd=REPO, capture_output=True, text=True,
                           timeout=300, env={**os.environ, "NO_MKDOCS_2_WARNING": "1"})
     assert proc.returncode == 0, proc.stderr[-3000:]
@@ -91,3 +92,9 @@ def test_a_reference_page_shows_its_generated_tables(site, browser):
     state = page_state(browser, f"{site}/reference/robot_node/")
     assert state["tables"] >= 2
     assert "update_load" in browser.find_element("tag name", "article").text
+
+
+def test_the_strategy_chooser_shows_every_strategys_picture(site, browser):
+    state = page_state(browser, f"{site}/concepts/strategies/")
+    shown = [i["src"] for i in state["images"] if i["w"] >= 100 and i["shown"] >= 50]
+    assert len(shown) == 5, state["images"]

@@ -168,7 +168,8 @@ class RobotController:
         self.scan = scan
         at = self.pose if pose is None else np.asarray(pose, dtype=np.float64)
         self.scan_pose = None if at is None else at.copy()
-        self.scan_points = self.scan_memory.update(scan, at, points_map)
+        if at is not None:  # (without a pose the points cannot be kept about the robot)
+            self.scan_points = self.scan_memory.update(scan, at, points_map)
 
     def integrate_scan(self, scan: Scan, pose: np.ndarray, now: float) -> int:
         """Exploring: add what one scan, taken at ``pose``, saw to the belief (returns on the
@@ -236,6 +237,7 @@ class RobotController:
 
     def presence_state(self) -> dict[str, float]:
         """What to publish before the first update (:func:`.published_state.before_update`)."""
+        assert self.pose is not None, "presence_state needs the robot's pose (set_pose)"
         first = self.strategy.shared_state(Observation(self.config.robot_id, self.pose, 0.0))
         return published_state.before_update(self.pose, self.config.robot, first)
 

@@ -250,6 +250,16 @@ def test_a_late_pose_is_carried_forward_under_the_last_command_before_the_safety
     assert c.command(99.0, 0.1)[0] == pytest.approx(0.22)
 
 
+def test_a_scan_before_the_first_pose_is_kept_and_its_points_wait_for_a_pose():
+    c = RobotController(room(wall=False), ControllerConfig(robot_id=0))
+    scan = Scan(np.full(8, 0.3), 0.0, 2.0 * math.pi / 8, 0.1, 3.5)  # within MEMORY_RADIUS
+    c.set_scan(scan, scan.points(np.array([1.0, 1.0, 0.0])))
+    assert c.scan is scan and c.scan_pose is None and c.scan_points is None
+    c.set_pose((1.0, 1.0, 0.0))
+    c.set_scan(scan, scan.points(np.array([1.0, 1.0, 0.0])))
+    assert c.scan_points is not None and len(c.scan_points) == 8
+
+
 def test_neighbour_table_validates_and_expires():
     t = NeighbourTable((0.0, 0.0, 4.0, 3.0), timeout=2.0)
     assert t.receive(1, {"x": 1.0, "y": 1.0, "weight": 0.2, "mass": 3.0}, now=10.0) == ""

@@ -26,7 +26,8 @@ def points_in_polygon(points: np.ndarray, polygon: np.ndarray) -> np.ndarray:
     with np.errstate(divide="ignore", invalid="ignore"):
         x_cross = x0 + (y - y0) * (x1 - x0) / (y1 - y0)
     crossings = straddles & (x < x_cross)
-    return (np.count_nonzero(crossings, axis=1) % 2).astype(bool)
+    counts: np.ndarray = np.count_nonzero(crossings, axis=1)
+    return (counts % 2).astype(bool)
 
 
 def distance_to_segments(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -38,7 +39,8 @@ def distance_to_segments(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> np
     denom = np.maximum((ab * ab).sum(-1), 1e-300)
     t = np.clip(((pts - a) * ab).sum(-1) / denom, 0.0, 1.0)
     closest = a + t[..., None] * ab
-    return np.sqrt(((pts - closest) ** 2).sum(-1)).min(axis=1)
+    dist: np.ndarray = np.sqrt(((pts - closest) ** 2).sum(-1)).min(axis=1)
+    return dist
 
 
 def polygon_edges(polygon: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -59,7 +61,8 @@ def box_polygon(center: np.ndarray, size: np.ndarray, yaw: float = 0.0) -> np.nd
     hw, hh = 0.5 * float(size[0]), 0.5 * float(size[1])
     corners = np.array([[-hw, -hh], [hw, -hh], [hw, hh], [-hw, hh]])
     c, s = np.cos(yaw), np.sin(yaw)
-    return corners @ np.array([[c, s], [-s, c]]) + np.asarray(center, dtype=np.float64)
+    rotated: np.ndarray = corners @ np.array([[c, s], [-s, c]])
+    return rotated + np.asarray(center, dtype=np.float64)
 
 
 def segment_polygon(start: np.ndarray, end: np.ndarray, thickness: float) -> np.ndarray:

@@ -75,7 +75,8 @@ def repulsive_weight(points: np.ndarray, circles: Circles, sigma: float) -> np.n
     if len(circles) == 0:
         return np.ones(len(pts))
     g = np.maximum(circles.gaps(pts), 0.0)
-    return np.maximum(1.0 - np.exp(-0.5 * (g / sigma) ** 2).sum(axis=1), 0.0)
+    left: np.ndarray = np.maximum(1.0 - np.exp(-0.5 * (g / sigma) ** 2).sum(axis=1), 0.0)
+    return left
 
 
 class AdaptiveStrategy(MoveToCentroid):
@@ -109,6 +110,7 @@ class AdaptiveStrategy(MoveToCentroid):
         sigma = self.params.repulsion_sigma
 
         def weight(nodes: np.ndarray, xy: np.ndarray) -> np.ndarray:
-            return density[nodes] * repulsive_weight(xy, seen, sigma)
+            w: np.ndarray = density[nodes] * repulsive_weight(xy, seen, sigma)
+            return w
 
         return self.decide(p, dt, polygon, weight, "lloyd", len(seen))

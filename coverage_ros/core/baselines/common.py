@@ -20,6 +20,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
@@ -78,7 +79,8 @@ class Circles:
         pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
         d = np.hypot(pts[:, None, 0] - self.centers[None, :, 0],
                      pts[:, None, 1] - self.centers[None, :, 1])
-        return d - self.radii[None, :]
+        gaps: np.ndarray = d - self.radii[None, :]
+        return gaps
 
     def subset(self, keep: np.ndarray) -> Circles:
         return Circles(self.centers[keep], self.radii[keep])
@@ -115,7 +117,8 @@ def weighted_centroid(xy: np.ndarray, weight: np.ndarray) -> np.ndarray | None:
     total = float(weight.sum())
     if not total > 0:
         return None
-    return (xy * weight[:, None]).sum(axis=0) / total
+    centroid: np.ndarray = (xy * weight[:, None]).sum(axis=0) / total
+    return centroid
 
 
 def buffered_voronoi(center: np.ndarray, neighbours: np.ndarray, radius: float,
@@ -147,7 +150,7 @@ class MoveToCentroid(Strategy):
     builds the cell polygon and the weight of its sample points; :meth:`decide` does the
     rest."""
 
-    Params = LloydParams
+    Params: ClassVar[type] = LloydParams
     params: LloydParams
 
     def __init__(self, context: StrategyContext, params: LloydParams | None,
@@ -169,7 +172,8 @@ class MoveToCentroid(Strategy):
                 and box[3] - box[1] > 2 * self.radius):
             raise ConfigError.at(f"{self.name}: bounds", "must be (xmin, ymin, xmax, ymax) "
                                  "wider than the robot", box)
-        self.bounds = tuple(float(v) for v in box)
+        xmin, ymin, xmax, ymax = (float(v) for v in box)
+        self.bounds = (xmin, ymin, xmax, ymax)
         self.clock = ControlPeriod(self.params.period)
         self._last: tuple[np.ndarray, float] | None = None  # position and period, last update
 

@@ -61,7 +61,8 @@ class FrameTree:
             raise ValueError(f"transform {parent} <- {child} is not finite: {pose}")
         old = self.links.get(child)
         if old is None or old.parent != parent or stamp >= old.stamp:
-            self.links[child] = Link(parent, tuple(float(v) for v in pose), stamp)
+            x, y, yaw = (float(v) for v in pose)
+            self.links[child] = Link(parent, (x, y, yaw), stamp)
 
     def lookup(self, target: str, source: str) -> tuple[Pose, float] | None:
         """``target <- source`` and the oldest stamp on the way (None if ``target`` is not an

@@ -45,7 +45,7 @@ class NeighbourTable:
         self._lock = threading.Lock()
 
     def receive(self, robot_id: int, values: dict[str, float], now: float,
-                parsed: dict | None = None) -> str:
+                parsed: dict[tuple[float, ...], SharedState | str] | None = None) -> str:
         """Store a neighbour's published values; returns "" or why they were rejected.
         ``parsed``, kept by the caller for one message, holds its :func:`parse_state` results
         by map extent: the robots of one process check and build a neighbour's state once."""

@@ -17,7 +17,12 @@ import numpy as np
 from scipy.sparse.csgraph import dijkstra
 
 from coverage_ros.core.geodesic.domain import CoverageDomain
-from coverage_ros.core.geodesic.local_search import BLOCK, build_local_graph, local_graph_for
+from coverage_ros.core.geodesic.local_search import (
+    BLOCK,
+    LocalGraph,
+    build_local_graph,
+    local_graph_for,
+)
 
 #: Fraction of a cell between collision checks along a segment or arc.
 CHECK_STEP_CELLS = 0.25
@@ -88,7 +93,7 @@ def plan_path(domain: CoverageDomain, start: np.ndarray, goal: np.ndarray,
 
 
 def _planning_graph(domain: CoverageDomain, start: np.ndarray, goal: np.ndarray,
-                    margin: float | None):
+                    margin: float | None) -> LocalGraph:
     """The search graph of the box around start and goal grown by ``margin`` [m] (None: the
     whole domain)."""
     if margin is None or any(domain.graph.wrap):

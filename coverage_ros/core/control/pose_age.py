@@ -38,7 +38,8 @@ class PoseAges:
         age = min(max(age, 0.0), MAX_POSE_AGE)
         if age == 0.0:
             return pose
-        return unicycle(pose, v, w, np.array([age]))[0]
+        carried: np.ndarray = unicycle(pose, v, w, np.array([age]))[0]
+        return carried
 
     def describe(self) -> str:
         """One line on how old the poses were when commands were computed ('' if unknown)."""

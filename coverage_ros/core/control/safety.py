@@ -152,7 +152,8 @@ class SafetyFilter:
         pts = geo.cell_centers(np.stack([rows + r0, cols + c0], axis=-1)).reshape(-1, 2)
         if scan_points is not None and len(scan_points):
             pts = np.vstack([pts, np.asarray(scan_points, dtype=np.float64).reshape(-1, 2)])
-        return pts[np.hypot(*(pts - position[:2]).T) <= reach]
+        near: np.ndarray = pts[np.hypot(*(pts - position[:2]).T) <= reach]
+        return near
 
     def _clearance_at(self, pts: np.ndarray) -> np.ndarray:
         cells = self.domain.geometry.world_to_cell(pts)
@@ -161,7 +162,9 @@ class SafetyFilter:
         out[inside] = self.clearance[cells[inside, 0], cells[inside, 1]]
         return out
 
-    def _blocked(self, pose, v, w, neighbours, radii, scan_points, velocities=None) -> str:
+    def _blocked(self, pose: np.ndarray, v: float, w: float, neighbours: np.ndarray | None,
+                 radii: np.ndarray | None, scan_points: np.ndarray | None,
+                 velocities: np.ndarray | None = None) -> str:
         if abs(v) < 1e-9:
             return ""
         c = self.config

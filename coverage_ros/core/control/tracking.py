@@ -40,7 +40,7 @@ class TrackerConfig:
                 raise ConfigError.at(name, "must be a finite number > 0", v)
 
     @classmethod
-    def for_robot(cls, robot: RobotSpec, **kw) -> TrackerConfig:
+    def for_robot(cls, robot: RobotSpec, **kw: float) -> TrackerConfig:
         return cls(v_max=robot.v_max, w_max=robot.w_max, a_max=robot.a_max,
                    alpha_max=robot.alpha_max, **kw)
 
@@ -94,7 +94,8 @@ def carrot(path: np.ndarray, p: np.ndarray, lookahead: float) -> np.ndarray:
     """The point ``lookahead`` metres along the path beyond the point of the path nearest to
     ``p`` (the goal if the path ends sooner)."""
     if len(path) == 1:
-        return path[0]
+        only: np.ndarray = path[0]
+        return only
     a, b = path[:-1], path[1:]
     ab = b - a
     L2 = np.maximum((ab * ab).sum(axis=1), 1e-12)
@@ -104,9 +105,12 @@ def carrot(path: np.ndarray, p: np.ndarray, lookahead: float) -> np.ndarray:
     seg_len = np.sqrt(L2)
     pos = t[k] * seg_len[k]
     # The carrot stays on the current segment: looking past a corner would cut it.
+    point: np.ndarray
     if seg_len[k] - pos >= lookahead:
-        return a[k] + ab[k] * ((pos + lookahead) / seg_len[k])
-    if seg_len[k] - pos > 0.5 * lookahead or k == len(ab) - 1:
-        return b[k]
-    nxt = k + 1  # nearly at the corner: start along the next segment
-    return a[nxt] + ab[nxt] * min(1.0, (lookahead - (seg_len[k] - pos)) / seg_len[nxt])
+        point = a[k] + ab[k] * ((pos + lookahead) / seg_len[k])
+    elif seg_len[k] - pos > 0.5 * lookahead or k == len(ab) - 1:
+        point = b[k]
+    else:
+        nxt = k + 1  # nearly at the corner: start along the next segment
+        point = a[nxt] + ab[nxt] * min(1.0, (lookahead - (seg_len[k] - pos)) / seg_len[nxt])
+    return point

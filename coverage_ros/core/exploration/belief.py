@@ -45,7 +45,9 @@ from __future__ import annotations
 
 import math
 import threading
+from collections.abc import Hashable
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -121,7 +123,8 @@ def entropy(p: np.ndarray) -> np.ndarray:
     """Shannon entropy [nats] of occupancy probabilities: -(p ln p + (1 - p) ln(1 - p)); ln 2 at
     p = 0.5, 0 at p = 0 or 1."""
     p = np.clip(np.asarray(p, dtype=np.float64), 1e-12, 1.0 - 1e-12)
-    return -(p * np.log(p) + (1.0 - p) * np.log(1.0 - p))
+    h: np.ndarray = -(p * np.log(p) + (1.0 - p) * np.log(1.0 - p))
+    return h
 
 
 @dataclass(frozen=True)
@@ -152,7 +155,7 @@ class BeliefSnapshot:
     observed: np.ndarray  # (H, W) bool: any evidence at all
     config: BeliefConfig
     version: int = 0  # the belief's change count when the snapshot was taken
-    derived: dict = field(default_factory=dict, repr=False)
+    derived: dict[Hashable, Any] = field(default_factory=dict, repr=False)
 
     @property
     def probability(self) -> np.ndarray:
@@ -292,7 +295,8 @@ class Belief:
         return np.where(edge, c.l_max, lo)
 
     def _frozen(self, idx: np.ndarray) -> np.ndarray:
-        return np.abs(self._log_odds(idx)) >= self.config.frozen_log_odds
+        frozen: np.ndarray = np.abs(self._log_odds(idx)) >= self.config.frozen_log_odds
+        return frozen
 
     @property
     def version(self) -> int:

@@ -75,7 +75,8 @@ def belief_grid(snapshot: BeliefSnapshot) -> GridMap:
 def _entropy(snapshot: BeliefSnapshot) -> np.ndarray:
     if "entropy" not in snapshot.derived:
         snapshot.derived["entropy"] = snapshot.entropy
-    return snapshot.derived["entropy"]
+    e: np.ndarray = snapshot.derived["entropy"]
+    return e
 
 
 def trinary_grid(snapshot: BeliefSnapshot) -> GridMap:
@@ -99,7 +100,8 @@ def navigation_domain(snapshot: BeliefSnapshot, robot_radius: float,
         snapshot.derived[key] = CoverageDomain.from_grid(
             belief_grid(snapshot), robot_radius, connectivity=connectivity,
             unknown_is_free=True, zeta=zeta)
-    return snapshot.derived[key]
+    domain: CoverageDomain = snapshot.derived[key]
+    return domain
 
 
 def entropy_domain(snapshot: BeliefSnapshot, robot_radius: float, metric: EntropyMetric,

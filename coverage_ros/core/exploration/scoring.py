@@ -64,7 +64,7 @@ class ExplorationScorer:
         return ExplorationScore(explored, wrong)
 
 
-def milestones(times: Sequence[float], fractions: Sequence[float],
+def milestones(times: Sequence[float] | np.ndarray, fractions: Sequence[float] | np.ndarray,
                levels: Sequence[float] = MILESTONES) -> dict[str, float | None]:
     """First time each level of explored fraction was reached (None: never)."""
     out: dict[str, float | None] = {}

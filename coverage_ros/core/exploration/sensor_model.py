@@ -110,12 +110,14 @@ def _window_cells(gx: np.ndarray, gy: np.ndarray, c0: int, c1: int, r0: int,
     cols = np.floor(gx).astype(np.int64)
     rows = np.floor(gy).astype(np.int64)
     ok = (cols >= c0) & (cols < c1) & (rows >= r0) & (rows < r1)
-    return (rows[ok] - r0) * (c1 - c0) + (cols[ok] - c0)
+    local: np.ndarray = (rows[ok] - r0) * (c1 - c0) + (cols[ok] - c0)
+    return local
 
 
 def _to_lattice(local: np.ndarray, ww: int, c0: int, r0: int, W: int) -> np.ndarray:
     rows, cols = np.divmod(local, ww)
-    return (rows + r0) * W + (cols + c0)
+    nodes: np.ndarray = (rows + r0) * W + (cols + c0)
+    return nodes
 
 
 def reference_scan_cells(lattice: GridMap, pose: np.ndarray, ranges: np.ndarray,

@@ -111,7 +111,7 @@ def geodesic_cell(domain: CoverageDomain, own: Generator, others: Sequence[Gener
     cold = hint is None or not hint > 0
     if len(others) == 0 or whole:
         L = math.inf
-    elif not cold:
+    elif hint is not None and not cold:
         # Rounded up to whole steps so the small changes of the cell radius between updates
         # keep the search region (and its cache) the same.
         step = RADIUS_STEP_CELLS * res
@@ -176,6 +176,7 @@ def geodesic_cell(domain: CoverageDomain, own: Generator, others: Sequence[Gener
         result = _finish(domain, local, base, grid, weights[0], own_local, g, pred,
                          [int(t) - 1 for t in touching], math.inf, passes, method)
     else:
+        assert found is not None  # (the loop ends with a cell or a whole-map search)
         own_local, g, pred, touching = found
         result = _finish(domain, local, int(snaps[0][0][0]), centers[0], weights[0],
                          own_local, g, pred, [int(idx[t]) - 1 for t in touching], L, passes,
@@ -216,7 +217,8 @@ def cold_radius(domain: CoverageDomain, centers: np.ndarray, weights: np.ndarray
 
 
 def _search(local: LocalGraph, csr: csr_matrix, weights: np.ndarray, radii: np.ndarray,
-            L: float, power: bool, force: bool = False):
+            L: float, power: bool, force: bool = False
+            ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
     """Run the limited Dijkstra; None if the own cell reaches the search frontier.
 
     Returns ``(own, g, pred, touching)``: local ids (1..n) of the own cell, their distances, the
@@ -315,4 +317,5 @@ def _tangent_anchors(domain: CoverageDomain, own_local: np.ndarray, g: np.ndarra
     up = ancestor_table(np.append(parent, n_own))
     anchor = first_ancestor_where(up, np.arange(n_own), np.append(flag, True))
     anchor = np.where(anchor == n_own, np.arange(n_own), anchor)
-    return pts[anchor]
+    tangents: np.ndarray = pts[anchor]
+    return tangents

@@ -71,7 +71,8 @@ def clip_reachable(domain: CoverageDomain, start: np.ndarray, goal: np.ndarray) 
     if not ok[0]:
         return start
     last = int(np.argmin(ok)) - 1
-    return pts[max(last, 0)]
+    reached: np.ndarray = pts[max(last, 0)]
+    return reached
 
 
 def descent_walk(domain: CoverageDomain, base: int, covector: np.ndarray,
@@ -98,7 +99,8 @@ def descent_walk(domain: CoverageDomain, base: int, covector: np.ndarray,
         seen.add(nxt)
         node = nxt
         travelled += float(lengths[k])
-    return domain.node_centers(np.array([node]))[0]
+    end: np.ndarray = domain.node_centers(np.array([node]))[0]
+    return end
 
 
 def ball_descent(domain: CoverageDomain, base: int, direction: np.ndarray,
@@ -114,7 +116,8 @@ def ball_descent(domain: CoverageDomain, base: int, direction: np.ndarray,
     cost = graph.cost[r, c]
     ok = np.isfinite(cost)
     if not ok.any():
-        return domain.node_centers(np.array([base]))[0]
+        at_base: np.ndarray = domain.node_centers(np.array([base]))[0]
+        return at_base
     unit = float(np.min(cost[ok] / lengths[ok]))
     dist = dijkstra(graph.csr, directed=True, indices=base,
                     limit=BALL_PATH_FACTOR * length_cells * unit)
@@ -124,7 +127,8 @@ def ball_descent(domain: CoverageDomain, base: int, direction: np.ndarray,
     progress = (pts - own) @ direction
     best = np.flatnonzero(progress >= progress.max() - 1e-9)
     k = best[np.argmin(dist[reached[best]])]  # the nearest of equally good ones
-    return pts[k]
+    farthest: np.ndarray = pts[k]
+    return farthest
 
 
 def next_vertex(domain: CoverageDomain, base: int, covector: np.ndarray) -> np.ndarray:
@@ -140,4 +144,5 @@ def next_vertex(domain: CoverageDomain, base: int, covector: np.ndarray) -> np.n
         k = int(np.argmax(score))
         if score[k] > 0:
             best = int(graph.neighbour_index(int(np.flatnonzero(ok)[k]))[r, c])
-    return domain.to_map(domain.node_centers(np.array([best])))[0]
+    vertex: np.ndarray = domain.to_map(domain.node_centers(np.array([best])))[0]
+    return vertex

@@ -20,7 +20,9 @@ grid displacements times the resolution, in grid axes (rotated by the grid's yaw
 from __future__ import annotations
 
 import math
+from collections.abc import Hashable
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -32,6 +34,8 @@ from coverage_ros.errors import ConfigError
 
 #: [chart units] scale of the tie-breaking bias added to every edge out of a virtual source.
 TIE_BIAS = 1e-9
+#: A point's virtual-source connections ``(nodes, costs, grid_xy)`` (CoverageDomain.snap).
+Snap = tuple[np.ndarray, np.ndarray, np.ndarray]
 
 
 def tie_bias(grid_xy: np.ndarray) -> float:
@@ -52,7 +56,7 @@ class CoverageDomain(LineOfSight):
     zeta: np.ndarray | None = None  # (H, W) isotropic metric weight, or None
     robot_radius: float = 0.0  # [m] the free space is inflated by this (maps)
     unknown_is_free: bool = False  # unknown map cells count as free (exploration)
-    _cache: dict = field(default_factory=dict, repr=False)
+    _cache: dict[Hashable, Any] = field(default_factory=dict, repr=False)
 
     # ------------------------------------------------------------------ construction
     @classmethod
@@ -72,7 +76,8 @@ class CoverageDomain(LineOfSight):
         key = "clearance"
         if key not in self._cache:
             self._cache[key] = self.geometry.clearance(unknown_is_free=self.unknown_is_free)
-        return self._cache[key]
+        clearance: np.ndarray = self._cache[key]
+        return clearance
 
     def margin_free(self, margin: float) -> np.ndarray:
         """``(H, W) bool``: free cells at least ``margin`` [m] farther from obstacles than the
@@ -81,7 +86,8 @@ class CoverageDomain(LineOfSight):
         if key not in self._cache:
             need = self.robot_radius + 0.5 * self.resolution + margin
             self._cache[key] = self.free & (self.clearance >= need)
-        return self._cache[key]
+        free: np.ndarray = self._cache[key]
+        return free
 
     # ------------------------------------------------------------------ basic properties
     @property
@@ -102,7 +108,8 @@ class CoverageDomain(LineOfSight):
         key = "mass_element"
         if key not in self._cache:
             self._cache[key] = self.density * self.graph.cell_area()
-        return self._cache[key]
+        mass: np.ndarray = self._cache[key]
+        return mass
 
     def with_density(self, density: np.ndarray) -> CoverageDomain:
         """Same geometry and metric, another density raster (zeroed off the free space)."""
@@ -127,7 +134,8 @@ class CoverageDomain(LineOfSight):
             else:
                 value = 1.0
             self._cache[key] = value
-        return self._cache[key]
+        bound: float = self._cache[key]
+        return bound
 
     # ------------------------------------------------------------------ coordinates
     def to_grid(self, points: np.ndarray) -> np.ndarray:
@@ -157,9 +165,11 @@ class CoverageDomain(LineOfSight):
             return eye
         cells = self._clamped_cells(pts)
         if self.tensor is not None:
-            return self.tensor[cells[:, 0], cells[:, 1]].copy()
+            tensors: np.ndarray = self.tensor[cells[:, 0], cells[:, 1]].copy()
+            return tensors
         assert self.zeta is not None
-        return eye * self.zeta[cells[:, 0], cells[:, 1]][:, None, None]
+        scaled: np.ndarray = eye * self.zeta[cells[:, 0], cells[:, 1]][:, None, None]
+        return scaled
 
     def _clamped_cells(self, grid_xy: np.ndarray) -> np.ndarray:
         H, W = self.shape
@@ -193,7 +203,8 @@ class CoverageDomain(LineOfSight):
 
             _, idx = ndimage.distance_transform_edt(~self.free, return_indices=True)
             self._cache[key] = idx
-        return self._cache[key]
+        nearest: np.ndarray = self._cache[key]
+        return nearest
 
     def snap(self, point_map: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Virtual-source connections of one map-frame point.
@@ -241,7 +252,7 @@ class CoverageDomain(LineOfSight):
         ok[inside] = self.free[r[inside], c[inside]]
         return r, c, ok
 
-    def snap_many(self, points_map: np.ndarray) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    def snap_many(self, points_map: np.ndarray) -> list[Snap]:
         """:meth:`snap` for ``(N, 2)`` points; vectorized for maps (Euclidean, no wrap)."""
         pts = np.asarray(points_map, dtype=np.float64).reshape(-1, 2)
         if not self.graph.euclidean or any(self.graph.wrap) or len(pts) == 0:
@@ -300,7 +311,8 @@ class CoverageDomain(LineOfSight):
             hits = np.flatnonzero((self.graph.offsets[:, 0] == dr)
                                   & (self.graph.offsets[:, 1] == dc))
             self._cache[key] = int(hits[0]) if hits.size else None
-        return self._cache[key]
+        index: int | None = self._cache[key]
+        return index
 
     def _offset_indices(self, dr: np.ndarray, dc: np.ndarray) -> np.ndarray:
         """:meth:`_offset_index` for arrays of offsets in -1..1; -1 where the graph has none."""
@@ -312,7 +324,8 @@ class CoverageDomain(LineOfSight):
                     k = self._offset_index(a, b)
                     table[a + 1, b + 1] = -1 if k is None else k
             self._cache[key] = table
-        return self._cache[key][np.asarray(dr) + 1, np.asarray(dc) + 1]
+        indices: np.ndarray = self._cache[key][np.asarray(dr) + 1, np.asarray(dc) + 1]
+        return indices
 
     def is_free_point(self, point_map: np.ndarray) -> bool:
         g = self.to_grid(point_map)[0]

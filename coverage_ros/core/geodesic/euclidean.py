@@ -114,7 +114,8 @@ def project_feasible(domain: CoverageDomain, point: np.ndarray, nodes: np.ndarra
         return point
     cand = wdA > 0
     pool = xy[cand] if cand.any() else xy
-    return pool[int(np.argmin(((pool - point) ** 2).sum(axis=1)))].copy()
+    nearest: np.ndarray = pool[int(np.argmin(((pool - point) ** 2).sum(axis=1)))].copy()
+    return nearest
 
 
 def cell_cost_about(domain: CoverageDomain, nodes: np.ndarray, point: np.ndarray,

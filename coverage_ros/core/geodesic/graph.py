@@ -21,9 +21,10 @@ across a cordoned-off pole of a sphere (section 4.1).
 from __future__ import annotations
 
 import math
+from collections.abc import Hashable
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -64,7 +65,7 @@ def swept_cells(dr: int, dc: int) -> list[tuple[int, int]]:
     return sorted(cells)
 
 
-def shift(a: np.ndarray, dr: int, dc: int, wrap: tuple[bool, bool], fill) -> np.ndarray:
+def shift(a: np.ndarray, dr: int, dc: int, wrap: tuple[bool, bool], fill: float) -> np.ndarray:
     """``out[r, c] = a[r + dr, c + dc]`` (wrapping or filled beyond the edges)."""
     out = a
     if dr:
@@ -96,11 +97,12 @@ class GridGraph:
     extra_edges: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None  # (u, v, cost) undirected
     area: np.ndarray | None = None  # (H, W) cell volume element sqrt(det eta) * res^2; None=res^2
     euclidean: bool = True  # True when the metric is the plain Euclidean one
-    _cache: dict = field(default_factory=dict, repr=False)
+    _cache: dict[Hashable, Any] = field(default_factory=dict, repr=False)
 
     @property
     def shape(self) -> tuple[int, int]:
-        return self.free.shape  # type: ignore[return-value]
+        H, W = self.free.shape
+        return H, W
 
     @property
     def num_nodes(self) -> int:
@@ -125,7 +127,8 @@ class GridGraph:
             ids = np.arange(H * W, dtype=np.int64).reshape(H, W)
             dr, dc = (int(v) for v in self.offsets[k])
             self._cache[key] = shift(ids, dr, dc, self.wrap, -1)
-        return self._cache[key]
+        index: np.ndarray = self._cache[key]
+        return index
 
     @cached_property
     def edge_table(self) -> tuple[np.ndarray, np.ndarray]:
@@ -147,7 +150,7 @@ class GridGraph:
         """``(N + 1,)`` bit k set when a node has an edge along offset k (uint8 for 8
         neighbours, uint16 for 16); the sentinel N has none."""
         K = len(self.offsets)
-        bits = np.zeros(self.num_nodes + 1, dtype=np.uint8 if K <= 8 else np.uint16)
+        bits: np.ndarray = np.zeros(self.num_nodes + 1, dtype=np.uint8 if K <= 8 else np.uint16)
         for k in range(K):
             ok = np.isfinite(self.cost[..., k].ravel())
             bits[:-1] |= (ok.astype(bits.dtype) << k)
@@ -156,7 +159,8 @@ class GridGraph:
     @cached_property
     def offset_steps(self) -> np.ndarray:
         """``(K,)`` node-id difference of each offset (without wrap-around)."""
-        return (self.offsets[:, 0] * self.shape[1] + self.offsets[:, 1]).astype(np.int64)
+        steps: np.ndarray = self.offsets[:, 0] * self.shape[1] + self.offsets[:, 1]
+        return steps.astype(np.int64)
 
     @cached_property
     def uniform_costs(self) -> np.ndarray | None:
@@ -164,7 +168,8 @@ class GridGraph:
         (Euclidean metric), else None."""
         if not self.euclidean:
             return None
-        return np.hypot(self.offsets[:, 0], self.offsets[:, 1]) * self.resolution
+        lengths: np.ndarray = np.hypot(self.offsets[:, 0], self.offsets[:, 1]) * self.resolution
+        return lengths
 
     @cached_property
     def csr(self) -> csr_matrix:

@@ -129,7 +129,8 @@ def lens_distance(x: np.ndarray, y: np.ndarray, a: np.ndarray, ra: float, b: np.
     if d >= ra + rb:
         return np.full(np.broadcast(x, y).shape, np.inf)
     if d <= abs(ra - rb):  # one disc inside the other: the smaller one
-        return np.maximum(da - ra, 0.0) if ra <= rb else np.maximum(db - rb, 0.0)
+        gap: np.ndarray = np.maximum(da - ra, 0.0) if ra <= rb else np.maximum(db - rb, 0.0)
+        return gap
     u = (b - a) / d
     t0 = (d * d + ra * ra - rb * rb) / (2.0 * d)
     h = np.sqrt(max(ra * ra - t0 * t0, 0.0))
@@ -250,7 +251,8 @@ def _free_counts(domain: CoverageDomain) -> np.ndarray:
         padded = np.zeros((Hb * BLOCK, Wb * BLOCK), dtype=np.int64)
         padded[:H, :W] = domain.graph.free
         domain._cache[key] = padded.reshape(Hb, BLOCK, Wb, BLOCK).sum(axis=(1, 3))
-    return domain._cache[key]
+    counts: np.ndarray = domain._cache[key]
+    return counts
 
 
 def covers(graph: LocalGraph, centers: np.ndarray, radii: np.ndarray, lam_cells: float) -> bool:

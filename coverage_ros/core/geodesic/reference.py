@@ -48,7 +48,8 @@ def adjacency(domain: CoverageDomain) -> list[list[tuple[int, float]]]:
         domain._cache[key] = [list(zip(indices[indptr[v]:indptr[v + 1]],
                                        data[indptr[v]:indptr[v + 1]], strict=True))
                               for v in range(csr.shape[0])]
-    return domain._cache[key]
+    adj: list[list[tuple[int, float]]] = domain._cache[key]
+    return adj
 
 
 def _py_tables(domain: CoverageDomain) -> tuple[list[float], list[float], list[float]]:
@@ -59,7 +60,8 @@ def _py_tables(domain: CoverageDomain) -> tuple[list[float], list[float], list[f
         xs = [(v % W + 0.5) for v in range(n)]
         ys = [(v // W + 0.5) for v in range(n)]
         domain._cache[key] = (xs, ys, domain.mass_element.ravel().tolist())
-    return domain._cache[key]
+    tables: tuple[list[float], list[float], list[float]] = domain._cache[key]
+    return tables
 
 
 def paper_cell(domain: CoverageDomain, own: Generator, others: Sequence[Generator],
@@ -158,11 +160,12 @@ def _best_neighbour(domain: CoverageDomain, own: Generator, covector: np.ndarray
     return best
 
 
-def _dijkstra(adj, sources: list[tuple[int, float]], n: int) -> tuple[list[float], list[int]]:
+def _dijkstra(adj: list[list[tuple[int, float]]], sources: list[tuple[int, float]], n: int
+              ) -> tuple[list[float], list[int]]:
     """Plain heapq Dijkstra from several (node, initial distance) seeds; parent -1 = seed."""
     dist = [math.inf] * n
     parent = [-2] * n
-    heap = []
+    heap: list[tuple[float, int]] = []
     for v, d in sources:
         if d < dist[v]:
             dist[v], parent[v] = d, -1

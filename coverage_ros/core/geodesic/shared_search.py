@@ -22,12 +22,17 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.sparse.csgraph import dijkstra
 
-from coverage_ros.core.geodesic.domain import CoverageDomain
+from coverage_ros.core.geodesic.domain import CoverageDomain, Snap
 from coverage_ros.core.geodesic.local_search import LocalGraph, local_graph_for
 from coverage_ros.core.geodesic.tessellation import Generator, source_row
 from coverage_ros.core.geodesic.visible_first import visible_first_search
 
 __all__ = ["held_search", "shared_search"]
+
+#: A robot's cell in a whole-map search: ``(graph, (own, g, pred, touching), base node, grid
+#: point)`` (:func:`held_search`).
+HeldCell = tuple[LocalGraph, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray], int,
+                 np.ndarray]
 
 
 @dataclass(frozen=True)
@@ -44,7 +49,8 @@ class _WholeSearch:
 
 
 def shared_search(domain: CoverageDomain, local: LocalGraph, gens: Sequence[Generator],
-                  snaps: list, method: str, reuse: float = 0.0, last: object = None):
+                  snaps: list[Snap], method: str, reuse: float = 0.0, last: object = None
+                  ) -> HeldCell:
     """The search of ``cell._search`` over the whole domain with equal weights, for generator
     0, from one multi-source Dijkstra kept in the domain: robots that share a domain and see
     the same generators, or ones within ``reuse`` of them (a team in one process), search it
@@ -77,7 +83,7 @@ def shared_search(domain: CoverageDomain, local: LocalGraph, gens: Sequence[Gene
 
 
 def held_search(domain: CoverageDomain, gens: Sequence[Generator], method: str,
-                reuse: float, last: object = None):
+                reuse: float, last: object = None) -> HeldCell | None:
     """The own cell (generator 0) in the domain's kept whole-map search when every one of
     ``gens`` is within ``reuse`` [m] of its nearest generator there, no two the same one
     (``reuse`` 0: at the same point), and unless it is ``last`` (the one kept when the robot's
@@ -101,7 +107,7 @@ def held_search(domain: CoverageDomain, gens: Sequence[Generator], method: str,
                     match)
 
 
-def _cell_in(held: _WholeSearch, local: LocalGraph, match: np.ndarray):
+def _cell_in(held: _WholeSearch, local: LocalGraph, match: np.ndarray) -> HeldCell:
     """:func:`held_search`'s result for the generators whose sources in ``held`` are
     ``match`` (``gens[k]`` is source ``match[k]``) on the whole-domain graph ``local``."""
     own_label = int(match[0])

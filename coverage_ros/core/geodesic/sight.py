@@ -6,9 +6,12 @@ cells at a time when many are asked). :class:`LineOfSight` is a part of
 from __future__ import annotations
 
 import math
+from collections.abc import Hashable
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from coverage_ros.core.geodesic.graph import GridGraph
 from coverage_ros.core.geodesic.tangents import (
     SIGHT_TILE,
     polar_depth,
@@ -19,11 +22,22 @@ from coverage_ros.core.geodesic.tangents import (
 
 #: points from which :meth:`LineOfSight.visible_mask` decides line of sight by tiles first
 TILED_FROM = 2048
+#: The depth maps a caller keeps, by origin: ``[radius, depth map, tile states or None]``.
+DepthMaps = dict[tuple[float, float], list[Any]]
 
 
 class LineOfSight:
     """Line-of-sight queries of a domain (needs ``free``, ``shape``, ``graph`` and a
     ``_cache`` dict from the class it is part of)."""
+
+    graph: GridGraph
+    _cache: dict[Hashable, Any]
+    if TYPE_CHECKING:
+        @property
+        def free(self) -> np.ndarray: ...
+
+        @property
+        def shape(self) -> tuple[int, int]: ...
 
     @property
     def sees_straight(self) -> bool:
@@ -42,7 +56,8 @@ class LineOfSight:
 
             near_free = ndimage.binary_dilation(self.free, structure=np.ones((3, 3), bool))
             self._cache[key] = blocked & near_free
-        return self._cache[key]
+        occluders: np.ndarray = self._cache[key]
+        return occluders
 
     @property
     def depth_bins(self) -> int:
@@ -60,10 +75,11 @@ class LineOfSight:
         if key not in self._cache:
             rr, cc = np.nonzero(self.occluders)
             self._cache[key] = np.stack([cc + 0.5, rr + 0.5], axis=-1).astype(np.float64)
-        return self._cache[key]
+        centers: np.ndarray = self._cache[key]
+        return centers
 
     def visible_mask(self, origin: np.ndarray, points: np.ndarray, radius: float,
-                     depths: dict | None = None,
+                     depths: DepthMaps | None = None,
                      point_tiles: np.ndarray | None = None) -> np.ndarray:
         """``(N,) bool``: grid points (within ``radius`` cells of the grid point ``origin``)
         in line of sight of it; blocked cells are discs of half a cell diagonal.
@@ -85,7 +101,7 @@ class LineOfSight:
         return visible_from(origin, points, held[1],
                             (self.sight_tiles(origin, radius, depths), point_tiles))
 
-    def sight_tiles(self, origin: np.ndarray, radius: float, depths: dict) -> np.ndarray:
+    def sight_tiles(self, origin: np.ndarray, radius: float, depths: DepthMaps) -> np.ndarray:
         """:func:`~coverage_ros.core.geodesic.tangents.sight_tiles` of the depth map that
         :meth:`visible_mask` uses for ``origin`` and ``radius`` (made once, kept in
         ``depths``): per tile, 1 seen whole, 0 hidden whole, -1 to be tested point by point;
@@ -96,9 +112,11 @@ class LineOfSight:
             return np.ones(-(-H // SIGHT_TILE) * -(-W // SIGHT_TILE), dtype=np.int8)
         if held[2] is None:
             held[2] = sight_tiles(origin, held[1], self.shape)
-        return held[2]
+        tiles: np.ndarray = held[2]
+        return tiles
 
-    def _depth_map(self, origin: np.ndarray, radius: float, depths: dict | None) -> list | None:
+    def _depth_map(self, origin: np.ndarray, radius: float, depths: DepthMaps | None
+                   ) -> list[Any] | None:
         """``[radius, depth map, tile states or None]`` for ``origin`` (kept in ``depths``),
         or None when no occluder lies within the radius' box."""
         key = (float(origin[0]), float(origin[1]))

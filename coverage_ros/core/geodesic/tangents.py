@@ -95,7 +95,7 @@ def visible_from(origin: np.ndarray, points: np.ndarray, depth: np.ndarray,
     if tiles is not None:
         states, point_tiles = tiles
         s = np.where(point_tiles >= 0, states[np.maximum(point_tiles, 0)], -1)
-        out = s == 1
+        out: np.ndarray = s == 1
         mixed = np.flatnonzero(s < 0)
         if len(mixed):
             out[mixed] = visible_from(origin, points[mixed], depth)
@@ -105,7 +105,8 @@ def visible_from(origin: np.ndarray, points: np.ndarray, depth: np.ndarray,
     bins = len(depth)
     idx = (np.floor((np.arctan2(d[:, 1], d[:, 0]) + math.pi) / (2.0 * math.pi / bins))
            .astype(np.int64) % bins)
-    return dist <= depth[idx]
+    visible: np.ndarray = dist <= depth[idx]
+    return visible
 
 
 def tile_index(points: np.ndarray, shape: tuple[int, int], tile: int = SIGHT_TILE) -> np.ndarray:

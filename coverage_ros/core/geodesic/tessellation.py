@@ -29,7 +29,7 @@ import numpy as np
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
 
-from coverage_ros.core.geodesic.domain import CoverageDomain, tie_bias
+from coverage_ros.core.geodesic.domain import CoverageDomain, Snap, tie_bias
 from coverage_ros.core.geodesic.local_search import LocalGraph, local_graph_for
 from coverage_ros.core.geodesic.visible_first import visible_first_search
 
@@ -83,7 +83,7 @@ def resolve_method(domain: CoverageDomain, method: str) -> str:
     return method
 
 
-def source_row(domain: CoverageDomain, local: LocalGraph, snap: tuple, radius: float,
+def source_row(domain: CoverageDomain, local: LocalGraph, snap: Snap, radius: float,
                 method: str) -> tuple[np.ndarray, np.ndarray]:
     """Local ids and costs of one virtual source's edges (see :func:`resolve_method`)."""
     nodes, costs, g = snap
@@ -133,7 +133,8 @@ def star_shaped(mask: np.ndarray, pred: np.ndarray, first_source: int) -> np.nda
         if np.array_equal(nxt, ok) and np.array_equal(up2, up):
             break
         ok, up = nxt, up2
-    return ok & mask
+    seen: np.ndarray = ok & mask
+    return seen
 
 
 def _full_with_sources(domain: CoverageDomain, gens: Sequence[Generator],

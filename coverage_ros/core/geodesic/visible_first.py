@@ -24,13 +24,14 @@ import numpy as np
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
 
-from coverage_ros.core.geodesic.domain import CoverageDomain, tie_bias
+from coverage_ros.core.geodesic.domain import CoverageDomain, Snap, tie_bias
 from coverage_ros.core.geodesic.local_search import LocalGraph
+from coverage_ros.core.geodesic.sight import DepthMaps
 from coverage_ros.core.geodesic.tangents import SIGHT_TILE
 
 
 def visible_first_search(domain: CoverageDomain, local: LocalGraph,
-                         snaps: list) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                         snaps: list[Snap]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(dist, pred, label)`` of the min-only multi-source search from the generators whose
     :meth:`CoverageDomain.snap` results are ``snaps`` (in source order) on the whole-domain
     search graph ``local`` (module docstring)."""
@@ -47,8 +48,8 @@ def visible_first_search(domain: CoverageDomain, local: LocalGraph,
     biases = np.array([tie_bias(g) for g in grids])
     H, W = domain.shape  # the whole-domain graph's local ids are node ids + 1 (row-major)
     cx, cy = np.arange(W) + 0.5, np.arange(H) + 0.5
-    best = np.full((H, W), np.inf)
-    winner = np.full((H, W), -1, dtype=np.int64)
+    best: np.ndarray = np.full((H, W), np.inf)
+    winner: np.ndarray = np.full((H, W), -1, dtype=np.int64)
     d = np.empty((H, W))
     closer = np.empty((H, W), dtype=bool)
     for k in range(k_gens):  # squared distances separate into a row and a column term
@@ -74,7 +75,7 @@ def visible_first_search(domain: CoverageDomain, local: LocalGraph,
     settled = np.zeros(n, dtype=bool)
     # One depth map per generator over the whole domain (the reach of its farthest corner)
     # serves both line-of-sight passes.
-    depths: dict = {}
+    depths: DepthMaps = {}
     reaches = [math.hypot(max(gx, W - gx), max(gy, H - gy)) for gx, gy in grids]
     nx = -(-W // SIGHT_TILE)
     node_tiles = ((np.arange(H) // SIGHT_TILE)[:, None] * nx
@@ -105,7 +106,7 @@ def _search_hidden(domain: CoverageDomain, local: LocalGraph, hidden: np.ndarray
                    settled: np.ndarray, dist: np.ndarray, pred: np.ndarray, label: np.ndarray,
                    grids: np.ndarray, biases: np.ndarray,
                    snap_best: list[tuple[np.ndarray, np.ndarray]],
-                   sight: tuple[dict, list[float], np.ndarray]) -> None:
+                   sight: tuple[DepthMaps, list[float], np.ndarray]) -> None:
     """Dijkstra over the hidden cells from their settled neighbours and from every generator's
     own seeds among them (in line of sight, or snap edges); fills the arrays in place.
     ``sight``: the depth maps made so far, each generator's whole-domain reach, and the
@@ -162,7 +163,7 @@ def _search_hidden(domain: CoverageDomain, local: LocalGraph, hidden: np.ndarray
     # found into the tile cannot give that generator a shorter line (nor need its test).
     small = tiles.astype(np.uint16) if len(tiles) and tiles.max() < 1 << 16 else tiles
     by_tile = np.argsort(small, kind="stable")  # (16-bit keys: a radix sort)
-    present, starts, counts = np.unique(tiles[by_tile], return_index=True, return_counts=True)
+    present, starts, per_tile = np.unique(tiles[by_tile], return_index=True, return_counts=True)
     longest = np.maximum.reduceat(upper[by_tile], starts)
     nx = -(-domain.shape[1] // SIGHT_TILE)
     tx0, ty0 = (present % nx) * float(SIGHT_TILE), (present // nx) * float(SIGHT_TILE)
@@ -175,7 +176,7 @@ def _search_hidden(domain: CoverageDomain, local: LocalGraph, hidden: np.ndarray
         if not may.any():
             continue
         may &= domain.sight_tiles(grids[k], reaches[k], depths)[present] != 0
-        near = by_tile[_ranges(starts[may], counts[may])]
+        near = by_tile[_ranges(starts[may], per_tile[may])]
         e = np.hypot(hc[near, 0] - gx, hc[near, 1] - gy) * res + biases[k]
         keep = e <= upper[near] + 1e-9
         better, e = near[keep], e[keep]
@@ -201,7 +202,9 @@ def _search_hidden(domain: CoverageDomain, local: LocalGraph, hidden: np.ndarray
 def _ranges(starts: np.ndarray, counts: np.ndarray) -> np.ndarray:
     """The indices ``starts[i] .. starts[i] + counts[i] - 1`` of every range, in order."""
     ends = np.cumsum(counts)
-    return np.arange(ends[-1] if len(ends) else 0) + np.repeat(starts - (ends - counts), counts)
+    indices: np.ndarray = np.arange(ends[-1] if len(ends) else 0) + np.repeat(
+        starts - (ends - counts), counts)
+    return indices
 
 
 def _least(cells: np.ndarray, costs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

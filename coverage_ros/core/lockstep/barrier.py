@@ -22,6 +22,7 @@ is later) is dropped, with one line; it may join again. Times are wall-clock sec
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 
 #: Report kinds (the constants of coverage_msgs/LockstepReport).
@@ -72,8 +73,9 @@ class Barrier:
     """See module docstring. ``has_body(robot_id)`` says whether the world simulates that
     robot: a robot without a body is not admitted (it would wait for a pose for ever)."""
 
-    def __init__(self, timeout: float, start_timeout: float, expected_robots=(),
-                 expected_observers=(), now: float = 0.0, has_body=lambda rid: True) -> None:
+    def __init__(self, timeout: float, start_timeout: float,
+                 expected_robots: Iterable[int] = (), expected_observers: Iterable[str] = (),
+                 now: float = 0.0, has_body: Callable[[int], bool] = lambda rid: True) -> None:
         if not (math.isfinite(timeout) and timeout > 0):
             raise ValueError(f"timeout must be > 0 [s], got {timeout!r}")
         if not (start_timeout >= 0):

@@ -151,7 +151,8 @@ def solve_lloyd(team: Team, starts: np.ndarray, weights: np.ndarray | None = Non
 def _gradient(step: Any) -> np.ndarray:
     """``2 m_i (p_i - goal_i)`` flattened: dH/dp where the centroid is the goal."""
     m = np.repeat(step.masses, 2)
-    return 2.0 * m * (step.positions - step.goals).ravel()
+    gradient: np.ndarray = 2.0 * m * (step.positions - step.goals).ravel()
+    return gradient
 
 
 class _Curvature:
@@ -184,7 +185,7 @@ class _Curvature:
             a = float(s @ q) / float(y @ s)
             alphas.append(a)
             q -= a * y
-        r = q / (2.0 * np.maximum(np.repeat(masses, 2), 1e-12))
+        r: np.ndarray = q / (2.0 * np.maximum(np.repeat(masses, 2), 1e-12))
         for (s, y), a in zip(zip(self.s, self.y, strict=True), reversed(alphas), strict=True):
             r += s * (a - float(y @ r) / float(y @ s))
         return -r

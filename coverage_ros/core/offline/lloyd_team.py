@@ -165,7 +165,7 @@ class EuclideanTeam:
         ok[ok] = self._feasible[r[ok], c[ok]]
         goals = centroids.copy()
         for i in np.flatnonzero(~ok):  # as project_feasible: the nearest cell centre of the
-            q = project(i, cf[i])  # own cell with positive weight (or free), else the centroid
+            q = project(int(i), cf[i])  # own cell with positive weight (or free), else centroid
             if q is not None:
                 goals[i] = self._to_map(q)[0]
         return TeamStep(P, mass, costs, centroids, goals,
@@ -181,7 +181,8 @@ class EuclideanTeam:
         if len(pool) == 0:
             return None
         xy = np.stack([self._cx[pool % W], self._cy[pool // W]], axis=1)
-        return xy[int(np.argmin(((xy - cf) ** 2).sum(axis=1)))]
+        nearest: np.ndarray = xy[int(np.argmin(((xy - cf) ** 2).sum(axis=1)))]
+        return nearest
 
 
 class GeodesicTeam:

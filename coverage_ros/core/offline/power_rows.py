@@ -168,7 +168,8 @@ class RowSums:
         """``(n, 4)``: every cell's ``sum w``, ``sum w x``, ``sum w y``, ``sum w (x^2 + y^2)``."""
         stop = np.maximum(runs.stop, runs.start)
         q = self._q
-        return (q[self._rows, stop] - q[self._rows, runs.start]).sum(axis=1)
+        sums: np.ndarray = (q[self._rows, stop] - q[self._rows, runs.start]).sum(axis=1)
+        return sums
 
 
 class RowNearest:

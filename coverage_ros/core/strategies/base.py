@@ -95,7 +95,8 @@ class Scan:
         :meth:`depths` (e.g. with shadows bridged)."""
         dist, k, inside = self._beams(points, pose)
         depth = self.depths() if depths is None else np.asarray(depths, dtype=np.float64)
-        return inside & (dist <= depth[k])
+        seen: np.ndarray = inside & (dist <= depth[k])
+        return seen
 
     def measures(self, points: np.ndarray, pose: np.ndarray) -> np.ndarray:
         """``(N,) bool``: which map-frame ``points (N, 2)`` lie in the direction of a beam of
@@ -105,7 +106,8 @@ class Scan:
         _, k, inside = self._beams(points, pose)
         r = np.asarray(self.ranges, dtype=np.float64)
         valid = ~np.isnan(r) & (r >= self.range_min)
-        return inside & valid[k]
+        measured: np.ndarray = inside & valid[k]
+        return measured
 
 
 @dataclass(frozen=True)

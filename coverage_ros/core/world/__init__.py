@@ -13,6 +13,7 @@ they may stand.
 """
 
 from coverage_ros.core.world.loading import load_planar_world, load_world, parse_world
+from coverage_ros.core.world.obstacles import Obstacle
 from coverage_ros.core.world.placement import (
     FreePlacer,
     check_pose,
@@ -22,7 +23,7 @@ from coverage_ros.core.world.placement import (
     validate_starts,
 )
 from coverage_ros.core.world.robot import LidarSpec, RobotSpec
-from coverage_ros.core.world.spec import Obstacle, StartPose, WorldSpec
+from coverage_ros.core.world.spec import StartPose, WorldSpec
 from coverage_ros.core.world.team import TeamMember, load_team, parse_team, write_team
 
 __all__ = ["FreePlacer", "LidarSpec", "Obstacle", "RobotSpec", "StartPose", "TeamMember",

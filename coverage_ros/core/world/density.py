@@ -24,7 +24,10 @@ from coverage_ros.errors import ConfigError
 
 
 class Density(Protocol):
-    kind: str
+    @property
+    def kind(self) -> str:
+        """The ``type`` of the YAML form."""
+        ...
 
     def __call__(self, points: np.ndarray) -> np.ndarray:
         """``(N,) float64 >= 0`` density at ``(N, 2)`` points."""
@@ -215,7 +218,7 @@ def parse_density(data: Any, where: str = "density") -> Density:
                     raise ConfigError.at(f"{cw}.covariance", "must be a 2x2 matrix",
                                          comp["covariance"])
             else:
-                sigma = comp.get("sigma", None)
+                sigma: Any = comp.get("sigma", None)
                 if _is_numeric_list(sigma, 2):
                     sx, sy = (_positive(f"{cw}.sigma", s) for s in sigma)
                 else:

@@ -58,7 +58,8 @@ class GridMap:
     @property
     def shape(self) -> tuple[int, int]:
         """``(height, width)`` in cells."""
-        return self.occupancy.shape  # type: ignore[return-value]
+        H, W = self.occupancy.shape
+        return H, W
 
     @property
     def height(self) -> int:
@@ -102,7 +103,7 @@ class GridMap:
         from scipy import ndimage  # scipy's import is a tenth of a second: only when used
 
         free = np.pad(self.free_mask(unknown_is_free), 1, constant_values=False)
-        dist = ndimage.distance_transform_edt(free) * self.resolution
+        dist: np.ndarray = ndimage.distance_transform_edt(free) * self.resolution
         return dist[1:-1, 1:-1]
 
     def inflated_free_mask(self, radius: float, unknown_is_free: bool = False) -> np.ndarray:
@@ -122,7 +123,8 @@ class GridMap:
     def grid_to_world(self, grid_xy: np.ndarray) -> np.ndarray:
         """Continuous grid coordinates ``(gx, gy)`` in cells -> map-frame ``(x, y)`` [m]."""
         g = np.asarray(grid_xy, dtype=np.float64) * self.resolution
-        return _rotate(g, self._rot) + np.array(self.origin[:2])
+        xy: np.ndarray = _rotate(g, self._rot) + np.array(self.origin[:2])
+        return xy
 
     def world_to_grid(self, xy: np.ndarray) -> np.ndarray:
         """Map-frame ``(x, y)`` [m] -> continuous grid coordinates ``(gx, gy)`` in cells."""
@@ -132,7 +134,8 @@ class GridMap:
     def direction_to_grid(self, v: np.ndarray) -> np.ndarray:
         """Map-frame vectors ``(..., 2)`` -> the same vectors in grid axes (rotation only, same
         length)."""
-        return np.asarray(v, dtype=np.float64) @ self._rot
+        rotated: np.ndarray = np.asarray(v, dtype=np.float64) @ self._rot
+        return rotated
 
     def cell_centers(self, cells: np.ndarray) -> np.ndarray:
         """``(N, 2)`` cells ``(row, col)`` -> ``(N, 2)`` centres ``(x, y)`` [m]."""

@@ -23,6 +23,7 @@ Everything is validated when loaded; errors name the file and the field.
 from __future__ import annotations
 
 import math
+from collections.abc import Set
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -33,9 +34,10 @@ from coverage_ros.core.geometry import box_polygon, polygon_area, segment_polygo
 from coverage_ros.core.world.density import parse_density
 from coverage_ros.core.world.map_server import grid_from_map_yaml, is_map_server_yaml
 from coverage_ros.core.world.metric import CHART_KEYS, ChartSpec, MetricRegion, WorldMetric
+from coverage_ros.core.world.obstacles import Obstacle
 from coverage_ros.core.world.placement import validate_starts
 from coverage_ros.core.world.robot import LIDAR_KEYS, ROBOT_KEYS, LidarSpec, RobotSpec
-from coverage_ros.core.world.spec import DEFAULT_RESOLUTION, Obstacle, StartPose, WorldSpec
+from coverage_ros.core.world.spec import DEFAULT_RESOLUTION, StartPose, WorldSpec
 from coverage_ros.core.world.yaml_io import read_yaml_mapping
 from coverage_ros.errors import ConfigError, WorldError
 
@@ -68,7 +70,7 @@ def _vec(where: str, value: Any, n: int) -> np.ndarray:
     return np.array([_num(f"{where}[{i}]", v) for i, v in enumerate(value)])
 
 
-def _check_keys(where: str, data: dict, allowed: set[str]) -> None:
+def _check_keys(where: str, data: dict[str, Any], allowed: Set[str]) -> None:
     unknown = sorted(set(data) - allowed)
     if unknown:
         raise WorldError.at(_join(where, unknown[0]), "unknown key",
@@ -83,7 +85,7 @@ def _parse_lidar(where: str, data: Any, base: LidarSpec) -> LidarSpec:
     if not isinstance(data, dict):
         raise WorldError.at(where, "must be a mapping of lidar settings", data)
     _check_keys(where, data, LIDAR_KEYS)
-    values = {}
+    values: dict[str, Any] = {}
     for key, value in data.items():
         if key == "beams":
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:

@@ -38,7 +38,7 @@ def is_map_server_yaml(data: dict[str, Any]) -> bool:
     return "image" in data
 
 
-def _number(path: Path, data: dict, key: str, default: float | None = None) -> float:
+def _number(path: Path, data: dict[str, Any], key: str, default: float | None = None) -> float:
     if key not in data:
         if default is None:
             raise MapError.at(f"{path}: {key}", "required field is missing",
@@ -90,7 +90,8 @@ def grid_from_map_yaml(path: Path, data: dict[str, Any]) -> GridMap:
     pixels, alpha = read_map_image(image_path, where=f"{path}: image")
     occupancy = pixels_to_occupancy(pixels, alpha, bool(negate), occupied_thresh, free_thresh,
                                     mode)
-    return GridMap(np.flipud(occupancy), resolution, tuple(float(v) for v in origin))
+    x, y, yaw = (float(v) for v in origin)
+    return GridMap(np.flipud(occupancy), resolution, (x, y, yaw))
 
 
 def read_map_image(image_path: Path, where: str) -> tuple[np.ndarray, np.ndarray | None]:

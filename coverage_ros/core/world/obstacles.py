@@ -35,4 +35,5 @@ class Obstacle:
             d = distance_to_segments(pts, a, b)
             return np.where(points_in_polygon(pts, self.polygon), 0.0, d)
         assert self.center is not None
-        return np.maximum(np.hypot(*(pts - self.center).T) - self.radius, 0.0)
+        outside: np.ndarray = np.maximum(np.hypot(*(pts - self.center).T) - self.radius, 0.0)
+        return outside

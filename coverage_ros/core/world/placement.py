@@ -74,7 +74,7 @@ def check_pose(spec: WorldSpec, pose: Sequence[float], radius: float,
     return (x, y, yaw)
 
 
-def validate_starts(spec: WorldSpec, starts: Sequence[Sequence[float]],
+def validate_starts(spec: WorldSpec, starts: Sequence[Sequence[float]] | np.ndarray,
                     radii: Sequence[float], where: str = "robots") -> None:
     """Raise if a start pose ``(x, y[, yaw])`` of robot i (radius ``radii[i]``) is off the map,
     too close to an obstacle, or overlaps an earlier robot."""
@@ -118,7 +118,8 @@ def largest_free_region(grid: GridMap, radius: float) -> np.ndarray:
     labels, n = ndimage.label(free, structure=np.ones((3, 3)))
     if n == 0:
         return np.zeros(grid.shape, dtype=bool)
-    return labels == (int(np.argmax(np.bincount(labels.ravel())[1:])) + 1)
+    largest: np.ndarray = labels == (int(np.argmax(np.bincount(labels.ravel())[1:])) + 1)
+    return largest
 
 
 def parse_poses(text: str, where: str = "starts") -> np.ndarray:
@@ -211,7 +212,7 @@ def _grid_geodesic(free: np.ndarray, start: tuple[int, int]) -> np.ndarray:
     graph = build_grid_graph(free, 1.0, connectivity=8)
     from scipy.sparse.csgraph import dijkstra
 
-    d = dijkstra(graph.csr, indices=int(graph.node_of_cell(np.array(start))))
+    d: np.ndarray = dijkstra(graph.csr, indices=int(graph.node_of_cell(np.array(start))))
     return d.reshape(free.shape)
 
 
@@ -238,11 +239,11 @@ class FreePlacer:
         if len(pool):
             picks = pool[rng.integers(0, len(pool), size=PLACEMENT_TRIES)]
             yaws = rng.uniform(-math.pi, math.pi, size=PLACEMENT_TRIES)
-            ok = np.ones(PLACEMENT_TRIES, dtype=bool)
+            ok: np.ndarray = np.ones(PLACEMENT_TRIES, dtype=bool)
             if others:
                 o = np.asarray(others, dtype=np.float64)
                 d = np.hypot(picks[:, None, 0] - o[:, 0], picks[:, None, 1] - o[:, 1])
-                ok = (d >= o[:, 2] + radius + CLUSTER_GAP).all(axis=1)
+                ok = np.asarray((d >= o[:, 2] + radius + CLUSTER_GAP).all(axis=1))
             for k in np.flatnonzero(ok):
                 x, y = float(picks[k, 0]), float(picks[k, 1])
                 if clearance(self.spec, x, y) >= radius:

@@ -10,6 +10,7 @@ some free space of the map inside the region.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -19,7 +20,7 @@ from coverage_ros.core.world.grid import GridMap
 from coverage_ros.errors import ConfigError
 
 
-def checked_polygon(points, where: str = "region") -> np.ndarray:
+def checked_polygon(points: Any, where: str = "region") -> np.ndarray:
     """``(N, 2)`` float64 polygon from ``points``; ConfigError naming what is wrong."""
     try:
         poly = np.asarray(points, dtype=np.float64).reshape(-1, 2)
@@ -52,14 +53,14 @@ class Region:
 
     polygons: tuple[np.ndarray, ...] = ()
 
-    def with_polygon(self, polygon) -> Region:
+    def with_polygon(self, polygon: Any) -> Region:
         return Region((*self.polygons, checked_polygon(polygon)))
 
     @property
     def everywhere(self) -> bool:
         return not self.polygons
 
-    def holds(self, polygon, tolerance: float = 0.0) -> bool:
+    def holds(self, polygon: Any, tolerance: float = 0.0) -> bool:
         """Whether one of the polygons is ``polygon`` (``(M, 2)`` [m]), point by point within
         ``tolerance`` [m] (a polygon that came through a message has float32 points)."""
         q = np.asarray(polygon, dtype=np.float64)

@@ -84,8 +84,8 @@ def parse_team(data: Any, world: WorldSpec, where: str = "team") -> tuple[TeamMe
         spec = parse_robot_entry(wk, rest, world.robot_spec(rid)) if rest else \
             world.robot_spec(rid)
         members.append(TeamMember(rid, start, spec, role))
-    placed = [m for m in members if m.start is not None]
-    validate_starts(world, [m.start for m in placed], [m.spec.radius for m in placed],
+    placed = [(m.start, m.spec.radius) for m in members if m.start is not None]
+    validate_starts(world, [s for s, _ in placed], [r for _, r in placed],
                     f"{where}: robots (starts)")
     return tuple(members)
 

@@ -115,7 +115,8 @@ class MassCells:
         kept = kept[np.argsort(-mass[kept], kind="stable")]
         index = np.full(count, -1, dtype=np.int64)
         index[kept] = np.arange(len(kept))
-        return index[part]
+        regions: np.ndarray = index[part]
+        return regions
 
     @functools.cached_property
     def region_masses(self) -> np.ndarray:
@@ -273,7 +274,8 @@ def gap_lengths(zero: np.ndarray, origin: np.ndarray, points: np.ndarray) -> np.
     f = dist / h
     j = np.minimum(np.floor(f).astype(np.int64), steps - 1)
     frac = f - j
-    return cum[b, j] + frac * (cum[b, j + 1] - cum[b, j])
+    integral: np.ndarray = cum[b, j] + frac * (cum[b, j + 1] - cum[b, j])
+    return integral
 
 
 @functools.lru_cache(maxsize=4)

@@ -181,7 +181,8 @@ class AcvtResult:
 
     @property
     def final(self) -> np.ndarray:
-        return self.positions[-1]
+        last: np.ndarray = self.positions[-1]
+        return last
 
 
 class AlphaCvt:

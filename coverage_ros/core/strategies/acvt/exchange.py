@@ -53,7 +53,7 @@ def agent_regions(cells: MassCells, labels: np.ndarray, k: int) -> np.ndarray:
     R = len(cells.region_masses)
     table = np.bincount(labels[ok] * R + region[ok], weights=cells.wdA[ok],
                         minlength=k * R).reshape(k, R)
-    out = np.argmax(table, axis=1)
+    out: np.ndarray = np.argmax(table, axis=1)
     out[table.max(axis=1) <= 0.0] = -1
     return out
 
@@ -70,7 +70,8 @@ def share_error(weights: np.ndarray, region_of: np.ndarray, shares: np.ndarray) 
 def _farthest_point(cells: MassCells, own: np.ndarray, taken: np.ndarray) -> np.ndarray:
     """The mass cell of ``own`` (indices) farthest from every point of ``taken (m, 2)``."""
     d2 = ((cells.xy[own, None, :] - taken[None, :, :]) ** 2).sum(axis=2).min(axis=1)
-    return cells.xy[own[int(np.argmax(d2))]].copy()
+    point: np.ndarray = cells.xy[own[int(np.argmax(d2))]].copy()
+    return point
 
 
 def exchanges(cells: MassCells, labels: np.ndarray, masses: np.ndarray,
@@ -142,7 +143,8 @@ def swaps(cells: MassCells, labels: np.ndarray, masses: np.ndarray, positions: n
 
 
 def _place(cells: MassCells, labels: np.ndarray, P: np.ndarray, weighed: np.ndarray,
-           members: dict, x: tuple[int, ...], a: int, b: int, region_of: np.ndarray):
+           members: dict[tuple[int, int], list[int]], x: tuple[int, ...], a: int, b: int,
+           region_of: np.ndarray) -> tuple[tuple[int, ...], tuple[int, ...], np.ndarray]:
     """Who moves where for the class moves ``x`` between targets ``a`` and ``b``."""
     arriving: dict[int, list[int]] = {a: [], b: []}
     for c, v in enumerate(x):

@@ -42,6 +42,8 @@ from collections.abc import Iterable
 
 import numpy as np
 
+from coverage_ros.core.strategies.base import SharedState
+
 #: Shared-state key of the iteration count a robot publishes while its dropout is on.
 ITERATION_KEY = "iteration"
 
@@ -83,7 +85,7 @@ class MoveIterations:
         self._limit = self.slack * distance / self.speed + self.margin
 
 
-def peer_counts(states: Iterable) -> list[float]:
+def peer_counts(states: Iterable[SharedState]) -> list[float]:
     """Iteration counts published by the neighbours (``SharedState``) still in their dropout;
     a neighbour that publishes no count (another strategy, an older node) is not waited for."""
     counts = []
@@ -94,7 +96,7 @@ def peer_counts(states: Iterable) -> list[float]:
     return counts
 
 
-def awaiting_mass(states: Iterable) -> bool:
+def awaiting_mass(states: Iterable[SharedState]) -> bool:
     """Whether a neighbour that runs the dropout (it publishes ``dropout``, from its first
     state on) has not published a cell mass yet: it has not made its first update."""
     return any("dropout" in st.extra and not (st.mass is not None and math.isfinite(st.mass))

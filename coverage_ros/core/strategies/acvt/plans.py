@@ -43,7 +43,7 @@ def heard_plan(robot_id: int, states: Iterable[SharedState | None]
         ex = st.extra
         x, y = ex.get(f"plan_{robot_id}_x"), ex.get(f"plan_{robot_id}_y")
         planner, seq = ex.get(PLAN_FROM), ex.get(PLAN_SEQ)
-        if None in (x, y, planner, seq) or not all(
+        if x is None or y is None or planner is None or seq is None or not all(
                 math.isfinite(v) for v in (x, y, planner, seq)):
             continue
         return (int(planner), int(seq)), np.array([x, y], dtype=np.float64)

@@ -203,7 +203,8 @@ def insertion_point(cells: MassCells, labels: np.ndarray, positions: np.ndarray,
     if len(own) == 0:
         return None
     d2 = ((cells.xy[own] - positions[owner]) ** 2).sum(axis=1)
-    return cells.xy[own[int(np.argmax(d2))]].copy()
+    point: np.ndarray = cells.xy[own[int(np.argmax(d2))]].copy()
+    return point
 
 
 def nudge_point(cells: MassCells, positions: np.ndarray, agent: int, owner: int) -> np.ndarray:
@@ -211,7 +212,8 @@ def nudge_point(cells: MassCells, positions: np.ndarray, agent: int, owner: int)
     agent stepping into a heavy neighbour's cell, so that the team settles into a nearby CVT
     rather than rebuilding one around a far point."""
     P = np.asarray(positions, dtype=np.float64)
-    return cells.project((0.5 * (P[agent] + P[owner]))[None])[0]
+    point: np.ndarray = cells.project((0.5 * (P[agent] + P[owner]))[None])[0]
+    return point
 
 
 def movers(masses: np.ndarray, reach: np.ndarray | None, count: int) -> list[int]:
@@ -280,7 +282,7 @@ def best_relocation(cells: MassCells, spec: CellSpec, positions: np.ndarray,
             if reach is None:
                 tries.append(((j,), (h,), nudge_point(cells, P, j, h)[None], slack, False))
     mixed = reach is not None and config.exchanges > 0 and not spec.visibility
-    if mixed:
+    if mixed and reach is not None:
         tries += [(e.agents, e.into, e.points, config.exchange_slack, True)
                   for e in exchanges(cells, labels, masses, P, reach, config.exchanges)]
         tries += [(e.agents, e.into, e.points, config.exchange_slack, False)
@@ -298,7 +300,7 @@ def best_relocation(cells: MassCells, spec: CellSpec, positions: np.ndarray,
         Q[list(agents)] = points
         Q = settle(cells, spec, Q, reach, config.horizon, config.tolerance)
         labels_q, masses_q, after = team_metric(cells, spec, Q, reach)
-        if ahead:
+        if ahead and reach is not None:
             # An exchange lands its movers anywhere in their new target; the swap that best
             # follows it is part of its prediction (and is found again once it has settled).
             Q, labels_q, after = _best_swap(cells, spec, Q, reach, labels_q, masses_q, after,

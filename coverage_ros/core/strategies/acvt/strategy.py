@@ -61,6 +61,7 @@ from coverage_ros.core.strategies.acvt.prediction import team_metric
 from coverage_ros.core.strategies.acvt.relocation import (
     DEFAULT_LEVEL_WINDOW,
     MetricLevel,
+    Relocation,
     best_relocation,
     movers,
 )
@@ -154,7 +155,8 @@ class AcvtStrategy(Strategy):
     def _goal(self, P: np.ndarray, reach: np.ndarray | None, own: int) -> np.ndarray:
         """Projected (Eq. 8) centroid of the own cell among ``P`` (own position if empty)."""
         _, _, centroid = self._own_cell(P, reach, own)
-        return self.cells.project(P[own] if centroid is None else centroid)[0]
+        goal: np.ndarray = self.cells.project(P[own] if centroid is None else centroid)[0]
+        return goal
 
     # ------------------------------------------------------------------ update
     def update(self, obs: Observation, neighbours: Sequence[Neighbour]) -> Decision:
@@ -304,7 +306,8 @@ class AcvtStrategy(Strategy):
         return metric
 
     def _relocation_move(self, P: np.ndarray, reach: np.ndarray | None, own: int,
-                         neighbours: list[SharedState], row_ids: np.ndarray):
+                         neighbours: list[SharedState], row_ids: np.ndarray
+                         ) -> Relocation | None:
         """The relocation this robot makes now, if any (:mod:`.relocation`): only with its
         dropout over, every neighbour settled, out of the dropout and not relocating, and its
         own (normalised) mass among the ``movers`` least of the team at ``P (k, 2)`` (row

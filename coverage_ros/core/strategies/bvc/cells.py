@@ -106,7 +106,8 @@ class BufferedCell:
         e = np.roll(self.polygon, -1, axis=0) - self.polygon
         rel = pts[:, None, :] - self.polygon[None]
         cross = e[None, :, 0] * rel[..., 1] - e[None, :, 1] * rel[..., 0]
-        return np.all(cross >= -tol, axis=1)
+        inside: np.ndarray = np.all(cross >= -tol, axis=1)
+        return inside
 
 
 def spherical_flip(points: np.ndarray, center: np.ndarray, radius: float) -> np.ndarray:

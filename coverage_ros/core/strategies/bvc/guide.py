@@ -87,6 +87,7 @@ class Guide:
             return None
         values = domain.density.ravel()[nodes[ok]]
         cand = cand[ok]
+        k: int | None
         if peak is None and values.max() <= values.min() * (1.0 + FLAT_DENSITY):
             # No peak to be guided to (a uniform density): every candidate ties, and the
             # nearest - the robot's own spot - would hold the robot in place. Be guided to the
@@ -99,6 +100,7 @@ class Guide:
             # true free space moves on. Without a map, space never seen behind a wall must not
             # pull it, and it does not: a wall's shadow has no far side.
             scan, at = obs.scan, obs.scan_origin
+            assert scan is not None  # (the strategy updates with a scan only)
             depths = bridge_shadows(scan.depths(), scan.angle_increment,
                                     self.bridge_width, scan.full_circle)
             self.memory.add_view(at[:2], self.sensor_radius, lambda q: scan.sees(q, at, depths))

@@ -57,7 +57,8 @@ class LocalMap:
 
     def is_reachable(self, points: np.ndarray) -> np.ndarray:
         r, c, inside = self.lookup(points)
-        return inside & self.reachable[r, c]
+        reachable: np.ndarray = inside & self.reachable[r, c]
+        return reachable
 
 
 def local_map(memory: ObstacleMemory, position: np.ndarray, half_cells: int,

@@ -43,7 +43,8 @@ class ObstacleMemory:
 
     @property
     def shape(self) -> tuple[int, int]:
-        return self.hits.shape  # type: ignore[return-value]
+        H, W = self.hits.shape
+        return H, W
 
     def cells(self, points: np.ndarray) -> np.ndarray:
         """``(N, 2) int64`` cells ``(row, col)`` of points (may lie off the grid)."""

@@ -42,8 +42,9 @@ import numpy as np
 from scipy import ndimage
 from scipy.sparse.csgraph import connected_components, dijkstra
 
+from coverage_ros.core.exploration.belief import BeliefSnapshot
 from coverage_ros.core.exploration.maps import EntropyMetric, entropy_domain
-from coverage_ros.core.geodesic.cell import geodesic_cell
+from coverage_ros.core.geodesic.cell import CellResult, geodesic_cell
 from coverage_ros.core.geodesic.domain import CoverageDomain
 from coverage_ros.core.geodesic.tessellation import METHODS, Generator
 from coverage_ros.core.strategies.base import (
@@ -148,22 +149,24 @@ class ExploreStrategy(Strategy):
             self.target = None
         mode = self._choose(domain, e, p, cell, lloyd_step, unexplored, area)
         if self._give_up(domain, e, p, obs.time):
+            assert self.banned is not None  # (a target given up is banned)
             e = np.where(self.banned, 0.0, e)
             mode = self._choose(domain, e, p, cell, lloyd_step, unexplored, area)
-        greedy = self.target is not None
-        goal = self.target.copy() if greedy else cell.goal
+        target = self.target
+        greedy = target is not None
+        goal = target.copy() if target is not None else cell.goal
         converged = not greedy and lloyd_step < self.context.convergence_tolerance
         return Decision(
             goal=goal, velocity=None, cell=cell.nodes,
             shared=SharedState(position=p.copy(), weight=self.context.weight, mass=cell.mass,
                                extra={"greedy": float(greedy)}),
             converged=converged, cost=cell.cost, mass=cell.mass, mode=mode,
-            details=ExploreDetails(lloyd_goal=cell.goal, greedy_target=None if not greedy
-                                   else self.target.copy(), unexplored_mass=unexplored,
+            details=ExploreDetails(lloyd_goal=cell.goal, greedy_target=None if target is None
+                                   else target.copy(), unexplored_mass=unexplored,
                                    unexplored_cells=unexplored_cells))
 
-    def _choose(self, domain: CoverageDomain, e: np.ndarray, p: np.ndarray, cell, lloyd_step:
-                float, unexplored: float, area: np.ndarray) -> str:
+    def _choose(self, domain: CoverageDomain, e: np.ndarray, p: np.ndarray, cell: CellResult,
+                lloyd_step: float, unexplored: float, area: np.ndarray) -> str:
         """Keeps or picks ``self.target`` by the variant's rule; returns the mode."""
         if self.params.variant == "nearest":
             return self._nearest(domain, e, p, cell.nodes, cell.distances)
@@ -172,7 +175,7 @@ class ExploreStrategy(Strategy):
             self.target = closest_unexplored(domain, e, p, self.metric.tau)
         return "greedy" if self.target is not None else "lloyd"
 
-    def _domain(self, belief) -> tuple[CoverageDomain, np.ndarray]:
+    def _domain(self, belief: BeliefSnapshot) -> tuple[CoverageDomain, np.ndarray]:
         """The belief's entropy domain, with this robot's banned unexplored vertices taken as
         occupied (memoized per belief snapshot and ban)."""
         radius, connectivity = self.context.robot.radius, len(self.context.domain.graph.offsets)
@@ -191,18 +194,18 @@ class ExploreStrategy(Strategy):
         """Whether the target was just given up (see module docstring); bans its pocket, or
         around it."""
         t = self.target
-        near = t is not None and float(np.hypot(*(t - p))) <= self.params.give_up_radius
-        if not near:
+        if t is None or not float(np.hypot(*(t - p))) <= self.params.give_up_radius:
             self._near, self._pocket = None, None
             return False
         # A target within ban_radius of where it was, or in the same small pocket, is the same.
-        same = self._near is not None and (
-            np.hypot(*(self._near[0] - t)) <= self.params.ban_radius
+        held = self._near
+        same = held is not None and (
+            np.hypot(*(held[0] - t)) <= self.params.ban_radius
             or (self._pocket is not None and self._pocket[self._cell(domain, t)]))
-        if not same:
+        if held is None or not same:
             self._near, self._pocket = (t.copy(), now), self.pocket(domain, e, t)
             return False
-        if now - self._near[1] < self.params.give_up_after:
+        if now - held[1] < self.params.give_up_after:
             return False
         if self.banned is None:
             self.banned = np.zeros(domain.shape, bool)
@@ -212,7 +215,7 @@ class ExploreStrategy(Strategy):
             self.banned |= pocket
         else:
             centres = domain.to_map(domain.node_centers(np.arange(self.banned.size)))
-            for point in (self._near[0], t):
+            for point in (held[0], t):
                 close = np.hypot(*(centres - point).T) <= self.params.ban_radius
                 self.banned |= close.reshape(domain.shape)
         self.given_up.append(t.copy())
@@ -241,7 +244,7 @@ class ExploreStrategy(Strategy):
         if not unexplored[cell]:
             return None
         labels, _ = ndimage.label(unexplored, structure=np.ones((3, 3), bool))
-        mine = labels == labels[cell]
+        mine: np.ndarray = labels == labels[cell]
         if mine.sum() * domain.resolution ** 2 > self.params.ban_pocket_area:
             return None
         return mine
@@ -314,4 +317,5 @@ def closest_unexplored(domain: CoverageDomain, e: np.ndarray, p: np.ndarray,
     k = int(np.argmin(best))
     if not np.isfinite(best.ravel()[k]):
         return None
-    return domain.to_map(domain.node_centers(np.array([k])))[0]
+    point: np.ndarray = domain.to_map(domain.node_centers(np.array([k])))[0]
+    return point

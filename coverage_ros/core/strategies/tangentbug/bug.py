@@ -182,7 +182,8 @@ class TangentBug:
             heading, approach = self._motion_to_goal(x, rel, L, reach)
         if self.mode is BugMode.BOUNDARY_FOLLOWING:
             heading = self._follow(x, rel, L, reach)
-            if self.mode is BugMode.MOTION_TO_GOAL:  # left the boundary
+            # (_follow changes the mode when it leaves the boundary)
+            if self.mode is BugMode.MOTION_TO_GOAL:  # type: ignore[comparison-overlap]
                 heading, approach = self._motion_to_goal(x, rel, L, reach)
         if self.mode is BugMode.PROJECTING:
             heading, approach = self._project(x, rel, L, reach)
@@ -272,7 +273,8 @@ class TangentBug:
             ok = np.flatnonzero(L[ks] >= need - 1e-9)
             if len(ok):
                 self._node_side = int(side[k])
-                return self._dirs[ks[ok[0]]]
+                heading: np.ndarray = self._dirs[ks[ok[0]]]
+                return heading
         return None
 
     def _follow(self, x: np.ndarray, rel: np.ndarray, L: np.ndarray,

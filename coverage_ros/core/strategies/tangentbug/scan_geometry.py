@@ -41,7 +41,8 @@ def free_lengths(offsets: np.ndarray, directions: np.ndarray, radius: float,
     blocks = (along > 0) & (across2 < r2)
     with np.errstate(invalid="ignore"):
         t = np.where(blocks, along - np.sqrt(np.maximum(r2 - across2, 0.0)), np.inf)
-    return np.clip(t.min(axis=1), 0.0, horizon)
+    free: np.ndarray = np.clip(t.min(axis=1), 0.0, horizon)
+    return free
 
 
 def scan_nodes(offsets: np.ndarray, clearance: float,
@@ -72,10 +73,11 @@ def scan_nodes(offsets: np.ndarray, clearance: float,
     typical = float(np.median(gap))
     hole = gap > GAP_BEAMS * max(typical, 1e-6)
     step = rng[nxt] - rng
-    ends, opens = [], []
+    ends: list[int] = []
+    opens: list[float] = []
     for k in np.flatnonzero(hole | (np.abs(step) > jump)):
         if hole[k] or step[k] > 0:  # open counter-clockwise of return k
-            ends.append(k)
+            ends.append(int(k))
             opens.append(1.0)
         if hole[k] or step[k] < 0:  # open clockwise of return k + 1
             ends.append(int(nxt[k]))
@@ -126,4 +128,5 @@ def closest_on_polyline(polyline: np.ndarray, point: np.ndarray,
     t = np.clip(((point - a) * ab).sum(axis=1) / np.maximum((ab * ab).sum(axis=1), 1e-300),
                 0.0, 1.0)
     q = a + t[:, None] * ab
-    return q[int(np.argmin(np.hypot(*(q - point).T)))].copy()
+    closest: np.ndarray = q[int(np.argmin(np.hypot(*(q - point).T)))].copy()
+    return closest

@@ -122,8 +122,8 @@ def team_costs(domain: CoverageDomain, real: np.ndarray, virtual: np.ndarray,
 
 def decision_costs(decisions: Sequence[Decision]) -> tuple[float, float]:
     """``(H_real, H_virtual)`` summed over a team's decisions (every robot heard all others)."""
-    details = [d.details for d in decisions]
-    if not all(isinstance(x, TangentBugDetails) for x in details):
+    details = [d.details for d in decisions if isinstance(d.details, TangentBugDetails)]
+    if len(details) != len(decisions):
         raise ConfigError.at("decision_costs", "needs the decisions of tangentbug robots")
     return (float(sum(x.cost_real for x in details)),
             float(sum(x.cost_virtual for x in details)))
@@ -153,7 +153,7 @@ class TangentBugStrategy(Strategy):
         self.loops: list[tuple[np.ndarray, int]] = []  # completed loops (positions, side)
         self.converged = False
         self._last_time: float | None = None
-        self._cells: dict[str, tuple[tuple, EuclideanCell]] = {}
+        self._cells: dict[str, tuple[tuple[object, ...], EuclideanCell]] = {}
         self._heard: set[int] = set()  # neighbours known when the targets were taken
         self._anchor: tuple[np.ndarray, float] | None = None  # (position, time) of progress
         self._unmasked = False  # stuck: the bug sees the neighbours (see _stuck)
@@ -274,6 +274,7 @@ class TangentBugStrategy(Strategy):
         self.virtual_target = centroid.copy()
         real, projected = self._project_known(centroid)
         if self.projected and self._projection_of is not None and \
+                self.real_target is not None and \
                 float(np.hypot(*(centroid - self._projection_of))) < tol:
             # Keep the projection found for (nearly) this target: the remembered loop's
             # closest point may lie in the band the clearance keeps the robot out of, and
@@ -329,4 +330,5 @@ def _off_neighbours(points: np.ndarray, neighbours: Sequence[Neighbour],
     P = np.array([n.position for n in neighbours], dtype=np.float64)
     r = np.array([float(n.state.extra.get("radius", radius)) for n in neighbours])
     d2 = ((points[:, None, :] - P[None, :, :]) ** 2).sum(axis=-1)
-    return (d2 > (r + NEIGHBOUR_MASK_MARGIN) ** 2).all(axis=1)
+    off: np.ndarray = (d2 > (r + NEIGHBOUR_MASK_MARGIN) ** 2).all(axis=1)
+    return off

@@ -14,9 +14,9 @@ Maps: the shared map_server maps (tb3_sandbox, depot, warehouse) and the shipped
 ``--resolution`` (coarser cells where the map's own are finer: an occupied or unknown fine cell
 makes its coarse cell so), which keeps a restart of the largest map within seconds.
 
-Writes ``docs/results/closets.json`` (``--json``): the runs under their ``--label`` (e.g.
-before / after), each with its settings, the restarts per map (kept and reused by later labels
-with the same settings) and provenance.
+Writes ``docs/results/closets.json`` (``--json``): one row per label and map (``rows``), the
+runs under their ``--label`` (e.g. before / after), each with its settings and provenance, and
+the restarts per map (kept and reused by later labels with the same settings).
 
     scripts/bench_closets --label before [--maps ward,office] [--seeds 3] [--restarts 8]
 """
@@ -192,12 +192,40 @@ def main(argv: list[str] | None = None) -> int:
         result = bench_map(name, args, stored, say)
         stored[name] = result["restarts"]
         label["maps"][name] = {"settings": result["settings"], "cases": result["cases"]}
-        _best_and_ratios(data)
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps(data, indent=1))
+        write(data, args.json, args.label)
     print(table(data))
     say(f"wrote {args.json}")
     return 0
+
+
+def write(data: dict, path: Path, label: str) -> None:
+    """The results file: the provenance of run ``label`` on top, one row per label and map
+    (the docs' table), then the restarts and every case."""
+    _best_and_ratios(data)
+    top = {**data["runs"][label]["provenance"],
+           "settings": data["runs"][label]["settings"],
+           "targets": [{"figure": "H_final / H_best, every start seed of a map",
+                        "target": f"<= {TARGET:g}"}],
+           "rows": rows(data)}
+    out = {**top, **{k: v for k, v in data.items() if k not in top}}
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(out, indent=1))
+
+
+def rows(data: dict) -> list[dict]:
+    """One row per label and map: N, the best known H, each start seed's ratio."""
+    out = []
+    for label, run in data["runs"].items():
+        for name, m in run["maps"].items():
+            best = data["best"].get(name, {})
+            out.append({"label": label, "map": name, "restarts": best.get("restarts"),
+                        "H_best": best.get("H"),
+                        "ratios": [round(c["ratio"], 4) for c in m["cases"]],
+                        "relocations": [c.get("relocations", 0) for c in m["cases"]],
+                        "worst_ratio": m["worst_ratio"], "met": m["met"],
+                        "run": {"commit": run["provenance"].get("commit"),
+                                "date": run["provenance"].get("date")}})
+    return out
 
 
 def _best_and_ratios(data: dict) -> None:

@@ -21,6 +21,7 @@ from coverage_ros.core.strategies.base import (
     Observation,
     SharedState,
     Strategy,
+    StrategyContext,
     StrategyDetails,
 )
 from coverage_ros.core.strategies.handover import Handover, HandoverSettings
@@ -95,7 +96,7 @@ class GeodesicStrategy(Strategy):
     Params: ClassVar[type] = GeodesicParams
     params: GeodesicParams
 
-    def __init__(self, context, params: GeodesicParams | None = None) -> None:
+    def __init__(self, context: StrategyContext, params: GeodesicParams | None = None) -> None:
         super().__init__(context, params)
         self.cache = SearchCache()
         self.handover = Handover(context.robot_id, context.domain, self.params.handover(),

@@ -143,15 +143,17 @@ class Handover:
         """Under way to the claimed cell's point: done on arrival, after ``transit`` updates,
         or when the claimed robot is gone."""
         self.claim_age += 1
+        target = self.target
+        assert target is not None  # set with the claim, kept while relocating
         arrive = max(ARRIVAL_TOLERANCES * convergence_tolerance,
                      ARRIVAL_CELLS * self.domain.resolution)
-        near = float(np.hypot(*(self.target - position))) < arrive
+        near = float(np.hypot(*(target - position))) < arrive
         if near or self.claim_age > self.settings.transit or self.claim not in by_id:
             self._drop()
             return HandoverStep(None, _idle(), busy=True)
         extra = _idle()
         extra.update(claim=float(self.claim), claim_gain=self.claim_gain)
-        return HandoverStep(self.target.copy(), extra, busy=True)
+        return HandoverStep(target.copy(), extra, busy=True)
 
     def _follow_claim(self, by_id: dict[int, Neighbour]) -> None:
         """A claim made earlier: relocate once granted, drop it when refused or stale."""

@@ -37,7 +37,7 @@ def value_text(value: object) -> str:
     if value is None:
         return ""
     if isinstance(value, float):
-        return f"{value:.4g}"
+        return f"{value:.0f}" if abs(value) >= 1000 else f"{value:.4g}"
     if isinstance(value, list):
         return ", ".join(value_text(v) for v in value) if value else "-"
     if isinstance(value, dict):
@@ -186,7 +186,7 @@ def papers_markdown(data: dict) -> str:
                     text += f" ({r['better']})"
                 if key == "verdict" and r.get("baseline"):
                     text = f"baseline: {text}"
-                if key == "setting" and r.get("redrawn"):
+                if key == "setting" and r.get("redrawn") and "re-drawn" not in text:
                     text += " (re-drawn)"
                 values.append(cell(text))
             out.append("| " + " | ".join(values) + " |")

@@ -161,6 +161,7 @@ PAPER_COLUMNS = (("figure", "figure"), ("setting", "setting"), ("metric", "metri
                  ("paper_value", "paper's value (target)"), ("ours_median", "ours: median"),
                  ("ours_worst", "ours: worst"), ("seeds", "seeds"), ("verdict", "verdict"))
 VERDICTS = ("as good or better", "within 20 %", "worse")
+BETTER = {"lower": "lower is better", "higher": "higher is better", "close": "to match"}
 
 
 def papers_markdown(data: dict) -> str:
@@ -183,7 +184,7 @@ def papers_markdown(data: dict) -> str:
             for key, _ in PAPER_COLUMNS:
                 text = value_text(r.get(key))
                 if key == "metric" and r.get("better"):
-                    text += f" ({r['better']})"
+                    text += f" ({BETTER.get(r['better'], r['better'])})"
                 if key == "verdict" and r.get("baseline"):
                     text = f"baseline: {text}"
                 if key == "setting" and r.get("redrawn") and "re-drawn" not in text:

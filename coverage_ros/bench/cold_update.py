@@ -18,11 +18,12 @@ from __future__ import annotations
 import statistics
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from coverage_ros.bench.environment import DEPOT
-from coverage_ros.core.geodesic.cell import SearchCache, geodesic_cell
+from coverage_ros.core.geodesic.cell import CellResult, SearchCache, geodesic_cell
 from coverage_ros.core.geodesic.domain import CoverageDomain
 from coverage_ros.core.geodesic.tessellation import Generator, tessellate
 from coverage_ros.core.geodesic.world_domain import world_domain
@@ -54,7 +55,7 @@ def bench_cold_update(rounds: int, say, world_path: Path = DEPOT) -> list[dict]:
     return rows
 
 
-def _cold(domain: CoverageDomain, gens: list[Generator], k: int) -> tuple[float, object]:
+def _cold(domain: CoverageDomain, gens: list[Generator], k: int) -> tuple[float, CellResult]:
     """One cold update of robot ``k``: [s] and its result. A whole-map search is memoized per
     generator set (robots of one process that see the same team share it); a robot's next
     update has moved, so it is forgotten first."""
@@ -84,7 +85,7 @@ def _row(domain: CoverageDomain, name: str, P: np.ndarray, rounds: int, say,
         tess = tessellate(domain, gens)
         ref.append(time.perf_counter() - t)
         assert np.array_equal(np.sort(cell.nodes), np.flatnonzero(tess.labels.ravel() == k))
-    row = {"configuration": name, "cell_cells": int(len(cell.nodes)),
+    row: dict[str, Any] = {"configuration": name, "cell_cells": int(len(cell.nodes)),
            "map_free_cells": int(domain.free.sum()), "passes": cell.passes,
            "cold_ms": round(1e3 * statistics.median(cold), 1),
            "warm_ms": round(1e3 * statistics.median(warm), 1),

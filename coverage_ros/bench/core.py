@@ -156,7 +156,7 @@ def bench_scaling(configs: list[tuple[int, int]], updates: int, seed: int) -> li
         domain = CoverageDomain.from_grid(l_shaped_grid(n), 0.0)
         P = lattice(domain, k, rng)
         own = (k // 2) * k + k // 2
-        row = {"size": n, "robots": k * k}
+        row: dict[str, float] = {"size": n, "robots": k * k}
         for mode in ("paper", "visibility"):
             cache = SearchCache()
             ts, cells = [], []

@@ -140,8 +140,10 @@ def _two_lines_each(children: list[subprocess.Popen], deadline: float) -> list[l
     lines: list[list[str]] = [[] for _ in children]
 
     def read(k: int) -> None:
+        out = children[k].stdout
+        assert out is not None
         for _ in range(2):
-            line = children[k].stdout.readline()
+            line = out.readline()
             if not line:
                 return
             lines[k].append(line)

@@ -21,6 +21,8 @@ import signal
 import subprocess
 import sys
 import time
+from collections.abc import Callable
+from typing import Any
 
 NEIGHBOURS = 15  # a robot of a 16-robot team hears 15 others
 STATE_HZ = 2.5  # [Hz] coverage_state of each neighbour
@@ -45,8 +47,17 @@ def _publisher(seconds: float) -> None:
     scan = node.create_publisher(LaserScan, "/robot_0/scan", 10)
     msg = RobotState(x=1.0, y=1.0, weight=1.0, mass=1.0, cost=1.0)
     laser = LaserScan(ranges=[1.0] * 360)
-    node.create_timer(1.0 / STATE_HZ, lambda: [p.publish(msg) for p in states])
-    node.create_timer(1.0 / POSE_HZ, lambda: (pose.publish(Odometry()), clock.publish(Clock())))
+
+    def publish_states() -> None:
+        for p in states:
+            p.publish(msg)
+
+    def publish_pose() -> None:
+        pose.publish(Odometry())
+        clock.publish(Clock())
+
+    node.create_timer(1.0 / STATE_HZ, publish_states)
+    node.create_timer(1.0 / POSE_HZ, publish_pose)
     node.create_timer(1.0 / SCAN_HZ, lambda: scan.publish(laser))
     end = time.monotonic() + seconds
     with contextlib.suppress(KeyboardInterrupt, ExternalShutdownException):
@@ -80,8 +91,10 @@ def _listener(kind: str, warmup: float, seconds: float) -> None:
     node.create_timer(0.1, lambda: None)  # tracking
     group = MutuallyExclusiveCallbackGroup() if kind == "multi" else None
     node.create_timer(0.5, lambda: None, callback_group=group)  # coverage update
-    executor = {"multi": MultiThreadedExecutor, "single": SingleThreadedExecutor,
-                "events": EventsExecutor}[kind]()
+    executors: dict[str, Callable[[], Any]] = {
+        "multi": MultiThreadedExecutor, "single": SingleThreadedExecutor,
+        "events": EventsExecutor}
+    executor = executors[kind]()
     executor.add_node(node)
     end_warm = time.monotonic() + warmup
     while time.monotonic() < end_warm:

@@ -107,7 +107,8 @@ def summarize(rows: list[dict], duration: float) -> dict:
     groups: dict[tuple[str, int], dict[str, list[dict]]] = {}
     for r in rows:
         groups.setdefault((r["world"], r["robots"]), {}).setdefault(r["method"], []).append(r)
-    table, ratios = [], {m: [] for m in METHODS if m != "frontier"}
+    table: list[dict] = []
+    ratios: dict[str, list[float]] = {m: [] for m in METHODS if m != "frontier"}
     for (world, robots), by_method in sorted(groups.items()):
         base = by_method.get("frontier", [])
         base95 = {r["seed"]: t(r, "0.95") for r in base}
@@ -125,7 +126,7 @@ def summarize(rows: list[dict], duration: float) -> dict:
                 ratios[method].extend(per_seed)
             table.append(entry)
     overall = {m: round(float(np.mean(v)), 3) for m, v in ratios.items() if v}
-    best = min(overall, key=overall.get) if overall else None
+    best = min(overall, key=lambda m: overall[m]) if overall else None
     return {"table": table, "ratio_95_mean": overall, "best": best,
             "target": f"coordinated time to 95 % <= {TARGET_RATIO} x the frontier baseline's",
             "met": bool(best is not None and overall[best] <= TARGET_RATIO)}

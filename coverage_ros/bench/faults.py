@@ -54,7 +54,7 @@ def figures(summary: dict, reference_H: float | None) -> dict:
 SECTIONS = ("loss", "hosts", "restarts", "fuzz", "soak")
 
 
-def loss_section(args, team_args: list[str], tmp: Path, ref_H: float, say) -> dict:
+def loss_section(args, team_args: list[str], tmp: Path, ref_H: float | None, say) -> dict:
     out = {}
     for share in args.loss:
         say(f"{100 * share:.0f} % of UDP packets dropped ...")
@@ -66,7 +66,7 @@ def loss_section(args, team_args: list[str], tmp: Path, ref_H: float, say) -> di
     return out
 
 
-def hosts_section(args, team_args: list[str], tmp: Path, ref_H: float, say) -> dict:
+def hosts_section(args, team_args: list[str], tmp: Path, ref_H: float | None, say) -> dict:
     """Three hosts: world and robots 0-1 on the first, robot 2 on the second, robot 3 (and any
     further ones, alternately) on the third; simple discovery, then a discovery server."""
 
@@ -87,7 +87,7 @@ def hosts_section(args, team_args: list[str], tmp: Path, ref_H: float, say) -> d
     return out
 
 
-def restarts_section(args, team_args: list[str], tmp: Path, ref_H: float, say) -> dict:
+def restarts_section(args, team_args: list[str], tmp: Path, ref_H: float | None, say) -> dict:
     """Robot 1's process killed and started again a third into the run, robot 2's at half."""
     plan = [f"1@{args.duration / 3:g}", f"2@{args.duration / 2:g}"]
     say(f"restarts {', '.join(plan)} ...")

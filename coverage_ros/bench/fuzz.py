@@ -14,6 +14,7 @@ kind of problem every ``WARN_PERIOD``).
 from __future__ import annotations
 
 import contextlib
+import functools
 import itertools
 import math
 import os
@@ -31,7 +32,7 @@ from coverage_ros.cli.team.processes import ProcessSet, executable, ros_args
 from coverage_ros.nodes.robot_graph import robot_topics
 
 STARTS = "1.5,1.5,0.0;6.5,1.5,3.14;4.0,6.5,-1.57"  # the empty world is 8 m x 8 m
-ROBOTS = {0: {}, 1: {"pose_source": "tf"}, 2: {"explore": True}}
+ROBOTS: dict[int, dict[str, object]] = {0: {}, 1: {"pose_source": "tf"}, 2: {"explore": True}}
 READY_TIMEOUT = 90.0  # [s] wall: every robot has made an update, every topic has its listeners
 #: Warnings of one kind closer together than this count as not throttled (the nodes' throttle
 #: periods are 2 s (world) and 5 s; log stamps come from different clocks, hence the margin).
@@ -115,12 +116,14 @@ class FuzzTeam:
             with contextlib.suppress(ValueError):
                 self.states[rid] = (time.monotonic(), conv.coverage_state_values(msg))
 
+        def on_truth(rid: int, msg: Odometry) -> None:
+            self.truth[rid] = (time.monotonic(), msg)
+
         for rid in ROBOTS:
-            self.node.create_subscription(
-                Odometry, f"/robot_{rid}/ground_truth",
-                lambda m, r=rid: self.truth.__setitem__(r, (time.monotonic(), m)), 10)
+            self.node.create_subscription(Odometry, f"/robot_{rid}/ground_truth",
+                                          functools.partial(on_truth, rid), 10)
             self.node.create_subscription(RobotState, f"/robot_{rid}/coverage_state",
-                                          lambda m, r=rid: on_state(r, m), 10)
+                                          functools.partial(on_state, rid), 10)
         self.node.create_subscription(MarkerArray, "/coverage/markers", self.markers.append, 10)
 
     def spin(self, seconds: float) -> None:

@@ -104,6 +104,7 @@ def run_across_hosts(hosts: list[Host], out: Path, team_args: list[str], remote:
         ["ip", "netns", "exec", hosts[0].namespace, exe, "--quiet", "--out", str(out), *args],
         env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
         start_new_session=True)
+    assert launcher.stderr is not None
     robots: list[subprocess.Popen] = []
     placement = {}
     err_lines: list[str] = []

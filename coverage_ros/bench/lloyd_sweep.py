@@ -27,7 +27,7 @@ import numpy as np
 
 from coverage_ros.core.geodesic.domain import CoverageDomain
 from coverage_ros.core.offline.lloyd_team import EuclideanTeam, solve_lloyd
-from coverage_ros.core.world.density import GaussianMixture, UniformDensity
+from coverage_ros.core.world.density import Density, GaussianMixture, UniformDensity
 from coverage_ros.core.world.grid import OCCUPIED, GridMap
 
 SIDE = 20.0  # [m]
@@ -55,6 +55,7 @@ def scenario(seed: int, index: int) -> tuple[CoverageDomain, np.ndarray, dict]:
             r0, r1 = int((y - h / 2) / RESOLUTION), int((y + h / 2) / RESOLUTION)
             occ[max(r0, 0):r1, max(c0, 0):c1] = OCCUPIED
     grid = GridMap(occ, RESOLUTION, (0.0, 0.0, 0.0))
+    density: Density
     if kind == "uniform":
         density, parts = UniformDensity(), []
     else:

@@ -92,7 +92,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--hogs", type=int, default=2, help="busy processes beside the second run")
     ap.add_argument("--json", type=Path, help="also write the results here")
     args = ap.parse_args(argv)
-    rows = []
+    rows: list[dict] = []
     with tempfile.TemporaryDirectory(prefix="bench-lockstep-") as tmp:
         (Path(tmp) / "mixed.yaml").write_text(MIXED)
         for name in args.only or SCENARIOS:

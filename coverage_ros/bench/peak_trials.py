@@ -247,7 +247,7 @@ def run_trial(domain: CoverageDomain, clearance: Callable[[np.ndarray], np.ndarr
             rest = np.delete(np.arange(n), i)
             scan = simulate_scan(grid, pose, contexts[i].robot.lidar, pos[rest], radii[rest],
                                  blocked) if robot.needs_scan else None
-            nbrs = [Neighbour(j, shared[j]) for j in rest]
+            nbrs = [Neighbour(int(j), shared[j]) for j in rest]
             t0 = time.process_time()
             d = robot.update(Observation(i, pose, t, scan), nbrs)
             spent.append(time.process_time() - t0)

@@ -32,6 +32,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -42,9 +43,10 @@ ROBOTS = 8
 TOLERANCE = 1e-4  # [m]
 CC_VERSION = "1.3.1"
 #: What an earlier measurement gave, used where CoverageControl cannot be installed.
-CC_RECORDED = {"step_ms": [1.6, 2.0], "steps": 339,
-               "source": "CoverageControl 1.3.1 ClairvoyantCVT on this scenario, measured "
-                         "earlier on another machine (not re-measured here)"}
+CC_RECORDED: dict[str, Any] = {
+    "step_ms": [1.6, 2.0], "steps": 339,
+    "source": "CoverageControl 1.3.1 ClairvoyantCVT on this scenario, measured earlier on "
+              "another machine (not re-measured here)"}
 
 
 def cache_dir() -> Path:
@@ -102,6 +104,7 @@ def scenario(tmp: Path) -> dict:
     world = load_world(resolve_world_path(WORLD))
     domain = world_domain(world, world.robot_spec(0).radius)
     res = domain.resolution
+    assert world.bounds is not None  # (the scenario's world is walled)
     x0, y0, x1, y1 = world.bounds
     ox, oy, _ = domain.geometry.origin
     c0, r0 = round((x0 - ox) / res), round((y0 - oy) / res)
@@ -172,6 +175,7 @@ def bench_end_to_end(rounds: int, say) -> dict:
                          f"{theirs['controller_step_ms']:.2f} ms, end to end "
                          f"{theirs['end_to_end_ms_per_step']:.2f} ms/step")
             say(line)
+    result: dict[str, Any]
     result = {"scenario": {"world": WORLD, "robots": ROBOTS, "tolerance_m": TOLERANCE,
                            "command": " ".join(["coverage-plan", *plan_command(Path("plan.json"))[
                                -14:]])},

@@ -69,6 +69,7 @@ def soak_section(duration: float, folder: Path, say, robots: int = 8, world: str
         f"{len(restarts)} restarts ...")
     launcher = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
                                 text=True, start_new_session=True)
+    assert launcher.stderr is not None
     samples: dict[tuple[int, str], list[tuple[float, float]]] = {}
     logs_half: list[tuple[float, int]] = []
     t0 = last_say = time.monotonic()
@@ -94,7 +95,7 @@ def soak_section(duration: float, folder: Path, say, robots: int = 8, world: str
     summary = json.loads((out / "summary.json").read_text())
     per_process = {f"{name}[{pid}]": g for (pid, name), s in samples.items()
                    if (g := growth(s)) is not None}
-    worst = max(per_process, key=per_process.get) if per_process else None
+    worst = max(per_process, key=lambda k: per_process[k]) if per_process else None
     worst_series = next((s for (pid, name), s in samples.items()
                          if f"{name}[{pid}]" == worst), [])
     stride = max(len(worst_series) // 30, 1)
@@ -125,8 +126,8 @@ def _recoveries(series: list[list[float]], restarts: list[str]) -> list[dict]:
     """For each restart at sim time t: H just before it and the best H within RECOVERY."""
     out = []
     for item in restarts:
-        rid, t = item.split("@")
-        t = float(t)
+        rid, at = item.split("@")
+        t = float(at)
         before = [h for s, h in series if s <= t]
         after = [h for s, h in series if t < s <= t + RECOVERY]
         if not before or not after:

@@ -120,6 +120,7 @@ def run(args: argparse.Namespace) -> dict:
     radius = max(s.radius for s in specs)
     starts = team_starts(world, specs, args.starts, args.seed)
     if args.explore:
+        assert choice is not None  # (exploring plans are decentralized)
         from coverage_ros.cli.plan_explore import plan_exploration  # its simulator: only here
 
         summary = plan_exploration(args, world, path, choice, specs, starts, say)
@@ -143,13 +144,14 @@ def run(args: argparse.Namespace) -> dict:
         contexts = [StrategyContext(domain=domain, robot=specs[i], robot_id=i,
                                     convergence_tolerance=args.tolerance, seed=args.seed + i)
                     for i in range(args.robots)]
+        assert choice is not None
         done = run_offline(domain, choice, starts, contexts=contexts,
                            config=OfflineConfig(max_iterations=args.max_iterations),
                            progress=progress)
         result = Run(done.positions, done.iterations, done.converged, done.update_seconds)
         first = last = None
     else:
-        team = EuclideanTeam(domain) if args.strategy == "lloyd" else \
+        team = EuclideanTeam(domain) if args.strategy == "lloyd" or choice is None else \
             GeodesicTeam(domain, choice.params.method)
         result, first, last = _solve_team(args, team, weights, starts, progress)
     final, H0 = _score(domain, result.positions[-1], weights, last), \

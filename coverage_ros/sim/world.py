@@ -277,7 +277,7 @@ class World:
         by_lidar: dict[LidarSpec, list[Robot]] = {}
         for robot in due:
             by_lidar.setdefault(robot.spec.lidar, []).append(robot)
-        scans = []
+        scans: list[Scan] = []
         for group in by_lidar.values():
             ranges = self.scan_ranges([r.id for r in group])
             scans.extend(Scan(r.id, self.time, ranges[j], r.pose()) for j, r in enumerate(group))

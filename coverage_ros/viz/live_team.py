@@ -266,7 +266,7 @@ class LiveTeam:
                 and self._cells_due.due(t)):
             views = sorted((v for v in self.robots.values() if v.cell is not None),
                            key=lambda v: v.cell_order)
-            labels = compose_cell_labels(self.grid, [v.cell for v in views])
+            labels = compose_cell_labels(self.grid, [v.cell for v in views if v.cell is not None])
             self.rec.set_time(t)
             self.rec.log_cells(labels, [v.robot_id for v in views])
             self._cells_dirty = False

@@ -55,7 +55,7 @@ def render_plan(grid: GridMap, labels: np.ndarray | None, trajectories: np.ndarr
         edge[1:, :] |= own[1:, :] & (lab[1:, :] != lab[:-1, :])
         rgb[edge] *= 0.55
     img = Image.fromarray(np.flipud(rgb).clip(0, 255).astype(np.uint8), "RGB")
-    img = img.resize((W * scale, H * scale), Image.NEAREST)
+    img = img.resize((W * scale, H * scale), Image.Resampling.NEAREST)
     draw = ImageDraw.Draw(img)
 
     def px(points: np.ndarray) -> np.ndarray:

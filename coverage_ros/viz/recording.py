@@ -141,8 +141,7 @@ class CoverageRecorder:
             height = 1.1 * max(x1 - x0, y1 - y0)
             eye = rrb.EyeControls3D(position=(cx, cy, height), look_target=(cx, cy, 0.0),
                                     eye_up=(0.0, 1.0, 0.0))
-        view = rrb.Spatial3DView(origin="/world", name="map and cells",
-                                 **({"eye_controls": eye} if eye is not None else {}))
+        view = rrb.Spatial3DView(origin="/world", name="map and cells", eye_controls=eye)
         plots = [rrb.TimeSeriesView(origin="/metrics/H", name="coverage cost H"),
                  rrb.TimeSeriesView(origin="/metrics/mass", name="cell masses")]
         if self.exploring:

@@ -23,9 +23,9 @@ def rerun_executable() -> str:
     with contextlib.suppress(ImportError):
         import rerun_cli
 
-        exe = Path(rerun_cli.__file__).with_name("rerun")
-        if exe.is_file():
-            return str(exe)
+        packaged = Path(rerun_cli.__file__).with_name("rerun")
+        if packaged.is_file():
+            return str(packaged)
     exe = shutil.which("rerun")
     if exe is None:
         raise FileNotFoundError("the rerun binary (pip install rerun-sdk)")

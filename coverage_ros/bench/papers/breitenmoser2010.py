@@ -92,7 +92,10 @@ def run_traced(domain: CoverageDomain, choice: StrategyChoice | str, starts: np.
     blocked, radii = domain.geometry.occupied_mask(), np.full(n, robot.radius)
     published = [r.shared_state(Observation(i, np.array([*pos[i], yaw[i]]), 0.0))
                  for i, r in enumerate(robots)]
-    P, V, settled, decisions = [], [], 0, []
+    P: list[np.ndarray] = []
+    V: list[np.ndarray] = []
+    decisions: list[Decision] = []
+    settled = 0
     for it in range(1, max_iterations + 1):
         shared = [replace(published[i], position=pos[i].copy()) for i in range(n)]
         decisions = []
@@ -109,6 +112,7 @@ def run_traced(domain: CoverageDomain, choice: StrategyChoice | str, starts: np.
                            for d, p in zip(decisions, pos, strict=True)]))
         pos = pos.copy()
         for i, d in enumerate(decisions):  # unicycles, as run_offline's _move
+            assert d.velocity is not None, "run_traced runs self-steering strategies"
             v = float(np.clip(d.velocity[0], -robot.v_max, robot.v_max))
             w = float(np.clip(d.velocity[1], -robot.w_max, robot.w_max))
             q = pos[i] + v * dt * np.array([math.cos(yaw[i] + 0.5 * w * dt),

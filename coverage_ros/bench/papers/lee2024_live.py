@@ -119,7 +119,8 @@ SLOW, FAST = scenes.SLOW, scenes.FAST
 
 
 #: The methods a live figure runs side by side, as in the paper: (name, ``strategy_params``).
-METHODS = (("iCVT+Projection", {"dropout": False}), ("alpha-CVT", {}))
+METHODS: tuple[tuple[str, dict[str, object]], ...] = (
+    ("iCVT+Projection", {"dropout": False}), ("alpha-CVT", {}))
 
 
 def _fig(world: dict, starts: np.ndarray, speeds: np.ndarray, visible: bool, metric: str,

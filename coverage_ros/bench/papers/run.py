@@ -142,7 +142,8 @@ def main(argv: list[str] | None = None) -> int:
     t0 = time.perf_counter()
     rows = run_all(chosen, args.seeds, args.jobs)
     table = markdown(rows)
-    payload = {"rows": [r.as_json() for r in rows], "wall_time_s": time.perf_counter() - t0}
+    json_rows = [r.as_json() for r in rows]
+    payload = {"rows": json_rows, "wall_time_s": time.perf_counter() - t0}
     if args.markdown:
         args.markdown.write_text(table + "\n")
     if args.json:
@@ -150,7 +151,7 @@ def main(argv: list[str] | None = None) -> int:
     if not args.no_results:
         from coverage_ros.bench.results import update_rows
 
-        update_rows("papers", payload["rows"], ("paper", "figure", "setting", "metric"), argv,
+        update_rows("papers", json_rows, ("paper", "figure", "setting", "metric"), argv,
                     "scripts/bench_papers")
     print(table)
     ours = [r for r in rows if not r.baseline]

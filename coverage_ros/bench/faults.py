@@ -39,7 +39,7 @@ from coverage_ros.bench.fuzz import fuzz_section
 from coverage_ros.bench.hosts import hosts_network, run_across_hosts
 from coverage_ros.bench.soak import soak_section
 
-#: Issue target: at 20 % loss H within 15 % of the lossless run.
+#: Target: at 20 % loss H within 15 % of the lossless run.
 TARGET_RATIO = 1.15
 
 
@@ -203,7 +203,7 @@ def result_rows(results: dict) -> list[dict]:
 
 
 def report(results: dict, say) -> None:
-    """The Markdown table of the runs and the issue's targets, on stderr."""
+    """The Markdown table of the runs and the targets, on stderr."""
     rows = [("no fault", results.get("lossless"))]
     rows += [(f"{float(k):.0%} UDP loss", v) for k, v in results.get("loss", {}).items()]
     if "hosts" in results:

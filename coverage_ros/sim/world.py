@@ -60,7 +60,7 @@ class SimConfig:
     scan_noise_std: float | None = None  # [m] overrides every lidar's noise_std when set
     lidar_caster: str = "fast"  # "fast" (numpy) or "pymunk" (slow reference)
     # Robots scan in this many groups spread evenly over a scan period. Few groups let the
-    # vectorized caster serve many robots per call (2 groups: ~2x the throughput of 10).
+    # vectorized caster serve many robots per call.
     scan_groups: int = 2
 
     def __post_init__(self) -> None:

@@ -66,7 +66,7 @@ class Experiment:
     setting: str  # one line: what runs (world, agents, start, method)
     metrics: tuple[Metric, ...]
     run: RunFn
-    seeds: int = 5  # start clusters (or trials) to run; the issue asks for at least 5
+    seeds: int = 5  # start clusters (or trials) to run (at least 5)
     redrawn: bool = False  # the paper shows the setting only as a picture
     slow: bool = False  # minutes per seed: left out of ``--quick``
     live: bool = False  # starts the live team (processes over DDS): never run in parallel

@@ -243,8 +243,8 @@ def experiments() -> list[Experiment]:
              Metric("robots at their virtual generators at the end", 1.0, "higher"),
              Metric("updates in which H_virt rises", 0.0, "lower"),
              Metric("runs converged", 1.0, "higher")),
-            # slow: a target in the block sends its robot round the whole U (215 s of robot
-            # time, minutes of wall time); 15-40 s per seed otherwise
+            # slow: a target in the block sends its robot round the whole U (minutes of wall
+            # time)
             fig3, redrawn=True, slow=True, key="breitenmoser2010/fig3",
             note="the shipped U world (10 x 8 m, a 3 x 5.5 m block from the top wall); "
                  "TurtleBot3 discs with a simulated 120-beam lidar, not point robots with "

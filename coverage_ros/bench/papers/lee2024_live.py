@@ -32,8 +32,7 @@ DURATION = 240.0
 #: Robots per robot process (the launcher's composition): ten robots in two processes.
 ROBOTS_PER_PROCESS = 5
 #: [m] robots stop this near their goals (robot parameter ``arrival_tolerance``; the default
-#: 5 cm leaves Lloyd's last steps undone: Fig. 17a-c's alpha-CVT ended at I 0.06-0.07 from three
-#: corner starts of five, 0.034-0.038 from four with 2 cm).
+#: 5 cm leaves Lloyd's last steps undone).
 ARRIVAL_TOLERANCE = 0.02
 WORLD_RESOLUTION = 0.1  # [m] as the offline domains
 #: The walled room of Figs. 7 / 17d (10 m, two walls of 20 cm) as world obstacles.

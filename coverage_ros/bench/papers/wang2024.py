@@ -221,8 +221,7 @@ SCALING_NOTE = (
     "times as many paths through the clutter as 2 robots' (it shrinks with n by that alone). "
     "The starts keep the paper's margin (0.39 m, 7.8 radii) from every obstacle and robot "
     "body, so that the value measures how close the method takes the robots: with Table I's "
-    "0.3 m (6 radii) the team's minimum was its start in 13 of 16 traced trials (since "
-    "2026-11-27; before, 0.61 / 0.88 / 5.8 radii). "
+    "0.3 m (6 radii) the team's minimum was its start in 13 of 16 traced trials. "
     "The paper's 1.95 m margin (7.8 radii) is one 3-D trial in its forest; in 2-D clutter a "
     "robot whose centroid lies on its cell's buffered face comes within one radius of the "
     "obstacle: Lemma 1 guarantees no more")

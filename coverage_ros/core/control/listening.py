@@ -2,10 +2,8 @@
 (:class:`TeamListening`).
 
 A robot that updates before it knows a teammate standing next to it takes the space of both
-as its cell and heads the same way as that teammate. In a sandbox team of four whose two
-robots found each other 2 s after the others, the two ended on one side of the map - a worse
-local optimum of the coverage cost (1.28x and 1.44x the best plan, against 1.03-1.06x when
-everyone had heard everyone before moving). So a robot listens for ``first`` seconds (one look
+as its cell and heads the same way as that teammate: the two end on one side of the map, a
+worse local optimum of the coverage cost. So a robot listens for ``first`` seconds (one look
 at the ROS graph and the states found), and, when it knows the team's size, until it has heard
 every other robot, for at most ``timeout`` seconds.
 """

@@ -3,12 +3,11 @@ wanted to drive backs off from what blocks it, then plans again.
 
 A path is planned on the configuration space's cell centres, which lets it pass a real
 obstacle's corner a centimetre or two closer than the lidar check allows (a rotated table's
-corner rasterizes inside the true one): the filter stops the robot there for good. An office
-explorer stood 250 s at such a corner, its goal a room away. Like a navigation stack's
-recovery behaviours, :class:`StuckRecovery` then drives ``ESCAPE_DISTANCE`` away from the
-obstacle points around the robot (forward or backward, whichever needs less turning; the
-safety filter still checks every command, and lets a robot move away from what it is near),
-and asks for a new path from there.
+corner rasterizes inside the true one): the filter stops the robot there for good. Like a
+navigation stack's recovery behaviours, :class:`StuckRecovery` then drives
+``ESCAPE_DISTANCE`` away from the obstacle points around the robot (forward or backward,
+whichever needs less turning; the safety filter still checks every command, and lets a robot
+move away from what it is near), and asks for a new path from there.
 
 Only a blocked wanted motion counts: a robot standing at its goal, paused or driven by a person
 never escapes. A robot held by a neighbour ("robot ahead") waits longer, ``GIVE_WAY_TIME``, for

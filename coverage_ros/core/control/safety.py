@@ -72,13 +72,12 @@ class ScanMemory:
     """The lidar points near the robot, kept across scans in the map frame.
 
     A lidar sees nothing nearer than its range_min (0.12 m on a TurtleBot3, whose body reaches
-    0.105 m): an obstacle the robot creeps towards leaves the scan just before contact (a
-    sandbox explorer crept at 8 mm/s into a pillar's corner, its beams there all ``-inf``). A
-    point stays while the robot is within ``MEMORY_RADIUS`` of it and no later beam in its
-    direction measures anything: a measured direction is the newest scan's alone, so what moved
-    away (a neighbour) is forgotten, and the range noise of a wall seen again and again does not
-    pile up into a wall nearer than the real one (an office explorer stood for 250 s beside a
-    pillar it had room to pass, blocked by the nearest of its many noisy returns)."""
+    0.105 m): an obstacle the robot creeps towards leaves the scan just before contact (its
+    beams there all ``-inf``). A point stays while the robot is within ``MEMORY_RADIUS`` of it
+    and no later beam in its direction measures anything: a measured direction is the newest
+    scan's alone, so what moved away (a neighbour) is forgotten, and the range noise of a wall
+    seen again and again does not pile up into a wall nearer than the real one (a robot beside
+    a pillar it has room to pass would be blocked by the nearest of its many noisy returns)."""
 
     def __init__(self) -> None:
         self.points = np.zeros((0, 2))

@@ -193,8 +193,8 @@ def cold_radius(domain: CoverageDomain, centers: np.ndarray, weights: np.ndarray
     the metric's lower bound, plus the sampling gap. Geodesic distances are never shorter, so
     this is the cell's extent where it lies in plain sight of its robot; a cell that reaches
     further (round an obstacle) makes the search grow. A team still bunched up has a few very
-    large cells, which a radius from the nearest neighbours found only after many growth passes
-    (ten on depot with 16 robots: 0.55 s where one pass of the final radius took 0.19 s)."""
+    large cells, which a radius from the nearest neighbours found only after many growth
+    passes."""
     if any(domain.graph.wrap) or len(centers) < 2:
         return math.inf  # no straight lines across a chart's seam; a lone robot: everything
     key = ("cold_samples", COLD_STRIDE)

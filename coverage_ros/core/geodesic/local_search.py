@@ -44,8 +44,7 @@ WHOLE_SHARE = 0.5
 #: (``visibility`` sources, equal weights: cell.py). From about a third of the map on, its
 #: limited search (every neighbour's source joined to the cells it sees) costs as much as the
 #: whole-map search, which settles the cells in sight without searching and never has to grow
-#: (every robot of depot's start clusters of 16 and 64: the slowest cold update 131 -> 64 ms
-#: and 321 -> 238 ms against a share of 0.5; README, "A robot's first update").
+#: (README, "A robot's first update").
 SIGHT_WHOLE_SHARE = 0.35
 
 

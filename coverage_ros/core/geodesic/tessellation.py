@@ -190,7 +190,7 @@ def fast_tessellate(domain: CoverageDomain, gens: Sequence[Generator],
     power weights and ``visibility`` sources, the whole-domain search that settles every cell
     in line of sight of its nearest generator before searching the rest
     (:func:`~coverage_ros.core.geodesic.visible_first.visible_first_search`: the same labels
-    and distances, tested; 0.3-0.4 of its CPU time on depot); otherwise :func:`tessellate`. For
+    and distances, tested; a fraction of its CPU time); otherwise :func:`tessellate`. For
     the scores taken again and again during a run (the launcher's, the viewer's); the parity
     tests compare everything with :func:`tessellate` itself."""
     method = resolve_method(domain, method)

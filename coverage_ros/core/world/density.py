@@ -85,7 +85,7 @@ class GaussianMixture:
         for mean, cov, weight in zip(self.means, self.covariances, self.weights, strict=True):
             dx, dy = pts[:, 0] - mean[0], pts[:, 1] - mean[1]
             inv = np.linalg.inv(cov)
-            # d^T S^-1 d term by term (a three-operand einsum took 4 ms per 160 000 points)
+            # d^T S^-1 d term by term (faster than a three-operand einsum)
             m2 = inv[0, 0] * dx * dx + (inv[0, 1] + inv[1, 0]) * dx * dy + inv[1, 1] * dy * dy
             out += weight * np.exp(-0.5 * m2)
         return out

@@ -45,12 +45,9 @@ DEFAULT_FILTER_GAIN = 0.2
 #: test, so ``DropoutConfig`` leaves it off). A team in the dropout's limit cycle (greedy agents
 #: taking turns, I swinging between two values) improves on nothing, but the filter started at
 #: the first Delta I - the spread out of the start cluster, ~1 against epsilon's 0.002 - keeps
-#: the filtered value above epsilon for ~28 iterations at gain 0.2 whatever the team does (Fig.
-#: 3's corner starts: a limit cycle from the 6th iteration to the 27th; live, 2-3 s each). On
-#: one connected area the test ended live dropouts too early: in the walled room of Fig. 17d-f
-#: robots in transit through a corridor set no new low for many iterations, and the run ended
-#: at I^L 0.48-0.50 on three seeds of three with 5 and two of three with 10 (0.13-0.17 without
-#: the test; iCVT + projection, whose team stays split between the corridors, 0.50).
+#: the filtered value above epsilon for ~28 iterations at gain 0.2 whatever the team does. On
+#: one connected area the test would end live dropouts too early: robots in transit through a
+#: corridor set no new low for many iterations.
 STALL_ITERATIONS = 5
 
 

@@ -5,9 +5,9 @@ Why: with agents of different reach (Lee & Lee, Eqs. 16-18) a target is served i
 when the sum of its agents' R_i^2 matches its share of the mass - and several compositions do
 that. On the paper's Fig. 14 setting (5 agents at 0.4 m/s, 5 at 0.8 m/s, targets of 68 % and
 32 % of the mass) both "two fast agents" and "four slow and one fast" give the small target
-exactly its share, but only the first leaves cells that Lloyd can make equal (I^H 0.021
-against 0.052). Going from one to the other moves five agents, and every single move on the way
-raises I^H by 0.03-0.3: the one-agent relocation cannot get there.
+exactly its share, but only the first leaves cells that Lloyd can make equal. Going from one to
+the other moves five agents, and every single move on the way raises I^H: the one-agent
+relocation cannot get there.
 
 What: the targets' compositions (how many agents of each reach in each target) reachable by
 moving agents between two targets are ranked by how far their sums of R_i^2 are from the

@@ -5,9 +5,8 @@ The paper's epsilon (0.002) is a per-iteration figure. A live robot updates ever
 drives at most v_max * 0.5 s in that time, so I sampled per update changes by a fraction of an
 iteration's worth - and a robot crossing a doorway can raise I for a moment. Fed per update, the
 filtered Delta I falls below epsilon within seconds of the start and the dropout ends before
-it has moved anyone (the live Lee room: the switch was off for every robot 13 s into the run,
-with the team still split 6 + 2 + 2). The paper's real-time form (Alg. 3) tests Delta I between
-whole iterations too.
+it has moved anyone. The paper's real-time form (Alg. 3) tests Delta I between whole
+iterations too.
 
 So the decentralized switch is fed once per iteration, and an iteration of a robot ends when
 
@@ -31,8 +30,8 @@ own move's time limit keeps a robot that never reaches its goal from holding the
 
 Nor is I tested before every neighbour that runs the dropout has published a mass: the live
 robots make their first updates a few tenths of a second apart, and a test on the masses of
-the first two or three (no mass at or above tau_drop = k / (k - 1) mean M among them) ended
-the dropout of six robots of a live Lee room within 8 s (it ended split 5 + 3 + 2, I^L 0.33).
+the first two or three (no mass at or above tau_drop = k / (k - 1) mean M among them) would
+end the dropout before the team is split.
 """
 
 from __future__ import annotations

@@ -6,19 +6,17 @@ target gets while its dropout phase runs, and that phase ends on a filtered Delt
 whatever the split is then. From some starts it ends with the wrong split - e.g. one normal
 agent left among the greedy ones of an under-served target owns all of it once they are dropped,
 so nobody moves - or with a CVT inside one target whose cells are unequal; then iCVT +
-projection keeps that local minimum for good. Over six seeded corner clusters on two target
-shapes of our own, the published rule ended at I = 0.03-0.40 (the paper's Fig. 3: 0.046).
+projection keeps that local minimum for good.
 
 What: once the dropout is off and the team has settled (every agent at its goal), each of the
 few agents of least (normalised) mass j tries moving to the point of each of the heaviest cells
 h farthest from that cell's agent (the part of the cell its owner covers worst) and, in a team
 of one reach, to the point halfway to that agent (:func:`nudge_point`: one target's CVTs differ
 in how equal their cells are, and a step into a heavy neighbour's cell lets the team settle
-into a nearby, more equal one, where a far point rebuilds the same; a team of mixed reaches has
-few plans, and live on Fig. 18a-c's setting these steps spent them worse: median I^H 0.040
-against 0.027), and the team's iCVT + projection is run forward to convergence from there
-(:func:`.prediction.settle`). The best of these
-predictions is taken if its metric (I, I^L or I^H) is below the team's own future - the CVT
+into a nearby, more equal one, where a far point rebuilds the same; a team of mixed reaches
+keeps its few plans for farther moves), and the team's iCVT + projection is run forward to
+convergence from there (:func:`.prediction.settle`). The best of these predictions is taken
+if its metric (I, I^L or I^H) is below the team's own future - the CVT
 it reaches without a move - by at least ``margin`` (``mixed_margin`` in a team of mixed
 reaches); otherwise nothing moves. (Weighed against the present metric instead, a team whose
 live positions jitter about its CVT, or that still crawls towards it, would see a gain in a
@@ -35,11 +33,11 @@ densities differ, H prefers another split than equal masses); a move within a ta
 raise it by more than ``energy_slack`` (0.2 %: the L and disc's CVTs of more equal cells
 can cost that much more H).
 
-A team of mixed reaches can also *crawl*: on Fig. 18a-c's setting Lloyd's steps shrank to 1-3
-cm - below a live robot's goal tolerance, so live it stops - at I^H 0.097, while the CVT they
-lead to lies 2.6 m away at 0.018. Where the team's own future lies farther than
-:data:`JUMP_DISTANCE` from an agent and below the present metric by ``margin``, the *jump* -
-those agents straight to their places in it - is a candidate too (a plan, :mod:`.plans`).
+A team of mixed reaches can also *crawl*: Lloyd's steps shrink below a live robot's goal
+tolerance, so live it stops, far from the CVT they lead to. Where the team's own future lies
+farther than :data:`JUMP_DISTANCE` from an agent and below the present metric by ``margin``,
+the *jump* - those agents straight to their places in it - is a candidate too (a plan,
+:mod:`.plans`).
 
 Every move taken is predicted to end ``margin`` or more below the team's own future (a jump:
 below its present), and a run makes at most
@@ -69,16 +67,12 @@ from coverage_ros.core.strategies.acvt.prediction import coverage_energy, settle
 from coverage_ros.errors import ConfigError
 
 #: Fewest the predicted metric must fall by for a relocation to be made (absolute; I is a
-#: share of the mean mass, so this is 0.2 % of it). Predictions are weighed against the team's
-#: own future (settled alike), so live jitter does not show as a gain. With 0.005 (and no
-#: ``energy_slack``) the L and disc kept CVTs of I 0.046-0.048 from three starts of five, where
-#: one move reaches one of 0.0435.
+#: share of the mean mass, so this is 0.2 % of it): small enough for a single move out of a
+#: CVT of slightly unequal cells. Predictions are weighed against the team's own future
+#: (settled alike), so live jitter does not show as a gain.
 DEFAULT_MARGIN = 0.002
-#: :data:`DEFAULT_MARGIN` in a team of mixed reaches. Its moves are exchanges and swaps of
-#: robots of different speeds, which the live team follows less closely than the prediction:
-#: live on Fig. 18a-c's setting, with 0.002, a team at I^H 0.021 took a move predicted to
-#: reach 0.018 and stood at 0.098 twenty seconds later; two more moves followed, the last
-#: still under way at the run's end (0.34).
+#: :data:`DEFAULT_MARGIN` in a team of mixed reaches: its moves are exchanges and swaps of
+#: robots of different speeds, which the live team follows less closely than the prediction.
 DEFAULT_MIXED_MARGIN = 0.005
 #: Heaviest cells tried for each agent that may move.
 DEFAULT_CANDIDATES = 3
@@ -90,11 +84,9 @@ DEFAULT_HORIZON = 60
 #: Exchanges of several agents between targets tried in a heterogeneous team (:mod:`.exchange`).
 DEFAULT_EXCHANGES = 4
 #: Share by which the reach-weighted H may rise with an exchange or a move into another target
-#: (a change of the split between targets). Compositions that give every target its share of
-#: R^2 can differ in H either way: on Fig. 14's setting the one whose cells Lloyd can equalise
-#: (I^H 0.021) has a 7 % higher H than four slow agents and a fast one in the small target
-#: (I^H 0.052). And H weighs a target's agents by its density: on Fig. 4c's targets of equal
-#: mass (densities 0.9 and 0.4) it prefers 4 + 6 agents to 5 + 5 by 4 % (I 0.22 against 0.06).
+#: (a change of the split between targets): compositions that give every target its share of
+#: R^2 can differ in H either way, and H weighs a target's agents by its density, so it may
+#: prefer another split than equal masses.
 DEFAULT_EXCHANGE_SLACK = 0.1
 #: Updates of a settled team over which its metric must not fall by ``margin`` before a robot
 #: predicts a relocation from it (:class:`MetricLevel`).
@@ -176,7 +168,7 @@ class MetricLevel:
     still be converging (each step a few centimetres, after a relocation for many updates); a
     relocation predicted from there is weighed against a metric that the team is about to
     beat on its own, and plans made one after the other in that state spend a team's plans on
-    moves that overlap (Fig. 14's setting: four plans in 17 iterations, ending at I^H 0.098)."""
+    moves that overlap."""
 
     def __init__(self, window: int, margin: float) -> None:
         if isinstance(window, bool) or not isinstance(window, int) or window < 1:
@@ -290,9 +282,8 @@ def best_relocation(cells: MassCells, spec: CellSpec, positions: np.ndarray,
     best: Relocation | None = None
     far = np.flatnonzero(np.hypot(*(still - P).T) > JUMP_DISTANCE)
     if mixed and len(far) and before <= now - margin:
-        # The jump: on Fig. 18a-c's setting Lloyd's steps shrank to 1-3 cm (below a live
-        # robot's goal tolerance) at I^H 0.096 while its CVT, 2.6 m away, has 0.018. A plan
-        # (:mod:`.plans`) sends the robots there at once.
+        # The jump past a crawl (module docstring): a plan (:mod:`.plans`) sends the robots
+        # to the CVT at once.
         agents = tuple(int(a) for a in far)
         best = Relocation(agents, agents, still[far], now, before)
     for agents, into, points, slack, ahead in tries:

@@ -271,10 +271,9 @@ class AcvtStrategy(Strategy):
                       phase: bool) -> bool:
         """Whether the mass deviation of the team this robot hears (``labels`` of its ``k``
         generators) still falls after the dropout: by the paper's epsilon (Alg. 2's test of a
-        negligible Delta I) or more over this robot's last updates (:class:`MetricLevel`).
-        Lloyd's last steps are short - after a swap of two robots of different reach on Fig.
-        14's targets each robot moved 1-3 cm per update while I^H fell from 0.11 to 0.017 - and
-        a team counted converged by its step lengths alone stopped ``coverage-plan`` at 0.09."""
+        negligible Delta I) or more over this robot's last updates (:class:`MetricLevel`):
+        Lloyd's last steps are short while the metric still falls a lot, so step lengths alone
+        would count a team converged too early."""
         if phase or k < 2:
             self._team_level.reset()
             return False

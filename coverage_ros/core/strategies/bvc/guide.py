@@ -95,10 +95,9 @@ class Guide:
             # part of its Voronoi region within sensing range that its scans have seen free -
             # not only the current scan, and with the shadows of narrow obstacles (pillars,
             # teammates) filled in: space hidden behind them would otherwise not pull the
-            # robot, which then settles short of it, leaving that side thin - a stall of its
-            # own (H 1.26-1.31x the best plan on tb3_sandbox's pillars) where Lloyd over the
-            # true free space moves on. Without a map, space never seen behind a wall must not
-            # pull it, and it does not: a wall's shadow has no far side.
+            # robot, which then settles short of it, leaving that side thin. Without a map,
+            # space never seen behind a wall must not pull it, and it does not: a wall's shadow
+            # has no far side.
             scan, at = obs.scan, obs.scan_origin
             assert scan is not None  # (the strategy updates with a scan only)
             depths = bridge_shadows(scan.depths(), scan.angle_increment,

@@ -23,10 +23,9 @@ within ``give_up_radius`` of for ``give_up_after`` seconds while it stayed unexp
 (the blacklist of explore_lite's frontiers). What is banned then is the target's *pocket* - the
 connected unexplored vertices around it - when the pocket is at most ``ban_pocket_area``: the
 inside of a table whose outline has a gap is one such pocket, and banning it a ``ban_radius``
-disc at a time held a whole team at the table for minutes (a CI run: four robots at a 1.2 m
-table's edge, giving way to each other from 120 s to the end at 300 s, H at 0.68 of the
-start's). A larger pocket (a real frontier into the unknown) loses only the vertices within
-``ban_radius`` of the target. Targets in one pocket count as one while the robot stays near it.
+disc at a time would hold a whole team at the table for minutes. A larger pocket (a real
+frontier into the unknown) loses only the vertices within ``ban_radius`` of the target.
+Targets in one pocket count as one while the robot stays near it.
 Banned vertices are never targets again, and while unexplored they are occupied in this
 robot's coverage domain: its cell and Lloyd goal leave the given-up inside of a table out.
 """

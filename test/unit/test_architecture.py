@@ -14,8 +14,10 @@ from conftest import REPO
 
 PACKAGE = REPO / "coverage_ros"
 FORBIDDEN = ("rclpy", "pymunk", "rerun")
-#: Soft limit of a module's length ("~400 lines"): a module above it has more than one job.
-MAX_MODULE_LINES = 420
+#: [lines] limit of a module's length: a module above it has more than one job.
+MAX_MODULE_LINES = 400
+#: [lines] modules longer than this are near the limit, and only a few may be.
+NEAR_LIMIT_LINES, NEAR_LIMIT_MODULES = 360, 3
 
 
 def test_every_core_module_imports_without_ros_pymunk_or_rerun():
@@ -49,9 +51,11 @@ def test_every_source_folder_is_a_package():
 
 
 def test_modules_stay_small():
-    big = {str(p.relative_to(REPO)): n for p in PACKAGE.rglob("*.py")
-           if (n := len(p.read_text().splitlines())) > MAX_MODULE_LINES}
-    assert big == {}
+    lengths = {str(p.relative_to(REPO)): len(p.read_text().splitlines())
+               for p in PACKAGE.rglob("*.py")}
+    assert {p: n for p, n in lengths.items() if n > MAX_MODULE_LINES} == {}
+    near = {p: n for p, n in lengths.items() if n > NEAR_LIMIT_LINES}
+    assert len(near) <= NEAR_LIMIT_MODULES, near
 
 
 def test_generated_parameter_files_match_the_tables():

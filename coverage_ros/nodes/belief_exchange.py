@@ -17,6 +17,7 @@ No map server and no merge node: every robot fuses what it hears itself.
 from __future__ import annotations
 
 from collections.abc import Callable
+from functools import partial
 
 from nav_msgs.msg import OccupancyGrid
 from rclpy.node import Node
@@ -66,7 +67,7 @@ class BeliefExchange:
         if robot_id in self.heard:
             return
         self.heard[robot_id] = self.node.create_subscription(
-            PointCloud2, topic, lambda msg, rid=robot_id: self._on_observations(rid, msg),
+            PointCloud2, topic, partial(self._on_observations, robot_id),
             self._qos, event_callbacks=quiet_subscription())
 
     def _on_observations(self, robot_id: int, msg: PointCloud2) -> None:

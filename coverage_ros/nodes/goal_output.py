@@ -6,6 +6,8 @@ not seen it, and a robot whose goal no longer moves would otherwise wait for eve
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PoseStamped
@@ -19,7 +21,7 @@ class GoalOutput:
         """``publisher(msg_type, topic)`` creates the node's publishers."""
         self.shown = publisher(PoseStamped, "goal_pose")
         self.relay = None if drive else GoalRelay(resend_distance)
-        self.navigator = None
+        self.navigator: Any = None  # (a publisher with drive: false)
         self._listening = 0  # subscriptions to the navigator's topic at the last goal
         if not drive:
             self.navigator = self.shown if goal_topic == "goal_pose" else \
@@ -49,4 +51,5 @@ class GoalOutput:
             return
         self.relay.reset()
         if paused:
-            self.navigator.publish(conv.pose_stamped_msg(stamp, *(float(v) for v in pose)))
+            self.navigator.publish(conv.pose_stamped_msg(stamp, float(pose[0]), float(pose[1]),
+                                                         float(pose[2])))

@@ -43,7 +43,9 @@ INPUT_TIMEOUT = 5.0
 
 
 class LockstepRobot(Protocol):
-    robot_id: int
+    @property
+    def robot_id(self) -> int:
+        """The robot's id (robots work a tick in id order)."""
 
     def joinable(self) -> bool:
         """Ready to take part (built, its pose heard)."""
@@ -152,8 +154,9 @@ class LockstepDriver:
                     self._cond.wait(0.5)
                 if self._closed:
                     return
-            tick, robot = work
-            tick = self._wait_inputs(tick, robot)
+            assert work is not None  # (the loop above waits for one)
+            first, robot = work
+            tick = self._wait_inputs(first, robot)
             if tick is None:
                 continue  # a newer tick came (the world went on without this robot)
             self._working = robot.robot_id

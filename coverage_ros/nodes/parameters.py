@@ -9,10 +9,11 @@ from __future__ import annotations
 import json
 import textwrap
 from collections.abc import Mapping
+from typing import Any
 
 ParameterTable = Mapping[str, tuple[object, str]]
 
-def declare_parameters(node, table: ParameterTable) -> dict[str, object]:
+def declare_parameters(node, table: ParameterTable) -> dict[str, Any]:
     """Declare ``{name: (default, description)}`` on the rclpy ``node``; the values it was
     given. A value of the wrong type raises ParameterException (a start-up error)."""
     from rcl_interfaces.msg import ParameterDescriptor

@@ -36,7 +36,7 @@ class RegionInput:
     CoverageError refuses it: the region stays as it was)."""
 
     def __init__(self, node: Node, apply: Callable[[Region], None],
-                 warn: Callable[[str, str], None], initial: Region | None = None) -> None:
+                 warn: Callable[[str, str], object], initial: Region | None = None) -> None:
         self.region = initial or Region()
         self._apply, self._warn, self._log = apply, warn, node.get_logger()
         node.create_subscription(PolygonStamped, REGION_TOPIC, self._on_polygon, REGION_QOS)

@@ -26,7 +26,7 @@ from rclpy.parameter import Parameter
 from rclpy.utilities import remove_ros_args
 
 from coverage_ros.errors import ConfigError
-from coverage_ros.nodes.lockstep_member import LockstepDriver
+from coverage_ros.nodes.lockstep_member import LockstepDriver, LockstepRobot
 from coverage_ros.nodes.robot_node import DISCOVERY_PERIOD, RobotNode
 from coverage_ros.nodes.robot_shared import SharedInputs, StateHub
 from coverage_ros.nodes.runner import STARTUP_ERRORS, run_nodes
@@ -58,10 +58,11 @@ class ContainerNode(Node):
                          parameter_overrides=[Parameter("use_sim_time", value=bool(sim))])
         throttle = WarnThrottle(self.get_logger().warning)
         self.hub = StateHub(self, robots, prefix, throttle.warn)
-        self.driver = None
+        self.driver: LockstepDriver | None = None
         lockstep = [r.lockstep for r in robots if r.lockstep is not None]
         if lockstep:  # one driver answers the ticks for them all; neighbours from the ticks
-            self.driver = LockstepDriver(self, lockstep, throttle.warn, self.hub.roster)
+            self.driver = LockstepDriver(self, list[LockstepRobot](lockstep), throttle.warn,
+                                         self.hub.roster)
             for member in lockstep:
                 member.driver = self.driver
         if len(lockstep) < len(robots):
@@ -80,7 +81,7 @@ class ContainerNode(Node):
         if source is None or not hasattr(source, "detach_node"):
             return False
         source.detach_node()  # drops the robot's /clock subscription
-        self._time_source.attach_clock(robot.get_clock())
+        self._time_source.attach_clock(robot.get_clock())  # type: ignore[arg-type]  # a ROSClock
         return True
 
 

@@ -13,9 +13,14 @@ depends on when a message arrived or how long anything took.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from coverage_ros.core.lockstep import Inbox, Tick, ticks_per
 from coverage_ros.core.lockstep.inbox import EVIDENCE_KEY
 from coverage_ros.nodes import conversions as conv
+
+if TYPE_CHECKING:  # (the driver module imports this one's users)
+    from coverage_ros.nodes.lockstep_member import LockstepDriver
 
 
 class RobotLockstep:
@@ -24,7 +29,7 @@ class RobotLockstep:
     def __init__(self, node) -> None:
         self.node = node
         self.inbox = Inbox(node.robot_id)
-        self.driver = None  # the process's LockstepDriver, set by whoever made it
+        self.driver: LockstepDriver | None = None  # the process's, set by whoever made it
         self._posed = False
         self.evidence_stamp: float | None = None  # [s] of the newest evidence published
 

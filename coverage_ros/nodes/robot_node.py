@@ -81,7 +81,7 @@ class RobotNode(Node):
         self._world = inputs.world
         self._throttle = WarnThrottle(self.get_logger().warning)
         self._warn = self._throttle.warn  # (key, text)
-        self._last_tick = None
+        self._last_tick: float | None = None  # [s] the last tracking tick
         # Before the first update: listen for the team (wall time, as discovery runs).
         team = self.config.team_size
         self._listen = TeamListening(LISTEN_FIRST, team, self.config.listen_timeout)
@@ -111,13 +111,15 @@ class RobotNode(Node):
             self._build(self.config.map_free)  # the area, every cell free: the lidar decides
         elif self.config.map_topic:
             self.create_subscription(OccupancyGrid, self.config.map_topic, self._on_map, MAP_QOS)
-        else:
+        elif inputs.world is not None:
             self._build(inputs.world.grid)
+        else:
+            raise ConfigError.at("map_topic", "is empty and no 'world' gives the map", "")
         wall = Clock(clock_type=ClockType.STEADY_TIME)
         if self.get_parameter("use_sim_time").value:
             self._clock_guard = ClockGuard()
             self.create_timer(1.0, self._check_clock, clock=wall)
-        self._worker = None
+        self._worker: UpdateWorker | None = None
         if self.lockstep is not None:  # the ticks drive it; neighbours come with the ticks
             if not hub:
                 self.lockstep.driver = LockstepDriver(self, [self.lockstep], self._warn)
@@ -152,7 +154,7 @@ class RobotNode(Node):
                                     None if belief is not None else metric)
         self.controller = RobotController(domain, self.config.controller, belief)
         self.requests.apply(self.controller, self.config.manual)
-        if belief is not None:
+        if belief is not None and self.config.explore is not None:
             self.exchange = BeliefExchange(
                 self, belief, self.config.explore, self._throttle, self._now,
                 None if self.lockstep is None else self.lockstep.put_evidence)
@@ -257,12 +259,14 @@ class RobotNode(Node):
             time.monotonic(), len(self.controller.neighbours.entries))
         if warning:
             self.get_logger().warning(warning)
-        if not listening:
+        if not listening and self._worker is not None:
             self._worker.request(self._now())
 
     def _update(self, now: float) -> None:
         """One coverage update and its messages (on the worker thread)."""
         c = self.controller
+        if c is None:
+            return
         try:
             result = c.update(now)
         except Exception as exc:  # a strategy bug must not take the robot down: stop instead

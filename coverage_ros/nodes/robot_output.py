@@ -22,7 +22,7 @@ class RobotOutput:
     """The publishers of robot ``robot_id`` on ``node`` (``frames``: its frame names)."""
 
     def __init__(self, node, config: RobotNodeConfig, frames: conv.RobotFrames,
-                 warn: Callable[[str, str], None]) -> None:
+                 warn: Callable[[str, str], object]) -> None:
         self.config, self.frames, self.warn = config, frames, warn
         self.robot_id = config.controller.robot_id
 
@@ -63,6 +63,7 @@ class RobotOutput:
         """The last update's values (before the first update, presence) with the position
         and ``motion`` (velocity) fresh for the neighbours' safety filters."""
         state = dict(c.last.state) if c.last is not None else c.presence_state()
+        assert c.pose is not None  # (the node publishes no state before a pose)
         state.update(x=float(c.pose[0]), y=float(c.pose[1]), **motion, **(extra or {}))
         self.state_pub.publish(conv.coverage_state_msg(stamp, state, robot_id=self.robot_id))
 

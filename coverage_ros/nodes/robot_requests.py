@@ -26,7 +26,7 @@ class RobotRequests:
 
     def __init__(self, node, robot_id: int, teleop_topic: str, drive: bool, region: Region,
                  goals: GoalOutput, controller: Callable[[], RobotController | None],
-                 now: Callable[[], float], warn: Callable[[str, str], None]) -> None:
+                 now: Callable[[], float], warn: Callable[[str, str], object]) -> None:
         self.node, self.robot_id = node, robot_id
         self.teleop_topic, self.drive = teleop_topic, drive
         self.goals, self.controller, self.now, self.warn = goals, controller, now, warn

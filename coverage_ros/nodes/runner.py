@@ -29,6 +29,7 @@ import signal
 import sys
 import time
 from collections.abc import Callable
+from typing import Any
 
 import rclpy
 from rclpy.duration import Duration
@@ -129,7 +130,7 @@ class FatalConfigError(CoverageError):
 
 
 def run_node(name: str, make_node: Callable[[], Node], args=None,
-             cleanup: Callable[[Node], None] | None = None) -> int:
+             cleanup: Callable[[Any], None] | None = None) -> int:
     """Initialise rclpy, build the node, spin it until shutdown; the process exit code.
 
     ``cleanup(node)`` runs before the node is destroyed, whatever ended the spin; an error in
@@ -138,7 +139,7 @@ def run_node(name: str, make_node: Callable[[], Node], args=None,
 
 
 def run_nodes(name: str, make_nodes: Callable[[], list[Node]], args=None,
-              cleanup: Callable[[Node], None] | None = None) -> int:
+              cleanup: Callable[[Any], None] | None = None) -> int:
     """:func:`run_node` for several nodes in one process (the composition idiom): all of them
     on one executor (module docstring); ``cleanup`` runs for each before it is destroyed."""
     try:

@@ -25,7 +25,7 @@ TF_STATIC_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
 class TfPoseInput:
     def __init__(self, node: Node, frames: conv.RobotFrames,
                  take: Callable[[tuple[float, float, float], float], None],
-                 warn: Callable[[str, str], None]) -> None:
+                 warn: Callable[[str, str], object]) -> None:
         if conv.TFMessage is None:
             raise ConfigError.at("pose_source", "is tf but tf2_msgs is not importable", "tf",
                                  "run scripts/bootstrap.sh (it builds tf2_msgs), or "

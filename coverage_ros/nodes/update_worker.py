@@ -179,7 +179,7 @@ class UpdateWorker:
     executor thread, whose tracking must not wait for them), the longest-waiting robot first."""
 
     def __init__(self, run: Callable[[float], None], load: float,
-                 on_error: Callable[[Exception], None] | None = None,
+                 on_error: Callable[[Exception], object] | None = None,
                  burst: float = UPDATE_BURST,
                  slots: UpdateTurns | None = None,
                  pool: UpdatePool | None = None,

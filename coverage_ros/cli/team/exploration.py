@@ -17,6 +17,7 @@ At the end the merged belief is written as a map_server map, ``explored_map.yaml
 from __future__ import annotations
 
 from collections.abc import Callable
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -54,7 +55,7 @@ class TeamExploration:
         self._lockstep = lockstep
         self.subs = [node.create_subscription(
             PointCloud2, f"/{prefix}{i}/observations",
-            lambda msg, i=i: self._on_observations(i, msg),
+            partial(self._on_observations, i),
             TEAM_QOS if lockstep is None else LOCKSTEP_STATE_QOS,
             event_callbacks=quiet_subscription()) for i in robot_ids]
 

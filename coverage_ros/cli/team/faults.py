@@ -65,7 +65,7 @@ class FaultSchedule:
 
     def __init__(self, faults: list[Fault], procs: ProcessSet,
                  relaunch: Callable[[int], object], remove: Callable[[int], None],
-                 say: Callable[[str], None]) -> None:
+                 say: Callable[[str], object]) -> None:
         self.pending = sorted(faults)
         self.procs, self.relaunch, self.remove, self.say = procs, relaunch, remove, say
 

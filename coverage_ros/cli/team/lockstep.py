@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 import time
 from collections import deque
+from functools import partial
 
 from coverage_msgs.msg import LockstepReport, LockstepTick, RobotState
 
@@ -47,7 +48,7 @@ class LockstepObserver:
             for rid in robot_ids:
                 node.create_subscription(
                     RobotState, f"/{prefix}{rid}/coverage_state",
-                    lambda msg, rid=rid: self._on_state(rid, msg), LOCKSTEP_STATE_QOS,
+                    partial(self._on_state, rid), LOCKSTEP_STATE_QOS,
                     event_callbacks=quiet_subscription())
 
     def _on_state(self, rid: int, msg: RobotState) -> None:
@@ -55,7 +56,13 @@ class LockstepObserver:
             values = conv.coverage_state_values(msg)
         except ValueError:
             return  # the robots warn about bad states themselves
-        self.inbox.put_state(rid, conv.stamp_ns(msg.header.stamp), values)
+        if self.inbox is not None:
+            self.inbox.put_state(rid, conv.stamp_ns(msg.header.stamp), values)
+
+    def put_evidence(self, sender: int, stamp: int, evidence: object) -> None:
+        """Exploration evidence heard from ``sender``, stamped ``stamp`` [ns]."""
+        if self.inbox is not None:
+            self.inbox.put_evidence(sender, stamp, evidence)
 
     def _on_tick(self, msg: LockstepTick) -> None:
         tick = conv.tick_from_msg(msg)
@@ -134,6 +141,7 @@ def run_lockstep(monitor, observer: LockstepObserver, startup_timeout: float,
     t0 = time.monotonic()
     monitor.say("  waiting for the world and the robots (lock-step) ...")
     end = next_metrics = next_explore = math.inf
+    ready: float | None = None  # [s] sim time the team was ready
     last_progress = last_check = 0.0
     while True:
         rclpy.spin_once(monitor, timeout_sec=0.02)
@@ -155,15 +163,16 @@ def run_lockstep(monitor, observer: LockstepObserver, startup_timeout: float,
                                    f"{startup_timeout:g} s (see their logs)")
             continue
         log.sim_time = max(log.sim_time, tick.time)
-        if log.ready_at is None:
+        if ready is None:
             if not set(monitor.alive()) <= tick.robots:
                 continue  # tick 0 while the team joins: unanswered, the world does not start
             monitor.team_ready(t0)
+            ready = log.sim_time
             end = monitor.end
-            next_metrics = log.ready_at + METRICS_PERIOD
-            next_explore = log.ready_at
+            next_metrics = ready + METRICS_PERIOD
+            next_explore = ready
         t = tick.time
-        monitor.apply_faults(t - log.ready_at, slack=1e-9)
+        monitor.apply_faults(t - ready, slack=1e-9)
         if tick.status and t >= next_metrics - 1e-9:
             next_metrics += METRICS_PERIOD
             log.H_samples.append((t, monitor.cost()))
@@ -172,7 +181,7 @@ def run_lockstep(monitor, observer: LockstepObserver, startup_timeout: float,
             _wait_evidence(monitor, observer, tick)
             for evidence in observer.take_evidence(tick):
                 monitor.exploration.belief.merge(evidence)
-            fraction = monitor.exploration.sample(t - log.ready_at)
+            fraction = monitor.exploration.sample(t - ready)
             if monitor.explored_enough(fraction, monitor.config.until_explored):
                 return
         if tick.status and t >= end - 1e-9:

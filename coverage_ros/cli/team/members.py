@@ -52,7 +52,8 @@ def build_team(world: WorldSpec, config: RunConfig) -> list[TeamMember]:
                config.markers, per_process=per_process)
     if config.starts or any(m.start is None for m in members):
         starts = team_starts(world, [m.spec for m in members], config.starts, config.seed)
-        members = [replace(m, start=tuple(float(v) for v in starts[i]))
+        members = [replace(m, start=(float(starts[i][0]), float(starts[i][1]),
+                                     float(starts[i][2])))
                    for i, m in enumerate(members)]
     for rid in config.humans:
         if not 0 <= rid < len(members):

@@ -16,6 +16,7 @@ import math
 import sys
 import time
 from collections.abc import Callable
+from functools import partial
 
 import numpy as np
 from coverage_msgs.msg import RobotState, WorldStatus
@@ -75,7 +76,7 @@ class TeamMonitor(Node):
         self.faults = FaultSchedule(list(plan.faults), procs, relaunch, self._remove, say)
         # Only to see every robot come up (dropped once the team is ready).
         self.state_subs = [self.create_subscription(
-            RobotState, f"/robot_{i}/coverage_state", lambda m, i=i: self.states_seen.add(i),
+            RobotState, f"/robot_{i}/coverage_state", partial(self._state_seen, i),
             10, event_callbacks=quiet_subscription()) for i in range(self.n)]
         # Pause and resume the whole team: forwarded to every robot's own service.
         self.pause_clients = {i: self.create_client(SetBool, f"/robot_{i}/pause")
@@ -95,9 +96,12 @@ class TeamMonitor(Node):
             starts = np.array([m.start for m in self.team], dtype=np.float64)
             self.exploration = TeamExploration(
                 self, plan.world, starts, list(range(self.n)), plan.radius,
-                lockstep=None if self.observer is None else self.observer.inbox.put_evidence)
+                lockstep=None if self.observer is None else self.observer.put_evidence)
 
     # ------------------------------------------------------------------ inputs
+    def _state_seen(self, rid: int, msg: RobotState) -> None:
+        self.states_seen.add(rid)
+
     def _set_region(self, region: Region) -> None:
         base = self.base_domain
         self.domain = base if region.everywhere else base.with_density(
@@ -208,6 +212,7 @@ class TeamMonitor(Node):
                 raise RuntimeError(f"robots {missing} did not start within "
                                    f"{self.plan.startup_timeout:g} s (see their logs)")
         end = self.end
+        ready = log.sim_start if log.sim_start is not None else log.sim_time  # (= ready_at)
         last_progress = last_metrics = last_explored = 0.0
         metrics_wait = METRICS_PERIOD
         until = self.config.until_explored
@@ -221,7 +226,7 @@ class TeamMonitor(Node):
                 raise RuntimeError(
                     f"the simulation clock stood at {log.sim_time:.1f} s for {CLOCK_STALL:g} s "
                     "of wall time: the world node is stuck (see logs/world.log)")
-            self.apply_faults(log.sim_time - log.ready_at)
+            self.apply_faults(log.sim_time - ready)
             now = time.monotonic()
             if self.proc_stats is not None:
                 self.proc_stats.sample(now)
@@ -233,7 +238,7 @@ class TeamMonitor(Node):
                                    max(METRICS_PERIOD, took / METRICS_SHARE))
             if self.exploration is not None and now - last_explored >= EXPLORE_PERIOD:
                 last_explored = now
-                if self.explored_enough(self.exploration.sample(log.sim_time - log.ready_at),
+                if self.explored_enough(self.exploration.sample(log.sim_time - ready),
                                         until):
                     break
             if now - last_progress >= PROGRESS_PERIOD:
@@ -292,18 +297,19 @@ class TeamMonitor(Node):
             self.log.lost[i] = self.log.sim_time
 
     def progress(self, final: bool = False) -> None:
-        if self.config.quiet or self.log.ready_at is None or self.log.wall_start is None:
-            return
         log = self.log
+        ready, wall_start = log.ready_at, log.wall_start
+        if self.config.quiet or ready is None or wall_start is None:
+            return
         span = self.config.duration
-        frac = min(1.0, max(0.0, (log.sim_time - log.ready_at) / span))
-        wall = time.monotonic() - log.wall_start
+        frac = min(1.0, max(0.0, (log.sim_time - ready) / span))
+        wall = time.monotonic() - wall_start
         rtf = (log.sim_time - (log.sim_start or 0.0)) / wall if wall > 0 else 0.0
         H = log.H_samples[-1][1] if log.H_samples else math.nan
         bar = "#" * int(30 * frac) + "." * (30 - int(30 * frac))
         explored = "" if self.exploration is None else \
             f"  explored {100 * self.exploration.explored:5.1f} %"
-        line = (f"  [{bar}] sim {log.sim_time - log.ready_at:6.1f}/{span:g} s  rtf {rtf:4.2f}"
+        line = (f"  [{bar}] sim {log.sim_time - ready:6.1f}/{span:g} s  rtf {rtf:4.2f}"
                 f"  H {H:9.4g}  collisions {log.collisions}{explored}")
         if sys.stderr.isatty():
             print("\r" + line, end="\n" if final else "", file=sys.stderr, flush=True)

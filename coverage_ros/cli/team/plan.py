@@ -9,6 +9,7 @@ import os
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from coverage_ros.cli.team.faults import Fault, parse_faults
 from coverage_ros.cli.team.lockstep import OBSERVER
@@ -91,9 +92,9 @@ class RunPlan:
             lockstep=c.lockstep, lockstep_observers=OBSERVER,
             lockstep_start_timeout=self.startup_timeout + 30.0)
 
-    def bridge_params(self) -> dict[str, object]:
+    def bridge_params(self) -> dict[str, Any]:
         """rerun_bridge's parameters (the viewer's ports are added when it starts)."""
-        params: dict[str, object] = {"robot_radius": self.radius, "world": str(self.world_path),
+        params: dict[str, Any] = {"robot_radius": self.radius, "world": str(self.world_path),
                                      "use_sim_time": True, "explore": self.config.explore}
         if self.config.record:
             params["record_path"] = str((self.out / "recording.rrd").resolve())

@@ -192,6 +192,6 @@ class ProcessStats:
                               "rss_mb_peak": mean("rss_mb_peak")}}
         if robots and procs:
             out["per_robot"] = {
-                "cpu_percent": round(sum(r["cpu_percent"] for r in procs) / robots, 2),
-                "rss_mb": round(sum(r["rss_mb_peak"] for r in procs) / robots, 1)}
+                "cpu_percent": round(sum(r["cpu_percent"] or 0.0 for r in procs) / robots, 2),
+                "rss_mb": round(sum(r["rss_mb_peak"] or 0.0 for r in procs) / robots, 1)}
         return out

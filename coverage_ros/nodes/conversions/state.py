@@ -19,6 +19,7 @@ from builtin_interfaces.msg import Time
 from coverage_msgs.msg import (
     AcvtState,
     ExploreState,
+    HandoverState,
     RobotState,
     SimulatedRobot,
     TangentBugState,
@@ -35,6 +36,8 @@ _COMMON = ("x", "y", "weight", "radius", "v_max", "vx", "vy", "mass", "cost", "u
 _TANGENTBUG = ("virtual_x", "virtual_y", "cost_real", "cost_virtual", "converged")
 _ACVT = ("reach", "dropout", "iteration", "greedy", "settled", "relocating", "plan_from",
          "plan_seq")
+_HANDOVER = ("settled", "offer_gain", "offer_x", "offer_y", "offer_base", "claim",
+             "claim_gain", "grant")
 NAN = math.nan
 
 
@@ -77,6 +80,13 @@ def coverage_state_msg(stamp: Time, values: dict[str, float], frame_id: str = MA
     elif "greedy" in values:
         msg.explore = [ExploreState(greedy=bool(values["greedy"]))]
         used.add("greedy")
+    if "offer_gain" in values:
+        msg.handover = [HandoverState(
+            settled=bool(values.get("settled", 0.0)), offer_gain=_f(values, "offer_gain"),
+            offer_x=_f(values, "offer_x"), offer_y=_f(values, "offer_y"),
+            offer_base=_f(values, "offer_base"), claim=int(values.get("claim", -1.0)),
+            claim_gain=_f(values, "claim_gain"), grant=int(values.get("grant", -1.0)))]
+        used |= set(_HANDOVER)
     rest = sorted(k for k in values if k not in used)
     msg.extra_names = rest
     msg.extra_values = [float(values[k]) for k in rest]
@@ -126,6 +136,10 @@ def coverage_state_values(msg: RobotState, expected_frame: str = MAP_FRAME
                 out[f"plan_{i}_x"], out[f"plan_{i}_y"] = x, y
     for e in msg.explore:
         out["greedy"] = float(e.greedy)
+    for h in msg.handover:
+        out.update(settled=float(h.settled), offer_gain=h.offer_gain, offer_x=h.offer_x,
+                   offer_y=h.offer_y, offer_base=h.offer_base, claim=float(h.claim),
+                   claim_gain=h.claim_gain, grant=float(h.grant))
     out.update(zip(msg.extra_names, msg.extra_values, strict=True))
     stamp = from_time_msg(msg.evidence_stamp)
     if stamp > 0:

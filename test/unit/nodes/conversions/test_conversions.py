@@ -160,6 +160,12 @@ STATES = {
                              "update_ms": 2.0, "radius": 0.105, "v_max": 0.22,
                              "manual": 1.0, "paused": 0.0, "mode": -1.0, "greedy": 1.0,
                              "evidence_stamp": 12.3},
+    "geodesic, closet escape": {"x": 1.0, "y": 2.0, "weight": 0.0, "mass": 3.5, "cost": 1.25,
+                                "update_ms": 2.0, "radius": 0.105, "v_max": 0.22,
+                                "manual": 0.0, "paused": 0.0, "mode": 17.0, "settled": 1.0,
+                                "offer_gain": 0.5, "offer_x": 3.0, "offer_y": 4.0,
+                                "offer_base": 2.0, "claim": 4.0, "claim_gain": 0.25,
+                                "grant": -1.0},
     "another package's strategy": {"x": 1.0, "y": 2.0, "weight": 0.0, "radius": 0.105,
                                    "v_max": 0.22, "my_value": 4.5},
 }
@@ -173,9 +179,10 @@ def test_a_coverage_state_keeps_every_value_it_had(name):
     msg = conv.coverage_state_msg(conv.to_time_msg(5.0), values, robot_id=7)
     assert msg.robot_id == 7 and msg.header.frame_id == "map"
     assert conv.coverage_state_values(msg) == pytest.approx(values)
-    assert (len(msg.acvt), len(msg.tangentbug), len(msg.explore)) == {
-        "acvt presence": (1, 0, 0), "acvt with a plan": (1, 0, 0), "tangentbug": (0, 1, 0),
-        "exploring, lock-step": (0, 0, 1)}.get(name, (0, 0, 0))
+    assert (len(msg.acvt), len(msg.tangentbug), len(msg.explore), len(msg.handover)) == {
+        "acvt presence": (1, 0, 0, 0), "acvt with a plan": (1, 0, 0, 0),
+        "tangentbug": (0, 1, 0, 0), "exploring, lock-step": (0, 0, 1, 0),
+        "geodesic, closet escape": (0, 0, 0, 1)}.get(name, (0, 0, 0, 0))
     assert list(msg.extra_names) == (["my_value"] if "another" in name else [])
 
 

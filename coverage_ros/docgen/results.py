@@ -174,7 +174,12 @@ def papers_markdown(data: dict) -> str:
         own = [r for r in rows if r["paper"] == paper and not r.get("baseline")]
         counts = [sum(r["verdict"] == v for r in own) for v in VERDICTS]
         out.append(f"| {paper} | {len(own)} | " + " | ".join(map(str, counts)) + " |")
+    runs = list(dict.fromkeys((r["run"].get("command"), r["run"].get("commit"))
+                              for r in rows if isinstance(r.get("run"), dict)))
     out += ["", provenance_note(data, "papers")]
+    if len(runs) > 1:
+        out += ["", "The rows come from these runs: " + "; ".join(
+            f"`{command}` (commit `{commit}`)" for command, commit in runs) + "."]
     for paper in papers:
         out += ["", f"### {paper}", "",
                 "| " + " | ".join(label for _, label in PAPER_COLUMNS) + " |",

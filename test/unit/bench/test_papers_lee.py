@@ -129,7 +129,7 @@ def test_fig5_bullseye_and_fig4d_twin_targets():
 
 @pytest.mark.parametrize("shape", ["disc and rectangle", "strip and block", "triangle and L"])
 def test_own_two_target_shapes_end_balanced_from_every_start(shape):
-    """Issue 13's target beyond the paper's shapes: median I at or below the paper's Fig. 3
+    """Beyond the paper's shapes: median I at or below the paper's Fig. 3
     value, worst within twice it (the published rule ends at I = 0.2 from every start on the
     strip and block: 1 + 9 instead of 2 + 8)."""
     solver = AlphaCvt(scenes.own_shape(shape))

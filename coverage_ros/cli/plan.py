@@ -156,7 +156,8 @@ def run(args: argparse.Namespace) -> dict:
         result, first, last = _solve_team(args, team, weights, starts, progress)
     final, H0 = _score(domain, result.positions[-1], weights, last), \
         _score(domain, result.positions[0], weights, first).cost
-    ms = np.array(result.update_seconds) * 1e3
+    # sorted [ms]; np.median and np.percentile would import numpy.ma (15 ms) for two numbers
+    ms = np.sort(np.array(result.update_seconds) * 1e3)
     summary = {
         "map": str(path), "strategy": args.strategy, "solver": args.solver,
         "robots": args.robots,
@@ -164,8 +165,8 @@ def run(args: argparse.Namespace) -> dict:
         "positions": result.positions[-1].round(4).tolist(),
         "H": float(final.cost), "H_start": float(H0),
         "iterations": int(result.iterations), "converged": bool(result.converged),
-        "update_ms": {"median": float(np.median(ms)), "p90": float(np.percentile(ms, 90)),
-                      "max": float(ms.max())},
+        "update_ms": {"median": _quantile(ms, 0.5), "p90": _quantile(ms, 0.9),
+                      "max": float(ms[-1])},
         "grid": {"width": domain.shape[1], "height": domain.shape[0],
                  "resolution": domain.resolution},
         "masses": final.masses.round(6).tolist(),
@@ -191,6 +192,14 @@ def run(args: argparse.Namespace) -> dict:
         record(args.record, domain, world, result, args.robots, radius)
         say(f"  wrote {args.record} (open with: rerun {args.record})")
     return summary
+
+
+def _quantile(ordered: np.ndarray, q: float) -> float:
+    """np.quantile's default (linear) of ascending ``ordered``."""
+    at = q * (len(ordered) - 1)
+    lo = int(at)
+    hi = min(lo + 1, len(ordered) - 1)
+    return float(ordered[lo] + (at - lo) * (ordered[hi] - ordered[lo]))
 
 
 def _score(domain: CoverageDomain, positions: np.ndarray, weights: list[float],

@@ -158,9 +158,14 @@ class GridMap:
 
     def all_cell_centers(self) -> tuple[np.ndarray, np.ndarray]:
         """``(X, Y)``, each ``(H, W)``: map-frame coordinates of every cell centre."""
-        rows, cols = np.mgrid[0:self.height, 0:self.width]
-        xy = self.cell_centers(np.stack([rows.ravel(), cols.ravel()], axis=-1))
-        return xy[:, 0].reshape(self.shape), xy[:, 1].reshape(self.shape)
+        # x = o + R (c + 1/2, r + 1/2) res, summed from a row and a column term (no (H*W, 2)
+        # temporaries)
+        gx = (np.arange(self.width) + 0.5) * self.resolution
+        gy = (np.arange(self.height) + 0.5) * self.resolution
+        rot, (ox, oy) = self._rot, self.origin[:2]
+        X = (rot[0, 0] * gx + ox)[None, :] + (rot[0, 1] * gy)[:, None]
+        Y = (rot[1, 0] * gx)[None, :] + (rot[1, 1] * gy + oy)[:, None]
+        return X, Y
 
     def with_occupancy(self, occupancy: np.ndarray) -> GridMap:
         """A grid with the same geometry and new cell values."""

@@ -146,3 +146,12 @@ def test_picture_underlays_show_a_density_with_peaks_and_nothing_for_a_uniform_o
                            [[(1.0, 0.0), (2.0, 0.0)], []])
     assert tracks.shape == (3, 2, 2)
     assert tracks[:, 1].tolist() == [[5.0, 5.0]] * 3 and tracks[-1, 0].tolist() == [2.0, 0.0]
+
+
+@pytest.mark.parametrize("n", [1, 2, 7, 226])
+def test_summary_quantiles_are_numpys(n):
+    from coverage_ros.cli.plan import _quantile
+
+    ms = np.sort(np.random.default_rng(n).random(n))
+    for q in (0.5, 0.9):
+        assert _quantile(ms, q) == pytest.approx(np.quantile(ms, q), abs=1e-12)

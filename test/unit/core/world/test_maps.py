@@ -70,6 +70,18 @@ def test_rotated_origin_round_trips():
     assert grid.world_to_cell(grid.cell_centers(cells)).tolist() == cells.tolist()
 
 
+@pytest.mark.parametrize("yaw", [0.0, 0.7, -2.9])
+def test_all_cell_centres_are_every_cells_centre(yaw):
+    grid = GridMap(np.zeros((5, 7), np.int8), 0.3, (1.0, -2.0, yaw))
+    X, Y = grid.all_cell_centers()
+    rows, cols = np.mgrid[0:5, 0:7]
+    xy = grid.cell_centers(np.stack([rows.ravel(), cols.ravel()], axis=-1))
+    assert X.shape == Y.shape == (5, 7)
+    assert np.allclose(X.ravel(), xy[:, 0], atol=1e-12)
+    assert np.allclose(Y.ravel(), xy[:, 1], atol=1e-12)
+    assert grid.world_to_cell(np.stack([X[4, 6], Y[4, 6]])[None]).tolist() == [[4, 6]]
+
+
 def _write(tmp_path, pixels: np.ndarray, **meta):
     from PIL import Image
 

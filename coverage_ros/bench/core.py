@@ -203,8 +203,10 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     _say("offline team step: 8 robots on world 'gaussians' (402 x 402 cells)")
     team_step = bench_team_step(7, 7, _say)
+    _say("coverage-plan end to end (process start to JSON) next to the team step")
+    end_to_end = _end_to_end(team_step)
     if args.team_step_only:
-        print(json.dumps({"team_step": team_step}))
+        print(json.dumps({"team_step": team_step, "end_to_end": end_to_end}))
         return 0
     rounds = (args.rounds + [args.rounds[-1]] * len(args.sizes))[:len(args.sizes)]
     grids = []
@@ -214,7 +216,8 @@ def main(argv: list[str] | None = None) -> int:
         _say(f"  fast {row['update_ms']} ms (paper mode), {row['visibility_ms']} ms (visibility),"
              f" reference {row['reference_ms']} ms, speedup {row['speedup']}x")
         grids.append(row)
-    result = {"grids": grids, "team_step": team_step, "cold_update": cold}
+    result = {"grids": grids, "team_step": team_step, "end_to_end": end_to_end,
+              "cold_update": cold}
     if not args.no_scaling:
         _say("update time against own cell area (k x k robots on n x n cells)")
         result["scaling"] = bench_scaling([(200, 2), (400, 4), (800, 8), (200, 4), (400, 8)],
@@ -225,6 +228,21 @@ def main(argv: list[str] | None = None) -> int:
         write_results("core", {"rows": targets(result), **result}, argv, "scripts/bench_core")
     print(json.dumps(result))
     return 0
+
+
+def _end_to_end(team_step: dict) -> dict:
+    """``coverage-plan --solver lloyd`` on ``gaussians`` as a user runs it, against
+    CoverageControl's clairvoyant step (:func:`coverage_ros.bench.planner.bench_end_to_end`;
+    ``scripts/bench_planner`` runs more rounds)."""
+    from coverage_ros.bench.planner import bench_end_to_end
+
+    e2e = bench_end_to_end(5, _say)
+    ours, theirs = e2e["coverage_plan"], e2e["coveragecontrol"]
+    _say(f"  team step {team_step['lloyd_ms']} ms; coverage-plan end to end "
+         f"{ours['end_to_end_ms_per_step']:.2f} ms/step ({ours['steps']} steps); "
+         f"CoverageControl's step {theirs['step_ms']} ms: "
+         f"{e2e['ratio_end_to_end_over']['step']:.2f}x")
+    return e2e
 
 
 def targets(result: dict) -> list[dict]:
@@ -240,6 +258,11 @@ def targets(result: dict) -> list[dict]:
         "<= 3 ms", step["lloyd_ms"] <= 3.0)
     row("offline team step, geodesic (8 robots, 402 x 402 cells)", step["geodesic_ms"], "ms",
         "<= 100 ms", step["geodesic_ms"] <= 100.0)
+    e2e = result.get("end_to_end")
+    if e2e is not None:
+        ratio = e2e["ratio_end_to_end_over"]["step"]
+        row("coverage-plan --solver lloyd end to end, per step, over CoverageControl's step",
+            ratio, "x", "<= 1.0x", ratio <= 1.0)
     acc = step["accelerated"]["steps_within_0.1%_of_plain_H"]
     row("accelerated Lloyd: team steps until H within 0.1 % of plain Lloyd's", acc, "steps",
         "<= 60", acc is not None and acc <= 60)

@@ -11,6 +11,12 @@ JSON summary, a PNG picture and optionally a rerun recording; prints progress to
 
 from __future__ import annotations
 
+import os
+
+# A plan is computed on one thread: OpenBLAS's idle workers would only start up and spin beside
+# it (set before numpy loads; a user's own setting wins).
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
 import argparse
 import json
 import sys

@@ -26,6 +26,11 @@ from coverage_ros.core.geodesic.domain import CoverageDomain
 #: is replaced by a walk along the gradient through the free space, of at most WALK_CELLS.
 BLOCKED_FRACTION = 0.25
 WALK_CELLS = 20.0
+#: [cells] A step clipped this close to BLOCKED_FRACTION of its length counts as not blocked:
+#: the clip's samples split the step into equal parts, so it stops at exactly a quarter of it
+#: whenever the number of parts is a multiple of 4, and the comparison would turn on the last
+#: bits of the control (two exact computations of it then chose different goals).
+BLOCKED_SLACK_CELLS = 1e-9
 #: Walk steps must make progress along the gradient: cos of at most ~84 degrees off it (a robot
 #: beside a door jamb may have to step almost sideways before it can go on).
 WALK_MIN_ALIGNMENT = 0.1
@@ -40,7 +45,8 @@ def reachable_goal(domain: CoverageDomain, base_node: int, own_grid: np.ndarray,
     the control step ``step_grid`` [cells] and the covector I_k."""
     goal_grid = clip_reachable(domain, own_grid, own_grid + step_grid)
     wanted = float(np.hypot(*step_grid))
-    if wanted > 1.0 and float(np.hypot(*(goal_grid - own_grid))) < BLOCKED_FRACTION * wanted:
+    reached = float(np.hypot(*(goal_grid - own_grid)))
+    if wanted > 1.0 and reached < BLOCKED_FRACTION * wanted - BLOCKED_SLACK_CELLS:
         length = min(wanted, WALK_CELLS)
         walk = descent_walk(domain, base_node, covector, length)
         if float(np.hypot(*(walk - own_grid))) > float(np.hypot(*(goal_grid - own_grid))):

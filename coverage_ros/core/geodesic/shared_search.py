@@ -27,7 +27,7 @@ from coverage_ros.core.geodesic.local_search import LocalGraph, local_graph_for
 from coverage_ros.core.geodesic.tessellation import Generator, source_row
 from coverage_ros.core.geodesic.visible_first import visible_first_search
 
-__all__ = ["held_search", "shared_search"]
+__all__ = ["held_search", "shared_search", "whole_search"]
 
 #: A robot's cell in a whole-map search: ``(graph, (own, g, pred, touching), base node, grid
 #: point)`` (:func:`held_search`).
@@ -59,6 +59,16 @@ def shared_search(domain: CoverageDomain, local: LocalGraph, gens: Sequence[Gene
     held = held_search(domain, gens, method, reuse, last)
     if held is not None:
         return held
+    search, match = whole_search(domain, local, gens, snaps, method)
+    return _cell_in(search, local, match)
+
+
+def whole_search(domain: CoverageDomain, local: LocalGraph, gens: Sequence[Generator],
+                 snaps: list[Snap], method: str) -> tuple[_WholeSearch, np.ndarray]:
+    """The whole-domain multi-source search of ``gens`` (equal weights) on the whole-domain
+    graph ``local``, kept in the domain as its latest, and ``match``: ``gens[k]`` is its
+    source ``match[k]`` (sources ordered by position, so that every robot's search is the
+    same one)."""
     order = sorted(range(len(gens)), key=lambda k: (float(gens[k].position[0]),
                                                     float(gens[k].position[1])))
     first = local.n + 1
@@ -73,13 +83,14 @@ def shared_search(domain: CoverageDomain, local: LocalGraph, gens: Sequence[Gene
         label = np.where(src >= 0, src - first, -1)
         label[0] = -1
     # One search kept (the latest): a team solver makes a new one every step.
-    domain._cache["shared_search"] = _WholeSearch(
+    search = _WholeSearch(
         method, np.array([gens[k].position for k in order], dtype=np.float64),
         np.array([snaps[k][2] for k in order]),
         np.array([int(snaps[k][0][0]) for k in order], dtype=np.int64), dist, pred, label)
+    domain._cache["shared_search"] = search
     match = np.empty(len(gens), dtype=np.int64)
     match[order] = np.arange(len(gens))  # (not matched by position: two may share one)
-    return _cell_in(domain._cache["shared_search"], local, match)
+    return search, match
 
 
 def held_search(domain: CoverageDomain, gens: Sequence[Generator], method: str,

@@ -187,18 +187,29 @@ class EuclideanTeam:
 
 class GeodesicTeam:
     """The same team step with geodesic power Voronoi cells and the generalized Lloyd control
-    (Bhattacharya et al. 2014): every robot's :func:`geodesic_cell` over the whole domain, which
-    with equal weights share one search (memoized in the domain; most cells are settled by line
-    of sight before it, :mod:`coverage_ros.core.geodesic.visible_first`). ``centroids`` are the
-    virtual centroids (position + control), ``goals`` their reachable part."""
+    (Bhattacharya et al. 2014): every robot's :func:`geodesic_cell` over the whole domain, all
+    from one tessellation (:func:`coverage_ros.core.offline.geodesic_team.team_cells`: one
+    search, sums over the labels); :meth:`reference_step` runs the robots' own updates, for
+    the parity tests. ``centroids`` are the virtual centroids (position + control), ``goals``
+    their reachable part."""
 
     def __init__(self, domain: CoverageDomain, method: str = "auto") -> None:
         self.domain = domain
         self.method = method
 
     def step(self, positions: np.ndarray, weights: np.ndarray | None = None) -> TeamStep:
-        P = np.asarray(positions, dtype=np.float64).reshape(-1, 2)
-        R = np.zeros(len(P)) if weights is None else np.asarray(weights, dtype=np.float64)
+        P, R = EuclideanTeam._inputs(positions, weights)
+        from coverage_ros.core.offline.geodesic_team import team_cells  # graph searches: scipy
+
+        cells = team_cells(self.domain, P, R, self.method)
+        return TeamStep(P, cells.masses, cells.costs, P + cells.controls, cells.goals,
+                        cells.labels)
+
+    def reference_step(self, positions: np.ndarray,
+                       weights: np.ndarray | None = None) -> TeamStep:
+        """:meth:`step` as every robot's own decentralized update over the whole domain
+        (:func:`geodesic_cell` with ``whole=True``; with equal weights they share one search)."""
+        P, R = EuclideanTeam._inputs(positions, weights)
         from coverage_ros.core.geodesic.cell import geodesic_cell  # graph searches: scipy, only
         from coverage_ros.core.geodesic.tessellation import Generator  # for this team
 

@@ -27,6 +27,7 @@ from scipy.sparse.csgraph import dijkstra
 from coverage_ros.core.geodesic.domain import CoverageDomain, Snap, tie_bias
 from coverage_ros.core.geodesic.local_search import LocalGraph
 from coverage_ros.core.geodesic.sight import DepthMaps
+from coverage_ros.core.geodesic.straight_winner import straight_winner
 from coverage_ros.core.geodesic.tangents import SIGHT_TILE
 
 
@@ -47,20 +48,7 @@ def visible_first_search(domain: CoverageDomain, local: LocalGraph,
     grids = np.array([s[2] for s in snaps])
     biases = np.array([tie_bias(g) for g in grids])
     H, W = domain.shape  # the whole-domain graph's local ids are node ids + 1 (row-major)
-    cx, cy = np.arange(W) + 0.5, np.arange(H) + 0.5
-    best: np.ndarray = np.full((H, W), np.inf)
-    winner: np.ndarray = np.full((H, W), -1, dtype=np.int64)
-    d = np.empty((H, W))
-    closer = np.empty((H, W), dtype=bool)
-    for k in range(k_gens):  # squared distances separate into a row and a column term
-        np.add((cy - grids[k, 1])[:, None] ** 2, (cx - grids[k, 0])[None, :] ** 2, out=d)
-        np.sqrt(d, out=d)
-        d *= res  # (in this order: the distances of the searches that tests compare it with)
-        d += biases[k]
-        np.less(d, best, out=closer)
-        np.putmask(winner, closer, k)
-        np.minimum(best, d, out=best)
-    best, winner = best.ravel(), winner.ravel()
+    best, winner = straight_winner(grids, biases, (H, W), res)
     best[~free] = np.inf
     winner[~free] = -1
     snap_best: list[tuple[np.ndarray, np.ndarray]] = []
@@ -72,34 +60,54 @@ def visible_first_search(domain: CoverageDomain, local: LocalGraph,
             if c < best[i]:
                 best[i], winner[i] = c, k
     # Settled: in line of sight of the winner (snap seeds of the winner count as seen).
-    settled = np.zeros(n, dtype=bool)
     # One depth map per generator over the whole domain (the reach of its farthest corner)
-    # serves both line-of-sight passes.
+    # serves both line-of-sight passes; cells in a tile seen (hidden) whole from their winner
+    # are settled (not) by the tile's answer, the others one by one (the same answers).
     depths: DepthMaps = {}
     reaches = [math.hypot(max(gx, W - gx), max(gy, H - gy)) for gx, gy in grids]
-    nx = -(-W // SIGHT_TILE)
-    node_tiles = ((np.arange(H) // SIGHT_TILE)[:, None] * nx
-                  + (np.arange(W) // SIGHT_TILE)[None, :]).ravel()
+    node_tiles = _node_tiles(domain)
+    n_tiles = int(node_tiles[-1]) + 1
+    states = np.stack([domain.sight_tiles(grids[k], reaches[k], depths)
+                       for k in range(k_gens)]).ravel()
+    mine = winner >= 0
+    state = states[np.where(mine, winner, 0) * n_tiles + node_tiles]
+    settled = mine & (state == 1)
+    mixed = np.flatnonzero(mine & (state < 0))
+    by_gen = mixed[np.argsort(winner[mixed], kind="stable")]
+    bounds = np.searchsorted(winner[by_gen], np.arange(k_gens + 1))
     for k in range(k_gens):
-        mine = np.flatnonzero(winner == k)
-        if len(mine) == 0:
-            continue
-        settled[mine] = domain.visible_mask(grids[k], centers[mine], reaches[k], depths,
-                                            node_tiles[mine])
+        cells = by_gen[bounds[k]:bounds[k + 1]]
+        if len(cells):
+            settled[cells] = domain.visible_mask(grids[k], centers[cells], reaches[k], depths,
+                                                 node_tiles[cells])
         own_snap = snap_best[k][0]
         settled[own_snap[winner[own_snap] == k]] = True
-    dist = np.full(first + k_gens, np.inf)
-    pred = np.full(first + k_gens, -9999, dtype=np.int32)
-    label = np.full(first + k_gens, -1, dtype=np.int64)
-    ids = np.flatnonzero(settled)
-    dist[ids + 1] = best[ids]
-    pred[ids + 1] = first + winner[ids]
-    label[ids + 1] = winner[ids]
+    first_free = first + k_gens
+    dist = np.full(first_free, np.inf)
+    pred = np.full(first_free, -9999, dtype=np.int32)
+    label = np.full(first_free, -1, dtype=np.int64)
+    dist[1:first] = np.where(settled, best, np.inf)
+    pred[1:first] = np.where(settled, first + winner, -9999)
+    label[1:first] = np.where(settled, winner, -1)
     hidden = np.flatnonzero(free & ~settled)
     if len(hidden):
         _search_hidden(domain, local, hidden, settled, dist, pred, label, grids, biases,
                        snap_best, (depths, reaches, node_tiles[hidden]))
     return dist, pred, label
+
+
+def _node_tiles(domain: CoverageDomain) -> np.ndarray:
+    """``(H * W,)`` every node's line-of-sight tile (row-major tiles of SIGHT_TILE cells, as
+    :func:`~coverage_ros.core.geodesic.tangents.sight_tiles` numbers them); memoized."""
+    key = ("node_tiles", SIGHT_TILE)
+    tiles: np.ndarray | None = domain._cache.get(key)
+    if tiles is None:
+        H, W = domain.shape
+        nx = -(-W // SIGHT_TILE)
+        tiles = ((np.arange(H) // SIGHT_TILE)[:, None] * nx
+                 + (np.arange(W) // SIGHT_TILE)[None, :]).ravel()
+        domain._cache[key] = tiles
+    return tiles
 
 
 def _search_hidden(domain: CoverageDomain, local: LocalGraph, hidden: np.ndarray,

@@ -21,6 +21,7 @@ GeodesicTeam`): every robot's geodesic power Voronoi cell and generalized Lloyd 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -45,7 +46,7 @@ __all__ = ["TeamCells", "team_cells"]
 class TeamCells:
     """Every robot's cell and control at once (vectors in the map frame)."""
 
-    labels: np.ndarray  # (H, W) int32 the robot whose cell holds each grid cell, -1 nobody's
+    cells: Callable[[], np.ndarray]  # maker of the (H, W) int32 labels (-1: nobody's)
     masses: np.ndarray  # (n,) sum w dA over each cell
     costs: np.ndarray  # (n,) sum (g^2 - R^2) w dA over each cell
     covectors: np.ndarray  # (n, 2) I_k, grid axes (chart units)
@@ -55,12 +56,13 @@ class TeamCells:
 
 @dataclass(frozen=True)
 class _Forest:
-    """The shortest-path trees of every cell over the domain's nodes (row-major ids)."""
+    """The shortest-path trees of every cell over the domain's N nodes (row-major ids), its
+    generators in an order of its own."""
 
-    nodes: np.ndarray  # (m,) int64 the nodes owned by some robot
-    owner: np.ndarray  # (m,) int64 their robot
-    g: np.ndarray  # (m,) distance to the owner
-    parent: np.ndarray  # (m,) int64 parent node in the owner's tree, -1: joined to the source
+    label: np.ndarray  # (N,) int64 generator owning each node, -1: nobody
+    g: np.ndarray  # (N,) distance to the owner (any value where nobody's)
+    parent: Callable[[np.ndarray], np.ndarray]  # nodes -> their parent node ids (-1: none)
+    robot: np.ndarray  # (n,) int64 the robot of each generator
 
 
 def team_cells(domain: CoverageDomain, positions: np.ndarray, weights: np.ndarray,
@@ -76,14 +78,21 @@ def team_cells(domain: CoverageDomain, positions: np.ndarray, weights: np.ndarra
     gens = [Generator(p, r) for p, r in zip(P, R, strict=True)]
     forest = _power_forest(domain, gens, snaps, method) if np.ptp(R) > 0 \
         else _equal_forest(domain, gens, snaps, method)
-    nodes, k, g = forest.nodes, forest.owner, forest.g
-    wdA = domain.mass_element.ravel()[nodes]
-    masses = np.bincount(k, weights=wdA, minlength=n)
-    costs = np.bincount(k, weights=(g * g - (R * R)[k]) * wdA, minlength=n)
+    robot = forest.robot
     grids = np.array([s[2] for s in snaps]).reshape(-1, 2)
-    covectors = _covectors(domain, forest, grids, wdA, method, n)
-    labels = np.full(domain.shape, -1, dtype=np.int32)
-    labels.ravel()[nodes] = k
+    bins = forest.label + 1  # (bin 0: nobody's nodes, dropped)
+    wdA = domain.mass_element.ravel()
+    with np.errstate(invalid="ignore"):  # (nobody's nodes: inf distances, into bin 0)
+        f = forest.g * forest.g
+        if np.any(R):
+            f -= np.append(0.0, (R * R)[robot])[bins]
+        f *= wdA
+    sums = np.stack([np.bincount(bins, weights=wdA, minlength=n + 1),
+                     np.bincount(bins, weights=f, minlength=n + 1)])[:, 1:]
+    masses, costs = np.zeros(n), np.zeros(n)
+    masses[robot], costs[robot] = sums
+    covectors = np.zeros((n, 2))
+    covectors[robot] = _covectors(domain, forest, bins, grids[robot], wdA, method)
     metric = domain.metric_at(grids)
     res = domain.resolution
     controls, goals = np.zeros((n, 2)), np.zeros((n, 2))
@@ -94,26 +103,31 @@ def team_cells(domain: CoverageDomain, positions: np.ndarray, weights: np.ndarra
                                    covectors[i])
         goals[i] = domain.to_map(goal_grid[None])[0]
         controls[i] = domain.grid_vector_to_map(step_chart)
-    return TeamCells(labels, masses, costs, covectors, controls, goals)
+    to_robot = np.append(robot, -1).astype(np.int32)  # (label -1: index -1, nobody)
+
+    def cells() -> np.ndarray:
+        labels: np.ndarray = to_robot[forest.label].reshape(domain.shape)
+        return labels
+
+    return TeamCells(cells, masses, costs, covectors, controls, goals)
 
 
 def _equal_forest(domain: CoverageDomain, gens: list[Generator], snaps: list[Snap],
                   method: str) -> _Forest:
-    """Step 1 with equal weights: the robots' shared whole-domain search."""
+    """Step 1 with equal weights: the robots' shared whole-domain search (its sources in
+    its own order)."""
     local = local_graph_for(domain, None, np.zeros((1, 2)), np.zeros(1), math.inf)
     search, match = whole_search(domain, local, gens, snaps, method)
     N = local.n  # the whole-domain graph: local id = node id + 1
     label = search.label[1:N + 1]
-    nodes = np.flatnonzero(label >= 0)
-    robot_of = np.empty(len(gens), dtype=np.int64)
-    robot_of[match] = np.arange(len(gens))
-    source_label = label[nodes]
-    parent = search.pred[nodes + 1].astype(np.int64) - 1
-    parent[(parent < 0) | (parent >= N)] = -1  # a source, or none
-    inside = parent >= 0  # (a parent of another cell: joined to this cell's source)
-    inside[inside] = label[parent[inside]] == source_label[inside]
-    parent[~inside] = -1
-    return _Forest(nodes, robot_of[source_label], search.dist[nodes + 1], parent)
+    robot = np.empty(len(gens), dtype=np.int64)
+    robot[match] = np.arange(len(gens))
+
+    def parent(nodes: np.ndarray) -> np.ndarray:
+        up: np.ndarray = search.pred[nodes + 1].astype(np.int64) - 1
+        return up
+
+    return _Forest(label, search.dist[1:N + 1], parent, robot)
 
 
 def _power_forest(domain: CoverageDomain, gens: list[Generator], snaps: list[Snap],
@@ -138,51 +152,97 @@ def _power_forest(domain: CoverageDomain, gens: list[Generator], snaps: list[Sna
         preds.append(p)
     label[0] = -1
     label[first:] = -1
-    parent = np.full(N, -1, dtype=np.int64)
+    up = np.full(N, -1, dtype=np.int64)
     for k in range(n):
         mask = label == k
         keep = star_shaped(mask, preds[k], first)
         label[mask & ~keep] = -1
         mine = np.flatnonzero(keep[1:first])
-        parent[mine] = preds[k][mine + 1].astype(np.int64) - 1
-    nodes = np.flatnonzero(label[1:first] >= 0)
-    parent = parent[nodes]
-    parent[(parent < 0) | (parent >= N)] = -1
-    return _Forest(nodes, label[nodes + 1], own_d[nodes + 1], parent)
+        up[mine] = preds[k][mine + 1].astype(np.int64) - 1
+
+    def parent(nodes: np.ndarray) -> np.ndarray:
+        parents: np.ndarray = up[nodes]
+        return parents
+
+    return _Forest(label[1:first], own_d[1:first], parent, np.arange(n))
 
 
-def _covectors(domain: CoverageDomain, forest: _Forest, grids: np.ndarray, wdA: np.ndarray,
-               method: str, n: int) -> np.ndarray:
-    """Steps 2-3: ``(n, 2)`` every robot's I_k (grid axes, chart units)."""
-    nodes, k, g, parent = forest.nodes, forest.owner, forest.g, forest.parent
-    m = len(nodes)
-    if m == 0:
-        return np.zeros((n, 2))
-    # positions of the parents among the owned nodes; m: the root (joined to the source)
-    pos = np.full(domain.shape[0] * domain.shape[1], m, dtype=np.int64)
-    pos[nodes] = np.arange(m)
-    up = np.where(parent >= 0, pos[np.maximum(parent, 0)], m)
-    if method == "lookahead":
-        flag = g <= LOOKAHEAD_CELLS * domain.graph.max_edge_cost
-    else:
-        flag = up == m
-    anchor = np.append(np.where(flag, np.arange(m), up), m)  # (m + 1,), the root its own
-    todo = np.flatnonzero(~flag)
-    while len(todo):  # pointer doubling: a flagged node (or the root) is its own anchor
-        nxt = anchor[anchor[todo]]
-        moved = nxt != anchor[todo]
-        anchor[todo] = nxt
-        todo = todo[moved]
-    anchor = anchor[:m]
-    anchor = np.where(anchor == m, np.arange(m), anchor)  # no anchor: the chord to the cell
-    pts = domain.node_centers(nodes[anchor])
-    z = domain.chart_displacement(grids[k], pts)
+def _covectors(domain: CoverageDomain, forest: _Forest, bins: np.ndarray, grids: np.ndarray,
+               wdA: np.ndarray, method: str) -> np.ndarray:
+    """Steps 2-3: ``(n, 2)`` every generator's I_k (grid axes, chart units; generators in the
+    forest's order, at grid points ``grids``)."""
+    H, W = domain.shape
+    N = H * W
+    n = len(grids)
+    label, g = forest.label, forest.g
+    # the chord of every node to its owner's generator (cells, grid axes) ...
+    ext = np.append(grids, [[0.0, 0.0]], axis=0)  # (nobody's nodes: index -1)
+    dx = (np.arange(W) + 0.5)[None, :] - np.take(ext[:, 0], label).reshape(H, W)
+    dy = (np.arange(H) + 0.5)[:, None] - np.take(ext[:, 1], label).reshape(H, W)
+    dx, dy = dx.ravel(), dy.ravel()
+    # ... aimed at its anchor instead where that is an ancestor
+    deep, anchor = _deep_anchors(domain, forest, method, N)
+    if len(deep):
+        dx[deep] = (anchor % W + 0.5) - ext[label[deep], 0]
+        dy[deep] = (anchor // W + 0.5) - ext[label[deep], 1]
+    if domain.graph.wrap[1]:
+        dx = (dx + 0.5 * W) % W - 0.5 * W
+    if domain.graph.wrap[0]:
+        dy = (dy + 0.5 * H) % H - 0.5 * H
+    res = domain.resolution
+    dx *= res
+    dy *= res
     if domain.tensor is None and domain.zeta is None:
-        Mz = z
+        mx, my = dx, dy
     else:
-        Mz = np.einsum("nij,nj->ni", domain.metric_at(grids)[k], z)
-    norm = np.sqrt(np.einsum("ni,ni->n", z, Mz))
-    ok = norm > 1e-12
-    coef = g[ok] * wdA[ok] / norm[ok]
-    return np.stack([np.bincount(k[ok], weights=coef * Mz[ok, 0], minlength=n),
-                     np.bincount(k[ok], weights=coef * Mz[ok, 1], minlength=n)], axis=1)
+        M = np.append(domain.metric_at(grids), np.eye(2)[None], axis=0)[label]  # (N, 2, 2)
+        mx = M[:, 0, 0] * dx + M[:, 0, 1] * dy
+        my = M[:, 1, 0] * dx + M[:, 1, 1] * dy
+    norm = dx * mx
+    norm += dy * my
+    np.sqrt(norm, out=norm)
+    coef = np.zeros(N)
+    with np.errstate(invalid="ignore"):  # (nobody's nodes: inf distances, into bin 0)
+        np.divide(g * wdA, norm, out=coef, where=norm > 1e-12)
+    return np.stack([np.bincount(bins, weights=coef * mx, minlength=n + 1),
+                     np.bincount(bins, weights=coef * my, minlength=n + 1)], axis=1)[1:]
+
+
+def _deep_anchors(domain: CoverageDomain, forest: _Forest, method: str,
+                  N: int) -> tuple[np.ndarray, np.ndarray]:
+    """Step 2: ``(nodes, anchors)`` for the owned nodes whose tangent anchor is a node other
+    than themselves - the nearest ancestor-or-self on their path that is joined to the source
+    (``visibility``, ``paper``) or within the look-ahead (``lookahead``); a path without one
+    keeps the node's own chord."""
+    label = forest.label
+    owned = label >= 0
+    if method == "lookahead":
+        candidates = np.flatnonzero(owned & (forest.g > LOOKAHEAD_CELLS
+                                             * domain.graph.max_edge_cost))
+    else:
+        candidates = np.flatnonzero(owned)
+        pred = forest.parent(candidates)
+        candidates = candidates[(pred >= 0) & (pred < N)]
+    up = forest.parent(candidates)
+    inside = (up >= 0) & (up < N)
+    inside[inside] = label[up[inside]] == label[candidates[inside]]
+    if method != "lookahead":  # (joined to the source, or to another cell: its own anchor)
+        candidates, up, inside = candidates[inside], up[inside], inside[inside]
+    m = len(candidates)
+    if m == 0:
+        return candidates, candidates
+    # over the candidates: the index of the parent among them, or -1 (the parent is its own
+    # anchor, or the root: no anchor)
+    pos = np.full(N, -1, dtype=np.int64)
+    pos[candidates] = np.arange(m)
+    jump = np.where(inside, pos[np.where(inside, up, 0)], -1)
+    anchor = np.where(inside, up, -1)  # (-1: no anchor)
+    active = np.flatnonzero(jump >= 0)
+    while len(active):  # pointer doubling: ~log2 of the deepest path passes
+        j = jump[active]
+        done = jump[j] < 0
+        anchor[active[done]] = anchor[j[done]]
+        jump[active] = np.where(done, -1, jump[j])
+        active = active[~done]
+    keep = anchor >= 0
+    return candidates[keep], anchor[keep]

@@ -203,7 +203,7 @@ class GeodesicTeam:
 
         cells = team_cells(self.domain, P, R, self.method)
         return TeamStep(P, cells.masses, cells.costs, P + cells.controls, cells.goals,
-                        cells.labels)
+                        cells.cells)
 
     def reference_step(self, positions: np.ndarray,
                        weights: np.ndarray | None = None) -> TeamStep:

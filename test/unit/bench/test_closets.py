@@ -1,0 +1,46 @@
+"""scripts/bench_closets' summary: the README's table is the results file's figures."""
+
+from __future__ import annotations
+
+import json
+
+from coverage_ros.bench.closets import (
+    README,
+    README_BEGIN,
+    README_END,
+    RESULTS,
+    summary_table,
+    update_readme,
+)
+
+
+def _data(ratios_before, ratios_after):
+    def cases(ratios):
+        return {"maps": {"ward": {"cases": [{"ratio": r} for r in ratios]}}}
+
+    return {"runs": {"before": cases(ratios_before), "after": cases(ratios_after)},
+            "best": {"ward": {"H": 498.6, "restarts": 10}}}
+
+
+def test_summary_gives_every_start_before_and_after():
+    table = summary_table(_data([2.228, 1.316, 2.061], [1.005, 1.004, 1.0]))
+    assert table.splitlines()[2] == "| ward | 498.6 (10) | 2.228 / 1.316 / 2.061 " \
+        "| 1.005 / 1.004 / 1.000 |"
+
+
+def test_update_replaces_only_the_marked_table(tmp_path):
+    path = tmp_path / "README.md"
+    path.write_text(f"intro\n{README_BEGIN}\nold\n{README_END}\nrest\n")
+    assert update_readme(_data([2.0], [1.0]), path)
+    text = path.read_text()
+    assert text.startswith(f"intro\n{README_BEGIN}\n| map |") and text.endswith(
+        f"| ward | 498.6 (10) | 2.000 | 1.000 |\n{README_END}\nrest\n")
+    path.write_text("no markers\n")
+    assert not update_readme(_data([2.0], [1.0]), path)
+    assert path.read_text() == "no markers\n"
+
+
+def test_readme_table_is_the_results_file():
+    text = README.read_text()
+    block = text.split(README_BEGIN, 1)[1].split(README_END, 1)[0].strip()
+    assert block == summary_table(json.loads(RESULTS.read_text()))

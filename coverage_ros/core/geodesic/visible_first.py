@@ -175,27 +175,22 @@ def _search_hidden(domain: CoverageDomain, local: LocalGraph, hidden: np.ndarray
     longest = np.maximum.reduceat(upper[by_tile], starts)
     nx = -(-domain.shape[1] // SIGHT_TILE)
     tx0, ty0 = (present % nx) * float(SIGHT_TILE), (present // nx) * float(SIGHT_TILE)
-    shorter = False
+    fresh: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+    tiled = (by_tile, starts, per_tile, longest, tx0, ty0)
     for k in range(k_gens):  # (cells in tiles hidden whole from the generator drop out first)
-        gx, gy = grids[k]
-        gap = np.hypot(np.maximum(np.maximum(tx0 - gx, gx - tx0 - SIGHT_TILE), 0.0),
-                       np.maximum(np.maximum(ty0 - gy, gy - ty0 - SIGHT_TILE), 0.0))
-        may = gap * (res * (1.0 - 1e-12)) + biases[k] <= longest + 1e-9
-        if not may.any():
+        may = _may_be_shorter(tiled, grids[k], biases[k], res)
+        may = may[domain.sight_tiles(grids[k], reaches[k], depths)[present[may]] != 0]
+        if len(may) == 0:
             continue
-        may &= domain.sight_tiles(grids[k], reaches[k], depths)[present] != 0
         near = by_tile[_ranges(starts[may], per_tile[may])]
-        e = np.hypot(hc[near, 0] - gx, hc[near, 1] - gy) * res + biases[k]
+        e = np.hypot(hc[near, 0] - grids[k, 0], hc[near, 1] - grids[k, 1]) * res + biases[k]
         keep = e <= upper[near] + 1e-9
         better, e = near[keep], e[keep]
         seen = domain.visible_mask(grids[k], hc[better], reaches[k], depths, tiles[better])
         if seen.any():
-            snap_cost[k] = _least(np.concatenate([snap_cost[k][0], better[seen]]),
-                                  np.concatenate([snap_cost[k][1], e[seen]]))
-            shorter = True
-    if shorter:  # (a line no shorter than the path found changes nothing: the first stands)
-        d, p, src = dijkstra(_graph(rows, to_border, snap_cost, size), directed=True,
-                             indices=sources, min_only=True, return_predecessors=True)
+            fresh[k] = (better[seen], e[seen])
+    if fresh:  # (a line no shorter than the path found changes nothing: the first stands)
+        _improve(domain, hidden, pos, hc, (d, p, src), fresh, grids, biases, tiled)
     h = np.arange(len(hidden))
     reached = np.isfinite(d[h])
     lid = hidden[h[reached]] + 1
@@ -205,6 +200,68 @@ def _search_hidden(domain: CoverageDomain, local: LocalGraph, hidden: np.ndarray
     from_source = parent >= m
     mapped = np.where(from_source, first + (parent - m), sub[np.minimum(parent, m - 1)] + 1)
     pred[lid] = mapped
+
+
+def _may_be_shorter(tiled: tuple[np.ndarray, ...], grid: np.ndarray, bias: float,
+                    res: float) -> np.ndarray:
+    """Indices into the hidden cells' tiles (``tiled``: the cells by tile, each tile's first
+    of them, count, longest path found into it and corner) of those whose nearest point is no
+    farther from a generator at ``grid`` in a straight line than that longest path."""
+    _, _, _, longest, tx0, ty0 = tiled
+    gx, gy = grid
+    gap = np.hypot(np.maximum(np.maximum(tx0 - gx, gx - tx0 - SIGHT_TILE), 0.0),
+                   np.maximum(np.maximum(ty0 - gy, gy - ty0 - SIGHT_TILE), 0.0))
+    may: np.ndarray = np.flatnonzero(gap * (res * (1.0 - 1e-12)) + bias <= longest + 1e-9)
+    return may
+
+
+def _improve(domain: CoverageDomain, hidden: np.ndarray, pos: np.ndarray, hc: np.ndarray,
+             found: tuple[np.ndarray, np.ndarray, np.ndarray],
+             fresh: dict[int, tuple[np.ndarray, np.ndarray]], grids: np.ndarray,
+             biases: np.ndarray, tiled: tuple[np.ndarray, ...]) -> None:
+    """Add the straight lines into hidden cells found shorter than the first search's paths
+    (``fresh``: per generator, hidden indices and costs) to that search's results ``found``
+    (distances, parents, sources over the sub-graph whose nodes ``pos`` numbers; changed in
+    place). A path from such a seed is at least the straight line from its generator, so it
+    can only be shorter where that line is shorter than the path found - and so is every node
+    before it on the path: one search from the new seeds over those cells alone, each cell
+    then taking the shorter of its two distances, is the search with every seed at once."""
+    d, p, src = found
+    n_hidden = len(hidden)
+    m = len(d) - len(grids)  # the sub-graph's nodes; its sources follow
+    upper = d[:n_hidden]
+    can = np.zeros(n_hidden, dtype=bool)
+    by_tile, starts, per_tile = tiled[:3]
+    res = domain.resolution
+    for k in fresh:
+        may = _may_be_shorter(tiled, grids[k], biases[k], res)
+        near = by_tile[_ranges(starts[may], per_tile[may])]
+        e = np.hypot(hc[near, 0] - grids[k, 0], hc[near, 1] - grids[k, 1]) * res + biases[k]
+        can[near[e <= upper[near] + 1e-9]] = True
+    cells = np.flatnonzero(can)  # hidden indices (the sub-graph's first nodes)
+    m2 = len(cells)
+    at = np.full(n_hidden + 1, -1, dtype=np.int32)  # hidden index -> index among cells
+    at[cells] = np.arange(m2, dtype=np.int32)
+    nb_table, cost_table = domain.graph.edge_table
+    to = nb_table[hidden[cells]]
+    h = pos[to]
+    to_cell = at[np.where((h >= 0) & (h < n_hidden), h, n_hidden)]
+    inside = to_cell >= 0
+    rows = (inside.sum(axis=1), to_cell[inside], cost_table[hidden[cells]][inside])
+    gens = np.array(list(fresh), dtype=np.int64)
+    none = (np.zeros(0, dtype=np.int32), np.zeros(0))
+    d2, p2, src2 = dijkstra(
+        _graph(rows, [none] * len(gens), [(at[c], e) for c, e in fresh.values()],
+               m2 + len(gens)),
+        directed=True, indices=np.arange(m2, m2 + len(gens)), min_only=True,
+        return_predecessors=True)
+    shorter = np.flatnonzero(d2[:m2] < d[cells])
+    idx = cells[shorter]
+    d[idx] = d2[shorter]
+    parent = p2[shorter]
+    p[idx] = np.where(parent >= m2, m + gens[np.maximum(parent - m2, 0)],
+                      cells[np.minimum(np.maximum(parent, 0), max(m2 - 1, 0))])
+    src[idx] = m + gens[src2[shorter] - m2]
 
 
 def _ranges(starts: np.ndarray, counts: np.ndarray) -> np.ndarray:

@@ -80,7 +80,8 @@ class LineOfSight:
 
     def visible_mask(self, origin: np.ndarray, points: np.ndarray, radius: float,
                      depths: DepthMaps | None = None,
-                     point_tiles: np.ndarray | None = None) -> np.ndarray:
+                     point_tiles: np.ndarray | None = None, by_tiles: bool = True
+                     ) -> np.ndarray:
         """``(N,) bool``: grid points (within ``radius`` cells of the grid point ``origin``)
         in line of sight of it; blocked cells are discs of half a cell diagonal.
 
@@ -90,11 +91,12 @@ class LineOfSight:
         cannot hide one. With ``depths``, many points are first decided a tile at a time
         (:meth:`sight_tiles`; same answers); ``point_tiles``, the points'
         :func:`~coverage_ros.core.geodesic.tangents.tile_index` when the caller has them,
-        saves working them out."""
+        saves working them out; ``by_tiles`` False: point by point all the same (for points a
+        caller knows no tile decides whole)."""
         held = self._depth_map(origin, radius, depths)
         if held is None:
             return np.ones(len(points), dtype=bool)
-        if depths is None or len(points) < TILED_FROM:
+        if depths is None or len(points) < TILED_FROM or not by_tiles:
             return visible_from(origin, points, held[1])
         if point_tiles is None:
             point_tiles = tile_index(points, self.shape)
@@ -114,6 +116,17 @@ class LineOfSight:
             held[2] = sight_tiles(origin, held[1], self.shape)
         tiles: np.ndarray = held[2]
         return tiles
+
+    def sight_tiles_in(self, origin: np.ndarray, radius: float, depths: DepthMaps,
+                       box: tuple[int, int, int, int]) -> np.ndarray:
+        """:meth:`sight_tiles` of the tiles in ``box`` (rows ``row0 <= i < row1`` and columns
+        ``col0 <= j < col1`` of tiles, row-major), which must lie within ``radius`` cells of
+        ``origin``: from a depth map of that radius only (kept in ``depths``, the tile answers
+        not)."""
+        held = self._depth_map(origin, radius, depths)
+        if held is None:
+            return np.ones(max(box[1] - box[0], 0) * max(box[3] - box[2], 0), dtype=np.int8)
+        return sight_tiles(origin, held[1], self.shape, box=box)
 
     def _depth_map(self, origin: np.ndarray, radius: float, depths: DepthMaps | None
                    ) -> list[Any] | None:

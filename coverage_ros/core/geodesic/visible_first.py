@@ -27,7 +27,7 @@ from scipy.sparse.csgraph import dijkstra
 from coverage_ros.core.geodesic.domain import CoverageDomain, Snap, tie_bias
 from coverage_ros.core.geodesic.local_search import LocalGraph
 from coverage_ros.core.geodesic.sight import DepthMaps
-from coverage_ros.core.geodesic.straight_winner import straight_winner
+from coverage_ros.core.geodesic.straight_winner import grow_boxes, straight_winner
 from coverage_ros.core.geodesic.tangents import SIGHT_TILE
 
 
@@ -48,7 +48,7 @@ def visible_first_search(domain: CoverageDomain, local: LocalGraph,
     grids = np.array([s[2] for s in snaps])
     biases = np.array([tie_bias(g) for g in grids])
     H, W = domain.shape  # the whole-domain graph's local ids are node ids + 1 (row-major)
-    best, winner = straight_winner(grids, biases, (H, W), res)
+    best, winner, boxes = straight_winner(grids, biases, (H, W), res)
     best[~free] = np.inf
     winner[~free] = -1
     snap_best: list[tuple[np.ndarray, np.ndarray]] = []
@@ -59,18 +59,30 @@ def visible_first_search(domain: CoverageDomain, local: LocalGraph,
         for i, c in zip(lid[keep] - 1, costs[keep], strict=True):
             if c < best[i]:
                 best[i], winner[i] = c, k
-    # Settled: in line of sight of the winner (snap seeds of the winner count as seen).
-    # One depth map per generator over the whole domain (the reach of its farthest corner)
-    # serves both line-of-sight passes; cells in a tile seen (hidden) whole from their winner
-    # are settled (not) by the tile's answer, the others one by one (the same answers).
+    # Settled: in line of sight of the winner (snap seeds of the winner count as seen). Cells
+    # in a tile seen (hidden) whole from their winner are settled (not) by the tile's answer,
+    # the others one by one (the same answers), each generator's from a depth map reaching
+    # the tiles that hold its cells (the hidden cells' search widens them where it needs).
+    for k in range(k_gens):
+        own_snap = snap_best[k][0]
+        won = own_snap[winner[own_snap] == k]
+        grow_boxes(boxes, won // W, won % W, np.full(len(won), k))
     depths: DepthMaps = {}
-    reaches = [math.hypot(max(gx, W - gx), max(gy, H - gy)) for gx, gy in grids]
     node_tiles = _node_tiles(domain)
+    nx = -(-W // SIGHT_TILE)
     n_tiles = int(node_tiles[-1]) + 1
-    states = np.stack([domain.sight_tiles(grids[k], reaches[k], depths)
-                       for k in range(k_gens)]).ravel()
+    states = np.full((k_gens, n_tiles), -1, dtype=np.int8)  # (-1: test each cell)
+    near = np.zeros(k_gens)  # [cells] the reach of each generator's tiles
+    for g in np.flatnonzero(boxes[:, 0] < boxes[:, 1]):
+        i0, j0 = int(boxes[g, 0]) // SIGHT_TILE, int(boxes[g, 2]) // SIGHT_TILE
+        i1, j1 = -(-int(boxes[g, 1]) // SIGHT_TILE), -(-int(boxes[g, 3]) // SIGHT_TILE)
+        gx, gy = grids[g]
+        near[g] = math.hypot(max(abs(gx - j0 * SIGHT_TILE), abs(j1 * SIGHT_TILE - gx)),
+                             max(abs(gy - i0 * SIGHT_TILE), abs(i1 * SIGHT_TILE - gy)))
+        ids = (np.arange(i0, i1)[:, None] * nx + np.arange(j0, j1)[None, :]).ravel()
+        states[g, ids] = domain.sight_tiles_in(grids[g], near[g], depths, (i0, i1, j0, j1))
     mine = winner >= 0
-    state = states[np.where(mine, winner, 0) * n_tiles + node_tiles]
+    state = states.ravel()[np.where(mine, winner, 0) * n_tiles + node_tiles]
     settled = mine & (state == 1)
     mixed = np.flatnonzero(mine & (state < 0))
     by_gen = mixed[np.argsort(winner[mixed], kind="stable")]
@@ -78,10 +90,11 @@ def visible_first_search(domain: CoverageDomain, local: LocalGraph,
     for k in range(k_gens):
         cells = by_gen[bounds[k]:bounds[k + 1]]
         if len(cells):
-            settled[cells] = domain.visible_mask(grids[k], centers[cells], reaches[k], depths,
-                                                 node_tiles[cells])
+            settled[cells] = domain.visible_mask(grids[k], centers[cells], near[k], depths,
+                                                 by_tiles=False)
         own_snap = snap_best[k][0]
         settled[own_snap[winner[own_snap] == k]] = True
+    reaches = [math.hypot(max(gx, W - gx), max(gy, H - gy)) for gx, gy in grids]
     first_free = first + k_gens
     dist = np.full(first_free, np.inf)
     pred = np.full(first_free, -9999, dtype=np.int32)
@@ -179,14 +192,23 @@ def _search_hidden(domain: CoverageDomain, local: LocalGraph, hidden: np.ndarray
     tiled = (by_tile, starts, per_tile, longest, tx0, ty0)
     for k in range(k_gens):  # (cells in tiles hidden whole from the generator drop out first)
         may = _may_be_shorter(tiled, grids[k], biases[k], res)
-        may = may[domain.sight_tiles(grids[k], reaches[k], depths)[present[may]] != 0]
+        if len(may) == 0:
+            continue
+        # a depth map reaching the farthest corner of these tiles answers for all of them
+        gx, gy = grids[k]
+        reach = float(np.hypot(np.maximum(np.abs(tx0[may] - gx), np.abs(tx0[may] + SIGHT_TILE
+                                                                        - gx)),
+                               np.maximum(np.abs(ty0[may] - gy), np.abs(ty0[may] + SIGHT_TILE
+                                                                        - gy))).max())
+        reach = min(reach, reaches[k])
+        may = may[domain.sight_tiles(grids[k], reach, depths)[present[may]] != 0]
         if len(may) == 0:
             continue
         near = by_tile[_ranges(starts[may], per_tile[may])]
         e = np.hypot(hc[near, 0] - grids[k, 0], hc[near, 1] - grids[k, 1]) * res + biases[k]
         keep = e <= upper[near] + 1e-9
         better, e = near[keep], e[keep]
-        seen = domain.visible_mask(grids[k], hc[better], reaches[k], depths, tiles[better])
+        seen = domain.visible_mask(grids[k], hc[better], reach, depths, tiles[better])
         if seen.any():
             fresh[k] = (better[seen], e[seen])
     if fresh:  # (a line no shorter than the path found changes nothing: the first stands)

@@ -1,6 +1,6 @@
 """Every cell's nearest generator in straight-line distance from the Voronoi runs
 (coverage_ros.core.geodesic.straight_winner) equals the brute-force loop over every generator,
-bit for bit, ties and the tie bias included."""
+bit for bit, ties and the tie bias included; each generator's box holds all of its cells."""
 
 from __future__ import annotations
 
@@ -49,7 +49,10 @@ def test_straight_winner_is_the_brute_force_loop(kind, n):
         grids = _generators(kind, n, shape, rng)
         biases = np.array([tie_bias(g) for g in grids]) if trial % 3 else np.zeros(n)
         res = float(rng.choice([0.01, 0.05, 0.1]))
-        best, winner = straight_winner(grids, biases, shape, res)
+        best, winner, boxes = straight_winner(grids, biases, shape, res)
         ref_best, ref_winner = _brute_force(grids, biases, shape, res)
         assert np.array_equal(winner, ref_winner)
         assert np.array_equal(best, ref_best)
+        rows, cols = np.divmod(np.arange(len(winner)), shape[1])
+        r0, r1, c0, c1 = boxes[winner].T  # every cell inside its generator's box
+        assert np.all((r0 <= rows) & (rows < r1) & (c0 <= cols) & (cols < c1))

@@ -1,14 +1,18 @@
 """Closet escape by handover for the geodesic strategy: a robot leaves a small cell for a
-neighbour's larger one when a pairwise bound says H drops (:mod:`.bounds`), after a claim the
-neighbour grants (:mod:`.protocol`)."""
+neighbour's larger one when a pairwise bound, or a joint one with the neighbours of both cells
+re-spreading, says H drops (:mod:`.bounds`), after a claim the neighbour grants
+(:mod:`.protocol`)."""
 
 from coverage_ros.core.strategies.handover.bounds import (
+    Known,
     Removal,
     SplitOffer,
+    joint_change,
+    known_cells,
     removal_increase,
     split_offer,
 )
 from coverage_ros.core.strategies.handover.protocol import Handover, HandoverSettings, HandoverStep
 
-__all__ = ["Handover", "HandoverSettings", "HandoverStep", "Removal", "SplitOffer",
-           "removal_increase", "split_offer"]
+__all__ = ["Handover", "HandoverSettings", "HandoverStep", "Known", "Removal", "SplitOffer",
+           "joint_change", "known_cells", "removal_increase", "split_offer"]

@@ -1,4 +1,4 @@
-"""The two costs of a handover, each computed by one robot over its own cell.
+"""The costs of a handover: two each computed by one robot over its own cell, and a joint one.
 
 A handover moves robot i out of its cell V_i into a neighbour j's cell V_j. Every other
 generator stays, so after the move each grid cell may keep any owner; the geodesic power
@@ -20,6 +20,11 @@ robots then run generalized Lloyd from i's move, not from those positions: the b
 a configuration that much better lies next to the one the move makes, which Lloyd's descent
 reaches in the cases tested (the move is a claim backed by a configuration, not a proof about
 where Lloyd ends).
+
+Where no pair's bound suffices - leaving V_i costs more than splitting V_j saves while the
+other neighbours stay - :func:`joint_change` (robot i, from every generator it hears) lets
+every generator whose cell touches V_i or V_j take the Lloyd steps together with s, and
+compares with the same steps without the move.
 Distances are the tessellation's own (:func:`~coverage_ros.core.geodesic.tessellation.
 source_row` sources on the whole-domain graph), searched only as far as the cell needs.
 """
@@ -28,9 +33,10 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.ndimage import binary_dilation
 from scipy.sparse.csgraph import dijkstra
 
 from coverage_ros.core.geodesic.domain import CoverageDomain
@@ -59,18 +65,29 @@ def node_points(domain: CoverageDomain, nodes: np.ndarray) -> np.ndarray:
     return domain.to_map(np.column_stack([cols + 0.5, rows + 0.5]))
 
 
+#: A source's edges, kept per (x [m], y [m], search limit) for the searches of one bound.
+RowCache = dict[tuple[float, float, float], tuple[np.ndarray, np.ndarray]]
+
+
 def nearest(domain: CoverageDomain, points: np.ndarray, limit: float,
-            method: str = "auto") -> tuple[np.ndarray, np.ndarray]:
+            method: str = "auto", rows: RowCache | None = None
+            ) -> tuple[np.ndarray, np.ndarray]:
     """``(H * W,)`` geodesic distance (chart units) of every node from the nearest of
     ``points (m, 2)`` [m] and that point's index, searched up to ``limit`` (inf and -1
-    beyond)."""
+    beyond). ``rows`` keeps the sources' edges between calls (the generators that stay put
+    in a bound's Lloyd steps)."""
     method = resolve_method(domain, method)
     local = local_graph_for(domain, None, np.zeros((1, 2)), np.zeros(1), math.inf)
     pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
-    rows = [source_row(domain, local, domain.snap(p), limit, method) for p in pts]
-    csr = local.with_sources(rows)
+    rows = {} if rows is None else rows
+    for p in pts:
+        key = (float(p[0]), float(p[1]), float(limit))
+        if key not in rows:
+            rows[key] = source_row(domain, local, domain.snap(p), limit, method)
+    sources = [rows[(float(p[0]), float(p[1]), float(limit))] for p in pts]
+    csr = local.with_sources(sources)
     n = local.n
-    d, _, src = dijkstra(csr, directed=True, indices=np.arange(n + 1, n + 1 + len(rows)),
+    d, _, src = dijkstra(csr, directed=True, indices=np.arange(n + 1, n + 1 + len(sources)),
                          limit=limit, min_only=True, return_predecessors=True)
     label = np.where(src >= 0, src - (n + 1), -1)
     return d[1:n + 1], label[1:n + 1]  # whole-graph local ids are node ids + 1
@@ -81,13 +98,19 @@ class Removal:
     """What the own generator's leaving costs at most."""
 
     increase: float  # rise of the region's cost, units of H (inf: not computable)
-    movers: tuple[int, ...]  # indices of the neighbours that take Lloyd steps
+    movers: tuple[int, ...]  # indices of the generators that take Lloyd steps
     positions: np.ndarray  # (len(movers), 2) [m] where they stand at that cost
+
+
+#: Searches from every generator a robot knows, by limit (chart units): the same for each
+#: removal bound of one configuration, whichever neighbour it holds fixed.
+Tessellations = dict[float, tuple[np.ndarray, np.ndarray]]
 
 
 def removal_increase(domain: CoverageDomain, generators: np.ndarray, weight: float,
                      bordering: Sequence[int], fixed: Sequence[int], cell_radius: float,
-                     steps: int, method: str = "auto") -> Removal:
+                     steps: int, method: str = "auto", rows: RowCache | None = None,
+                     tessellations: Tessellations | None = None) -> Removal:
     """How much H would rise at most if generator 0 of ``generators (m, 2)`` [m] (the own;
     the others: every neighbour known, all of power weight ``weight``) left its cell.
 
@@ -97,7 +120,8 @@ def removal_increase(domain: CoverageDomain, generators: np.ndarray, weight: flo
     (each to its part's node nearest the part's mass centroid), the least cost kept. Nodes
     outside U keep their owners, so with the movable neighbours at the returned positions H
     rises by at most the returned increase (inf without movable or fixed neighbours, or if a
-    node of U is out of their reach)."""
+    node of U is out of their reach). ``rows`` and ``tessellations`` keep searches for the
+    next bound of the same ``generators``."""
     gens = np.asarray(generators, dtype=np.float64).reshape(-1, 2)
     movers = [k for k in bordering if k not in fixed]
     keep = list(fixed)
@@ -107,24 +131,50 @@ def removal_increase(domain: CoverageDomain, generators: np.ndarray, weight: flo
     slack = SLACK_EDGES * domain.graph.max_edge_cost
     limit = 4.0 * cell_radius + slack
     own = [0, *movers]
+    rows = {} if rows is None else rows
+    known = {} if tessellations is None else tessellations
+
+    def search(limit: float) -> tuple[np.ndarray, np.ndarray]:
+        if limit not in known:
+            known[limit] = nearest(domain, gens, limit, method, rows)
+        return known[limit]
+
     for _ in range(3):
-        d, label = nearest(domain, gens, limit, method)
+        d, label = search(limit)
         # a cell whose nodes all lie closer than the limit by an edge is whole
         near = np.isin(label, own)
         if float(d[near].max(initial=0.0)) < limit - domain.graph.max_edge_cost:
             break
         limit *= GROWTH
     else:
-        d, label = nearest(domain, gens, math.inf, method)
+        d, label = search(math.inf)
         near = np.isin(label, own)
     U = np.flatnonzero(near)
     before = float(((d[U] ** 2 - weight ** 2) * wdA[U]).sum())
+    best, at = _lloyd_in(domain, U, gens[movers], gens[keep], weight, steps,
+                         GROWTH * limit, method, rows)
+    return Removal(best - before, tuple(movers), at)
+
+
+def _lloyd_in(domain: CoverageDomain, U: np.ndarray, movers: np.ndarray, fixed: np.ndarray,
+              weight: float, steps: int, limit: float, method: str, rows: RowCache,
+              whole: bool = False) -> tuple[float, np.ndarray]:
+    """The least cost of the nodes ``U`` each assigned to the nearest of ``movers (a, 2)``
+    and ``fixed (b, 2)`` [m] over ``steps`` Lloyd steps of the movers (each to its part's
+    node nearest the part's mass centroid), and where the movers stood then (inf if a node
+    of U is out of reach within ``limit``; with ``whole``, a step that leaves a node of U
+    unreached searches again without limit)."""
+    wdA = domain.mass_element.ravel()
     w, pts = wdA[U], node_points(domain, U)
-    pos = gens[movers].copy()
+    pos = np.array(movers, dtype=np.float64).reshape(-1, 2)
     best, at = math.inf, pos.copy()
     for step in range(steps + 1):
-        g, lab = nearest(domain, np.vstack([pos, gens[keep]]), GROWTH * limit, method)
+        g, lab = nearest(domain, np.vstack([pos, fixed]), limit, method, rows)
         g, lab = g[U], lab[U]
+        if whole and math.isfinite(limit) and not np.all(np.isfinite(g)):
+            # distances within the limit are exact: only an unreached node needs the rest
+            g, lab = nearest(domain, np.vstack([pos, fixed]), math.inf, method, rows)
+            g, lab = g[U], lab[U]
         if not np.all(np.isfinite(g)):
             break
         value = float(((g * g - weight ** 2) * w).sum())
@@ -132,13 +182,70 @@ def removal_increase(domain: CoverageDomain, generators: np.ndarray, weight: flo
             best, at = value, pos.copy()
         if step == steps:
             break
-        for k in range(len(movers)):
+        for k in range(len(pos)):
             part = lab == k
             m = float(w[part].sum())
             if m > 0:
                 centroid = (pts[part] * w[part, None]).sum(axis=0) / m
                 pos[k] = pts[part][int(np.argmin(np.hypot(*(pts[part] - centroid).T)))]
-    return Removal(best - before, tuple(movers), at)
+    return best, at
+
+
+@dataclass(frozen=True)
+class Known:
+    """The tessellation of the generators one robot knows (its own first), whole-map."""
+
+    generators: np.ndarray  # (m, 2) [m]
+    distances: np.ndarray  # (H * W,) chart units to the nearest generator (inf: unreached)
+    labels: np.ndarray  # (H * W,) index of that generator (-1: unreached)
+    rows: RowCache  # the generators' source edges, reused by the bounds on it
+    stay: dict[tuple[int, ...], float] = field(default_factory=dict)  # U's cost reached
+    # without a move, per group of movers (units of H)
+
+
+def known_cells(domain: CoverageDomain, generators: np.ndarray, method: str = "auto") -> Known:
+    """The cells of ``generators (m, 2)`` [m] (equal power weights) over the whole map."""
+    gens = np.asarray(generators, dtype=np.float64).reshape(-1, 2)
+    rows: RowCache = {}
+    d, label = nearest(domain, gens, math.inf, method, rows)
+    return Known(gens, d, label, rows)
+
+
+def joint_change(domain: CoverageDomain, known: Known, weight: float, target: int,
+                 point: np.ndarray, steps: int, method: str = "auto") -> Removal:
+    """How much lower H gets at least if generator 0 of ``known`` (the own) moved to
+    ``point`` [m] in the cell of generator ``target``, the neighbours re-spreading, than if it
+    stayed: negative for a move that pays.
+
+    U is the union of the own cell, the target's and every cell that touches either (8
+    grid neighbours); every generator with a cell in U but the own, and one at ``point``,
+    takes ``steps`` Lloyd steps in U, every other generator staying where it is. Nodes
+    outside U keep their owners, which do not move, so the least cost of U seen bounds H
+    from above for the movers at the positions reached. The same steps without the move
+    (the own generator among the movers, none at ``point``) give what staying reaches; the
+    change is the one bound minus the other (inf if a node of U is out of reach), returned
+    with the movers (indices into ``known.generators``; the last, -1, the one at ``point``,
+    which is the own generator moved) and where they stand."""
+    W = domain.shape[1]
+    labels = known.labels.reshape(-1, W)
+    core = binary_dilation(np.isin(labels, [0, target]), structure=np.ones((3, 3), bool))
+    group = sorted({int(k) for k in np.unique(labels[core]) if k >= 0} | {0, target})
+    U = np.flatnonzero(np.isin(known.labels, group))
+    movers = [k for k in group if k != 0]
+    fixed = known.generators[[k for k in range(len(known.generators)) if k not in group]]
+    # searches reach GROWTH times U's farthest node now (exact within; beyond: again, whole)
+    limit = GROWTH * float(known.distances[U].max(initial=0.0)) \
+        + SLACK_EDGES * domain.graph.max_edge_cost
+    if tuple(group) not in known.stay:
+        known.stay[tuple(group)] = _lloyd_in(domain, U, known.generators[group], fixed, weight,
+                                             steps, limit, method, known.rows, whole=True)[0]
+    stay = known.stay[tuple(group)]
+    if not math.isfinite(stay):
+        return Removal(math.inf, (), np.zeros((0, 2)))
+    start = np.vstack([known.generators[movers], np.asarray(point, dtype=np.float64)[None]])
+    moved, at = _lloyd_in(domain, U, start, fixed, weight, steps, limit, method, known.rows,
+                          whole=True)
+    return Removal(moved - stay, (*movers, -1), at)
 
 
 def split_offer(domain: CoverageDomain, nodes: np.ndarray, g_own: np.ndarray, cost: float,

@@ -16,7 +16,11 @@ Robot i claims neighbour j (any robot it hears: the offer is j's, the removal i'
 bound needs no common border) when i and all its bordering neighbours are settled, no
 neighbour claims i or claims with a higher priority (saving, then lower id), j neither claims
 nor grants another, and ``offer_gain(j) - removal_increase(i)`` exceeds ``escape_gain`` times
-the pair's cost ``H_i + H_j``. Robot j grants the claim of the highest priority among those on
+the pair's cost ``H_i + H_j``. When no offer passes so and i stood still at its last update
+(Lloyd's end), the same test runs on the joint bound instead (:func:`.bounds.joint_change`:
+i at j's offered point, every robot whose cell touches i's or j's re-spreading, against the
+same steps without the move), which sees moves that pay only once the neighbours of both
+cells shift along. Robot j grants the claim of the highest priority among those on
 it unless it claims itself. Granted, i drives to j's offered point (mode ``relocate``), keeping
 its claim, so that j lets nobody else in and i's neighbours do not leave meanwhile; there it
 drops the claim and waits ``escape_cooldown`` updates before it may claim again (hysteresis).
@@ -26,8 +30,8 @@ dropped the same way.
 Each move is backed by a configuration next to it with H lower by at least ``escape_gain`` of
 a pair's cost (:mod:`.bounds`), and the cooldown keeps a robot from moving back and forth.
 What a robot uses is its own cell, the generators and published values of the robots it
-hears (its bordering neighbours' cells are tessellated from them), nothing else; the protocol
-is deterministic.
+hears (its bordering neighbours' cells, and for the joint bound the target's and those that
+touch either, are tessellated from them), nothing else; the protocol is deterministic.
 """
 
 from __future__ import annotations
@@ -42,7 +46,12 @@ from coverage_ros.core.geodesic.cell import CellResult
 from coverage_ros.core.geodesic.domain import CoverageDomain
 from coverage_ros.core.strategies.base import Neighbour
 from coverage_ros.core.strategies.handover.bounds import (
+    Known,
+    RowCache,
     SplitOffer,
+    Tessellations,
+    joint_change,
+    known_cells,
     removal_increase,
     split_offer,
 )
@@ -94,7 +103,10 @@ class Handover:
     relocations: int = 0  # moves made
     _last: np.ndarray | None = field(default=None, repr=False)  # (2,) [m] previous position
     _offer: tuple[np.ndarray, SplitOffer | None] | None = field(default=None, repr=False)
-    _removal: tuple[np.ndarray, dict[int, float]] | None = field(default=None, repr=False)
+    _removal: tuple[np.ndarray, dict[int, float], RowCache, Tessellations] | None = field(
+        default=None, repr=False)
+    _joint: tuple[np.ndarray, Known, dict[tuple[int, float, float], float]] | None = field(
+        default=None, repr=False)
 
     def step(self, position: np.ndarray, weight: float, cell: CellResult,
              neighbours: Sequence[Neighbour], bordering: Sequence[int],
@@ -125,7 +137,8 @@ class Handover:
             self._follow_claim(by_id)
         elif (settled and self.cooldown == 0 and not claimants
               and all(_f(by_id[j], "settled") > 0 for j in bordering if j in by_id)):
-            self._consider(key, position, weight, cell, neighbours, bordering)
+            self._consider(key, position, weight, cell, neighbours, bordering,
+                           stopped=moved < convergence_tolerance)
         grant = NONE if self.claim >= 0 or not claimants else float(-claimants[0][1])
         if self.relocating:
             self.relocations += 1
@@ -167,9 +180,11 @@ class Handover:
 
     def _consider(self, key: np.ndarray, position: np.ndarray, weight: float,
                   cell: CellResult, neighbours: Sequence[Neighbour],
-                  bordering: Sequence[int]) -> None:
+                  bordering: Sequence[int], stopped: bool) -> None:
         """Claim the neighbour whose offer beats the own removal most, if by enough and no
-        neighbour claims with a higher priority."""
+        neighbour claims with a higher priority; if none does and the robot stands still
+        (``stopped``: Lloyd's end, where staying is what the joint bound compares with), the
+        offer whose joint bound saves most."""
         offers = [n for n in neighbours if _f(n, "offer_gain") > 0 and _f(n, "claim", NONE) < 0
                   and _f(n, "grant", NONE) == NONE
                   and abs(n.state.weight - weight) < WEIGHT_MATCH
@@ -183,13 +198,14 @@ class Handover:
         removal = {n.robot_id: self._cached_removal(key, position, weight, cell, neighbours,
                                                     bordering, n.robot_id)
                    for n in offers}
-        offers = [n for n in offers if math.isfinite(removal[n.robot_id])]
-        if not offers:
-            return
-        best = max(offers, key=lambda n: (_f(n, "offer_gain") - removal[n.robot_id],
-                                          -n.robot_id))
-        saving = _f(best, "offer_gain") - removal[best.robot_id]
-        if saving <= self.settings.gain * (cell.cost + _f(best, "offer_base")):
+        best, saving = self._best(offers, cell.cost, {
+            n.robot_id: _f(n, "offer_gain") - removal[n.robot_id] for n in offers})
+        if best is None and stopped:
+            # no pair's bound suffices: the bound with both cells' neighbours re-spreading
+            best, saving = self._best(offers, cell.cost, {
+                n.robot_id: -self._cached_joint(key, position, weight, neighbours, n)
+                for n in offers})
+        if best is None:
             return
         rivals = [(_f(n, "claim_gain"), -n.robot_id) for n in neighbours
                   if _f(n, "claim", NONE) >= 0]
@@ -197,6 +213,16 @@ class Handover:
             return
         self.claim, self.claim_gain, self.claim_age = best.robot_id, saving, 0
         self.target = np.array([_f(best, "offer_x"), _f(best, "offer_y")])
+
+    def _best(self, offers: Sequence[Neighbour], cost: float, savings: dict[int, float]
+              ) -> tuple[Neighbour | None, float]:
+        """The offer of the largest saving (then the lower id), if it beats ``escape_gain``
+        of the pair's cost (``cost``: the own cell's)."""
+        best = max(offers, key=lambda n: (savings[n.robot_id], -n.robot_id))
+        saving = savings[best.robot_id]
+        if not saving > self.settings.gain * (cost + _f(best, "offer_base")):
+            return None, 0.0
+        return best, saving
 
     def _drop(self) -> None:
         self.claim, self.claim_gain, self.claim_age = -1, 0.0, 0
@@ -212,6 +238,24 @@ class Handover:
             self._offer = (key, offer)
         return self._offer[1]
 
+    def _cached_joint(self, key: np.ndarray, position: np.ndarray, weight: float,
+                      neighbours: Sequence[Neighbour], target: Neighbour) -> float:
+        """The bound of :func:`.bounds.joint_change` for a move into ``target``'s cell at its
+        offered point, computed again only when some generator moved by a cell."""
+        if any(abs(n.state.weight - weight) >= WEIGHT_MATCH for n in neighbours):
+            return math.inf  # the bound assumes equal power weights
+        if self._joint is None or not _same(self._joint[0], key, self.domain.resolution):
+            gens = np.vstack([position[None], [n.position for n in neighbours]])
+            self._joint = (key, known_cells(self.domain, gens, self.method), {})
+        _, known, values = self._joint
+        point = np.array([_f(target, "offer_x"), _f(target, "offer_y")])
+        memo = (target.robot_id, float(point[0]), float(point[1]))
+        if memo not in values:
+            t = 1 + [n.robot_id for n in neighbours].index(target.robot_id)
+            values[memo] = joint_change(self.domain, known, weight, t, point,
+                                        self.settings.steps, self.method).increase
+        return values[memo]
+
     def _cached_removal(self, key: np.ndarray, position: np.ndarray, weight: float,
                         cell: CellResult, neighbours: Sequence[Neighbour],
                         bordering: Sequence[int], target: int) -> float:
@@ -219,9 +263,9 @@ class Handover:
         bound for all other targets), computed again only when some generator moved by a
         cell."""
         if self._removal is None or not _same(self._removal[0], key, self.domain.resolution):
-            self._removal = (key, {})
+            self._removal = (key, {}, {}, {})
         fixed = target if target in bordering else -1
-        values = self._removal[1]
+        _, values, rows, tessellations = self._removal
         if fixed not in values:
             if any(abs(n.state.weight - weight) >= WEIGHT_MATCH for n in neighbours):
                 values[fixed] = math.inf  # the bound assumes equal power weights
@@ -232,7 +276,7 @@ class Handover:
                 values[fixed] = removal_increase(
                     self.domain, gens, weight, near,
                     [1 + ids.index(fixed)] if fixed >= 0 else [], cell.cell_radius,
-                    self.settings.steps, self.method).increase
+                    self.settings.steps, self.method, rows, tessellations).increase
         return values[fixed]
 
 

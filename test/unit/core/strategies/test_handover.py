@@ -26,7 +26,12 @@ from coverage_ros.core.strategies import (
     strategy_choice,
 )
 from coverage_ros.core.strategies.geodesic import GeodesicParams, GeodesicStrategy
-from coverage_ros.core.strategies.handover import removal_increase, split_offer
+from coverage_ros.core.strategies.handover import (
+    joint_change,
+    known_cells,
+    removal_increase,
+    split_offer,
+)
 from coverage_ros.core.world import parse_world
 from coverage_ros.core.world.placement import largest_free_region, team_starts
 from coverage_ros.errors import ConfigError
@@ -66,6 +71,16 @@ def run(starts: np.ndarray, escape: bool, **settings):
 def cost(positions: np.ndarray) -> tuple[float, np.ndarray]:
     tess = fast_tessellate(ward()[1], [Generator(p) for p in positions])
     return tess.cost, tess.masses
+
+
+@cache
+def two_wards():
+    """The ward and a copy of it 10 m to the east, their corridors joined: 20 m x 6 m."""
+    shifted = [{**o, "from": [o["from"][0] + 10.0, o["from"][1]],
+                "to": [o["to"][0] + 10.0, o["to"][1]]} for o in WARD["obstacles"]]
+    world = parse_world({**WARD, "name": "two_wards", "bounds": [0.0, 0.0, 20.0, 6.0],
+                         "obstacles": WARD["obstacles"] + shifted})
+    return world_domain(world, world.robot_spec(0).radius)
 
 
 @cache
@@ -152,6 +167,36 @@ def test_bound_is_above_the_true_change_of_H(seed):
     assert checked >= len(P)
 
 
+@pytest.mark.parametrize("seed", [0, 2])
+def test_joint_bound_is_above_the_true_change_of_H(seed):
+    """For every pair (i moves into j's cell at j's offered point) of plain Lloyd's end state:
+    the team where the joint bound puts i and the re-spreading neighbours changes H by no
+    more than the bound, which compares with the neighbours' steps without the move."""
+    _, domain = ward()
+    P = run(cluster(seed), escape=False).positions[-1]
+    H0 = cost(P)[0]
+    cells = _cells(P)
+    offers = [split_offer(domain, c.nodes, c.distances, c.cost, 0.0, c.cell_radius, 3)
+              for c in cells]
+    checked = paying = 0
+    for i in range(len(P)):
+        ids = [k for k in range(len(P)) if k != i]
+        known = known_cells(domain, np.vstack([P[i][None], P[ids]]))
+        for j, offer in enumerate(offers):
+            if j == i or offer is None:
+                continue
+            joint = joint_change(domain, known, 0.0, 1 + ids.index(j), offer.point, 3)
+            if not math.isfinite(joint.increase):
+                continue
+            moved = P.copy()
+            for k, p in zip(joint.movers, joint.positions, strict=True):
+                moved[i if k == -1 else ids[k - 1]] = p
+            assert cost(moved)[0] - H0 <= joint.increase + 1e-9 * H0
+            checked += 1
+            paying += joint.increase < 0
+    assert checked >= len(P) and paying >= 1
+
+
 def _round(strategies, positions, published):
     """One lock-step round: every robot updates from what the others published last."""
     decisions = []
@@ -163,8 +208,8 @@ def _round(strategies, positions, published):
     return decisions
 
 
-def _team(positions):
-    _, domain = ward()
+def _team(positions, domain=None):
+    domain = ward()[1] if domain is None else domain
     return [make_strategy(strategy_choice("geodesic"),
                           StrategyContext(domain=domain, robot_id=i,
                                           convergence_tolerance=TOLERANCE))
@@ -196,12 +241,15 @@ def test_one_claimant_per_cell_and_claims_follow_grants():
     assert relocated
 
 
-def test_a_claim_uses_only_the_bordering_neighbours_and_the_offers():
+def test_a_claim_uses_only_the_neighbourhood_and_the_offers():
     """The robot that claims first makes the same claim, in the same state, from a neighbour
-    list cut down to the robots whose cells border its own or theirs (the cells it
-    re-tessellates) and the robot whose offer it takes."""
-    P = run(cluster(2), escape=False).positions[-1]
-    team = _team(P)
+    list cut down to the robot whose offer it takes and the robots whose cells border its own
+    or the target's, or theirs (the cells its bounds re-tessellate). Two wards side by side,
+    plain Lloyd's end state of the ward in each."""
+    domain = two_wards()
+    half = run(cluster(2), escape=False).positions[-1]
+    P = np.vstack([half, half + [10.0, 0.0]])
+    team = _team(P, domain)
     published = [s.shared_state(Observation(i, np.array([*P[i], 0.0]), 0.0))
                  for i, s in enumerate(team)]
     for _ in range(6):
@@ -215,12 +263,13 @@ def test_a_claim_uses_only_the_bordering_neighbours_and_the_offers():
         pytest.fail("nobody claimed a cell")
     claimant = claimants[0]
     target = int(decisions[claimant].shared.extra["claim"])
-    bordering = set(decisions[claimant].details.neighbours)
-    # the bordering neighbours' cells, which it tessellates from their own neighbours
-    second = {j for k in bordering for j in decisions[k].details.neighbours}
-    keep = (bordering | second | {target}) - {claimant}
+    near = set(decisions[claimant].details.neighbours) \
+        | set(decisions[target].details.neighbours) | {target}
+    # their cells, which it tessellates from their own neighbours
+    second = {j for k in near for j in decisions[k].details.neighbours}
+    keep = (near | second) - {claimant}
     assert len(keep) < len(P) - 1  # the cut list leaves robots out
-    alone = _team(P)[claimant]
+    alone = _team(P, domain)[claimant]
     alone.handover = before[claimant]
     obs = Observation(claimant, np.array([*P[claimant], 0.0]), 0.0)
     nbrs = [Neighbour(j, dataclasses.replace(published[j], position=P[j]))

@@ -118,15 +118,14 @@ class LineOfSight:
         return tiles
 
     def sight_tiles_in(self, origin: np.ndarray, radius: float, depths: DepthMaps,
-                       box: tuple[int, int, int, int]) -> np.ndarray:
-        """:meth:`sight_tiles` of the tiles in ``box`` (rows ``row0 <= i < row1`` and columns
-        ``col0 <= j < col1`` of tiles, row-major), which must lie within ``radius`` cells of
-        ``origin``: from a depth map of that radius only (kept in ``depths``, the tile answers
-        not)."""
+                       ids: np.ndarray) -> np.ndarray:
+        """:meth:`sight_tiles` of the tiles ``ids`` (flat row-major indices), which must lie
+        within ``radius`` cells of ``origin``: from a depth map of that radius (kept in
+        ``depths``; the tile answers are not)."""
         held = self._depth_map(origin, radius, depths)
         if held is None:
-            return np.ones(max(box[1] - box[0], 0) * max(box[3] - box[2], 0), dtype=np.int8)
-        return sight_tiles(origin, held[1], self.shape, box=box)
+            return np.ones(len(ids), dtype=np.int8)
+        return sight_tiles(origin, held[1], self.shape, ids=ids)
 
     def _depth_map(self, origin: np.ndarray, radius: float, depths: DepthMaps | None
                    ) -> list[Any] | None:

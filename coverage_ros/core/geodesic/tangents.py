@@ -121,8 +121,7 @@ def tile_index(points: np.ndarray, shape: tuple[int, int], tile: int = SIGHT_TIL
 
 
 def sight_tiles(origin: np.ndarray, depth: np.ndarray, shape: tuple[int, int],
-                tile: int = SIGHT_TILE, box: tuple[int, int, int, int] | None = None
-                ) -> np.ndarray:
+                tile: int = SIGHT_TILE, ids: np.ndarray | None = None) -> np.ndarray:
     """``(ny * nx,) int8`` over the square tiles of ``tile`` x ``tile`` cells of a grid of
     ``shape`` cells (row-major; tile ``(i, j)`` spans x in ``[j tile, (j + 1) tile]``, y in
     ``[i tile, (i + 1) tile]``): 1 where :func:`visible_from` ``origin`` with ``depth`` is true
@@ -136,16 +135,16 @@ def sight_tiles(origin: np.ndarray, depth: np.ndarray, shape: tuple[int, int],
     all of them. Range minima and maxima come from sparse tables over the depth map repeated
     three times (so that a range crossing the angle -pi reads on unbroken).
 
-    ``box`` ``(row0, row1, col0, col1)``, in tiles: only the tiles of rows ``row0 <= i <
-    row1`` and columns ``col0 <= j < col1``, row-major (the same answer for each)."""
+    ``ids``: only these tiles (flat row-major indices), in their order (the same answer for
+    each)."""
     H, W = shape
-    ny, nx = -(-H // tile), -(-W // tile)
-    i0, i1, j0, j1 = (0, ny, 0, nx) if box is None else box
-    ny, nx = max(i1 - i0, 0), max(j1 - j0, 0)
-    if ny * nx == 0:
+    nx = -(-W // tile)
+    if ids is None:
+        ids = np.arange(-(-H // tile) * nx)
+    if len(ids) == 0:
         return np.zeros(0, dtype=np.int8)
-    x0 = np.tile(np.arange(j0, j1, dtype=np.float64) * tile, ny) - origin[0]
-    y0 = np.repeat(np.arange(i0, i1, dtype=np.float64) * tile, nx) - origin[1]
+    x0 = (ids % nx) * float(tile) - origin[0]
+    y0 = (ids // nx) * float(tile) - origin[1]
     x1, y1 = x0 + tile, y0 + tile
     holds = (x0 <= 0) & (x1 >= 0) & (y0 <= 0) & (y1 >= 0)
     near = np.hypot(np.maximum(np.maximum(x0, -x1), 0.0), np.maximum(np.maximum(y0, -y1), 0.0))
@@ -167,7 +166,7 @@ def sight_tiles(origin: np.ndarray, depth: np.ndarray, shape: tuple[int, int],
     lo, right = lo - base, np.maximum(hi - base - (1 << level) + 1, 0)
     lowest = np.minimum(least[level, lo], least[level, right])
     highest = np.maximum(most[level, lo], most[level, right])
-    states = np.full(ny * nx, -1, dtype=np.int8)
+    states = np.full(len(ids), -1, dtype=np.int8)
     states[(far * (1.0 + 1e-12) + 1e-9 <= lowest) & ~wide] = 1
     states[(near - 1e-9 > highest) & ~wide] = 0
     return states

@@ -80,7 +80,7 @@ def visible_first_search(domain: CoverageDomain, local: LocalGraph,
         near[g] = math.hypot(max(abs(gx - j0 * SIGHT_TILE), abs(j1 * SIGHT_TILE - gx)),
                              max(abs(gy - i0 * SIGHT_TILE), abs(i1 * SIGHT_TILE - gy)))
         ids = (np.arange(i0, i1)[:, None] * nx + np.arange(j0, j1)[None, :]).ravel()
-        states[g, ids] = domain.sight_tiles_in(grids[g], near[g], depths, (i0, i1, j0, j1))
+        states[g, ids] = domain.sight_tiles_in(grids[g], near[g], depths, ids)
     mine = winner >= 0
     state = states.ravel()[np.where(mine, winner, 0) * n_tiles + node_tiles]
     settled = mine & (state == 1)
@@ -201,7 +201,7 @@ def _search_hidden(domain: CoverageDomain, local: LocalGraph, hidden: np.ndarray
                                np.maximum(np.abs(ty0[may] - gy), np.abs(ty0[may] + SIGHT_TILE
                                                                         - gy))).max())
         reach = min(reach, reaches[k])
-        may = may[domain.sight_tiles(grids[k], reach, depths)[present[may]] != 0]
+        may = may[domain.sight_tiles_in(grids[k], reach, depths, present[may]) != 0]
         if len(may) == 0:
             continue
         near = by_tile[_ranges(starts[may], per_tile[may])]

@@ -1,0 +1,110 @@
+"""The geodesic team step at scale and among obstacles (``scripts/bench_core``, after the team
+step on ``gaussians``): :meth:`coverage_ros.core.offline.lloyd_team.GeodesicTeam.step` timed
+at positions along a Lloyd run, against its target, and once against
+:meth:`~coverage_ros.core.offline.lloyd_team.GeodesicTeam.reference_step` (every robot's own
+update over the whole domain, what the team step replaces) at the run's first positions.
+
+* ``gaussians at 1024 x 1024`` - the ``gaussians`` world rasterized at 20 m / 1022 cells
+  (1024 x 1024 cells with its wall ring), 32 robots from seeded random free points along a
+  plain Lloyd run (:class:`~coverage_ros.core.offline.lloyd_team.EuclideanTeam`); target
+  100 ms.
+* ``depot`` - ``../shared/maps/depot.yaml`` (read where it lies, 307 x 604 cells: shelves and
+  walls, a few more cells than 400 x 400), 8 robots from the launcher's start cluster along a
+  geodesic Lloyd run; target 10 ms, as for 8 robots on 400 x 400 cells.
+
+A new search every step: the positions drift by a tenth of a millimetre between steps, as
+robots do between updates.
+"""
+
+from __future__ import annotations
+
+import statistics
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from coverage_ros.bench.environment import DEPOT
+from coverage_ros.core.geodesic.domain import CoverageDomain
+from coverage_ros.core.geodesic.world_domain import world_domain
+from coverage_ros.core.offline.lloyd_team import EuclideanTeam, GeodesicTeam, solve_lloyd
+from coverage_ros.core.world import load_world
+from coverage_ros.core.world.loading import parse_world
+from coverage_ros.core.world.placement import team_starts
+from coverage_ros.worlds import resolve_world_path
+
+#: [cells] side of the large grid; the gaussians world's 20 m over this many cells less its
+#: one-cell wall ring on each side
+LARGE_CELLS = 1024
+LARGE_ROBOTS = 32
+DEPOT_ROBOTS = 8
+#: [m] drift of every robot between two timed steps (a new search each time)
+DRIFT = 1e-4
+SEED = 0
+
+
+def bench_geodesic_scale(rounds: int, say, depot: Path = DEPOT) -> list[dict]:
+    """The rows above, each timed over ``rounds`` positions along its run."""
+    rows = []
+    domain = _large_gaussians()
+    rng = np.random.default_rng(SEED)
+    start = _free_points(domain, LARGE_ROBOTS, rng)
+    path = solve_lloyd(EuclideanTeam(domain), start, tolerance=0.005, max_steps=60).positions
+    rows.append(_row(f"{LARGE_ROBOTS} robots, gaussians rasterized finer", domain, path,
+                     rounds, 100.0, say))
+    if depot.exists():
+        world = load_world(depot)
+        specs = [world.robot_spec(i) for i in range(DEPOT_ROBOTS)]
+        domain = world_domain(world, max(s.radius for s in specs))
+        start = team_starts(world, specs, None, SEED)[:, :2]
+        path = solve_lloyd(GeodesicTeam(domain), start, tolerance=0.05,
+                           max_steps=30).positions
+        rows.append(_row(f"{DEPOT_ROBOTS} robots, depot (obstacles)", domain, path, rounds,
+                         10.0, say))
+    else:
+        say(f"  {depot} not found: the depot row left out")
+    return rows
+
+
+def _large_gaussians() -> CoverageDomain:
+    path = resolve_world_path("gaussians")
+    data = yaml.safe_load(path.read_text())
+    data["resolution"] = 20.0 / (LARGE_CELLS - 2)
+    world = parse_world(data, source=str(path))
+    return world_domain(world, world.robot_spec(0).radius)
+
+
+def _free_points(domain: CoverageDomain, n: int, rng: np.random.Generator) -> np.ndarray:
+    xmin, ymin, xmax, ymax = domain.geometry.extent()
+    points: list[np.ndarray] = []
+    while len(points) < n:
+        p = rng.uniform([xmin, ymin], [xmax, ymax])
+        if domain.is_free_point(p):
+            points.append(p)
+    return np.array(points)
+
+
+def _row(name: str, domain: CoverageDomain, path: np.ndarray, rounds: int,
+         target_ms: float, say) -> dict[str, Any]:
+    team = GeodesicTeam(domain)
+    team.step(path[0] + DRIFT)  # the domain's own tables (graph, tiles, occluders)
+    times = []
+    for k in range(rounds):
+        P = path[min(k * len(path) // rounds, len(path) - 1)] + DRIFT * (k + 2)
+        t = time.perf_counter()
+        team.step(P)
+        times.append(time.perf_counter() - t)
+    t = time.perf_counter()
+    team.reference_step(path[0])
+    reference = time.perf_counter() - t
+    ms = round(statistics.median(times) * 1e3, 2)
+    H, W = domain.shape
+    row = {"name": name, "robots": len(path[0]), "grid": [W, H], "geodesic_ms": ms,
+           "target_ms": target_ms, "met": ms <= target_ms,
+           "robots_ms": round(reference * 1e3, 1), "steps_timed": rounds}
+    say(f"  geodesic team step, {name} ({W} x {H} cells): {ms} ms "
+        f"({'met' if row['met'] else 'not met'}: <= {target_ms:g} ms); every robot's own "
+        f"update {row['robots_ms']} ms")
+    return row

@@ -57,7 +57,8 @@ def growth(samples: list[tuple[float, float]]) -> float | None:
 
 def soak_section(duration: float, folder: Path, say, robots: int = 8, world: str = "office",
                  period: float = 180.0, rtf: float = 2.0,
-                 sample_period: float = SAMPLE_PERIOD) -> dict:
+                 sample_period: float = SAMPLE_PERIOD, domain: int | None = None) -> dict:
+    """``domain``: the team's ROS_DOMAIN_ID (None: a fresh one the launcher picks)."""
     import psutil
 
     out = folder / "soak"
@@ -65,6 +66,8 @@ def soak_section(duration: float, folder: Path, say, robots: int = 8, world: str
     cmd = [str(REPO / ".venv" / "bin" / "coverage-team"), "--quiet", "--robots", str(robots),
            "--world", world, "--duration", f"{duration:g}", "--rtf", f"{rtf:g}", "--record",
            "--out", str(out)] + [a for r in restarts for a in ("--restart", r)]
+    if domain is not None:
+        cmd += ["--domain-id", str(domain)]
     say(f"soak: {robots} robots on {world} for {duration:g} s sim time at {rtf:g} x real time, "
         f"{len(restarts)} restarts ...")
     launcher = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,

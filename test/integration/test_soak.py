@@ -4,7 +4,11 @@ along the way, with the memory of every process sampled from outside."""
 
 from __future__ import annotations
 
+import json
+import re
+
 import pytest
+from rosutil import domain_id
 
 from coverage_ros.bench.soak import growth, soak_section
 
@@ -23,7 +27,7 @@ def test_a_team_whose_robots_restart_keeps_covering_with_flat_memory_and_logs(tm
     # At twice real time, which two busy cores keep while a restarted robot's process starts:
     # the soak is about restarts, memory and logs, not speed.
     r = soak_section(100.0, tmp_path, print, robots=4, world="office", period=35.0, rtf=2.0,
-                     sample_period=1.0)
+                     sample_period=1.0, domain=domain_id(26))
     print(r)
     assert r["restarts"] == ["0@35", "1@70"]
     assert r["collisions"] == 0, r["collisions_by_robot"]
@@ -34,3 +38,14 @@ def test_a_team_whose_robots_restart_keeps_covering_with_flat_memory_and_logs(tm
     assert r["rss_growth"] is not None and r["rss_growth"] < 0.3, r["rss_growth_per_process"]
     # Logs: no steady stream of lines (start-up writes most; the second half adds little).
     assert r["log_bytes_second_half"] <= max(r["log_bytes_first_half"], 20_000), r
+    # Each restarted robot rejoined in real time: nobody counts it lost, and its second process
+    # (one log for both) covered to the end and said so (the first was killed before it could).
+    summary = json.loads((tmp_path / "soak" / "summary.json").read_text())
+    robots = {x["id"]: x for x in summary["robots"]}
+    assert all("lost_at" not in x for x in robots.values()), robots
+    for rid, at in ((0, 35.0), (1, 70.0)):
+        assert robots[rid]["restarted_at"] == [pytest.approx(at, abs=1.0)], robots[rid]
+        log = (tmp_path / "soak" / "logs" / f"robot_{rid}.log").read_text()
+        assert log.count(f"robot {rid}: strategy geodesic") == 2, log[-2000:]
+        updates = [int(n) for n in re.findall(r"(\d+) coverage updates", log)]
+        assert len(updates) == 1 and updates[0] >= 10, updates

@@ -3,7 +3,7 @@ client in the test process with waits that always time out.
 
 Every process gets ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` (unless the caller set another
 value) and the test's own ``ROS_DOMAIN_ID``: ``COVERAGE_ROS_TEST_DOMAIN_BASE`` (set per run by
-scripts/test, 100..199) plus an offset per test module and pytest-xdist worker.
+scripts/test, 100..199) plus an offset per test module and pytest-xdist worker (or slot).
 """
 
 from __future__ import annotations
@@ -26,10 +26,13 @@ _FALLBACK_BASE = random.randint(100, 199)  # one per test process when scripts/t
 
 
 def domain_id(offset: int) -> int:
-    """A DDS domain id for this run, test ``offset`` (0..29) and xdist worker."""
+    """A DDS domain id for this run, test ``offset`` (0..29) and slot: the xdist worker, or
+    ``COVERAGE_ROS_TEST_DOMAIN_SLOT`` for a pytest run beside other runs of the same base
+    (scripts/test's real-time tests beside its xdist workers). 133 ids hold four slots."""
     base = int(os.environ.get("COVERAGE_ROS_TEST_DOMAIN_BASE", _FALLBACK_BASE))
     worker = os.environ.get("PYTEST_XDIST_WORKER", "gw0")
     wid = int(worker[2:]) if worker[2:].isdigit() else 0
+    wid = int(os.environ.get("COVERAGE_ROS_TEST_DOMAIN_SLOT", wid))
     value = base + offset + 30 * wid
     return 100 + (value - 100) % (MAX_DOMAIN_ID - 100 + 1)
 

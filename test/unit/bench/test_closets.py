@@ -4,14 +4,20 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
+
 from coverage_ros.bench.closets import (
+    HOSTEL_ABOVE,
+    HOSTEL_BELOW,
     README,
     README_BEGIN,
     README_END,
     RESULTS,
+    hostel,
     summary_table,
     update_readme,
 )
+from coverage_ros.core.world.placement import largest_free_region
 
 
 def _data(ratios_before, ratios_after):
@@ -44,3 +50,22 @@ def test_readme_table_is_the_results_file():
     text = README.read_text()
     block = text.split(README_BEGIN, 1)[1].split(README_END, 1)[0].strip()
     assert block == summary_table(json.loads(RESULTS.read_text()))
+
+
+def test_every_hostel_room_opens_onto_the_corridor():
+    """The drawn floor plan: one free region a robot can drive holds the corridor and the
+    middle of each of the ten rooms."""
+    world = hostel()
+    region = largest_free_region(world.grid, world.robot_spec(0).radius)
+    centres = [(0.5 * (x0 + x1), y) for rooms, y in ((HOSTEL_BELOW, 2.0), (HOSTEL_ABOVE, 7.1))
+               for x0, x1 in _spans(rooms)] + [(8.0, 4.6)]
+    for centre in centres:
+        row, col = world.grid.world_to_cell(np.array(centre))
+        assert region[row, col], centre
+
+
+def _spans(rooms):
+    x = 0.0
+    for width, _ in rooms:
+        yield x, x + width
+        x += width

@@ -130,20 +130,34 @@ class LineOfSight:
     def _depth_map(self, origin: np.ndarray, radius: float, depths: DepthMaps | None
                    ) -> list[Any] | None:
         """``[radius, depth map, tile states or None]`` for ``origin`` (kept in ``depths``),
-        or None when no occluder lies within the radius' box."""
+        or None when no occluder lies within the radius' box. A kept map of a smaller radius
+        grows by the occluders outside its box only (a depth is the least over occluders:
+        the same map as made anew)."""
         key = (float(origin[0]), float(origin[1]))
         held = depths.get(key) if depths is not None else None
         if held is not None and held[0] >= radius:
             return held
-        H, W = self.shape
-        R = radius + 2.0
-        occ = self.occluder_centers
-        if R < max(H, W):  # a box around the origin; the whole domain's otherwise
-            occ = occ[(np.abs(occ[:, 0] - origin[0]) <= R + 1.0)
-                      & (np.abs(occ[:, 1] - origin[1]) <= R + 1.0)]
-        if len(occ) == 0:
+        occ = self._occluders_within(self.occluder_centers, origin, radius)
+        if held is not None:  # (those of the kept map's box it has already)
+            occ = occ[~self._occluders_within(occ, origin, held[0], mask=True)]
+        if held is None and len(occ) == 0:
             return None
-        held = [radius, polar_depth(origin, occ, self.depth_bins), None]
+        depth = polar_depth(origin, occ, self.depth_bins)
+        if held is not None:
+            depth = np.minimum(held[1], depth)
+        held = [radius, depth, None]
         if depths is not None:
             depths[key] = held
         return held
+
+    def _occluders_within(self, occ: np.ndarray, origin: np.ndarray, radius: float,
+                          mask: bool = False) -> np.ndarray:
+        """The occluders of ``occ`` that can hide a point within ``radius`` cells of
+        ``origin``: those in a box around it (all of them when the box holds the domain);
+        ``mask``: which ones, as a boolean array."""
+        R = radius + 2.0
+        if R >= max(self.shape):
+            return np.ones(len(occ), dtype=bool) if mask else occ
+        inside: np.ndarray = ((np.abs(occ[:, 0] - origin[0]) <= R + 1.0)
+                              & (np.abs(occ[:, 1] - origin[1]) <= R + 1.0))
+        return inside if mask else occ[inside]

@@ -201,14 +201,18 @@ def _search_hidden(domain: CoverageDomain, local: LocalGraph, hidden: np.ndarray
                                np.maximum(np.abs(ty0[may] - gy), np.abs(ty0[may] + SIGHT_TILE
                                                                         - gy))).max())
         reach = min(reach, reaches[k])
-        may = may[domain.sight_tiles_in(grids[k], reach, depths, present[may]) != 0]
+        state = domain.sight_tiles_in(grids[k], reach, depths, present[may])
+        may, state = may[state != 0], state[state != 0]
         if len(may) == 0:
             continue
         near = by_tile[_ranges(starts[may], per_tile[may])]
         e = np.hypot(hc[near, 0] - grids[k, 0], hc[near, 1] - grids[k, 1]) * res + biases[k]
         keep = e <= upper[near] + 1e-9
         better, e = near[keep], e[keep]
-        seen = domain.visible_mask(grids[k], hc[better], reach, depths, tiles[better])
+        seen = np.repeat(state, per_tile[may])[keep] == 1  # (tiles seen whole)
+        test = np.flatnonzero(~seen)  # (the others: mixed)
+        seen[test] = domain.visible_mask(grids[k], hc[better[test]], reach, depths,
+                                         by_tiles=False)
         if seen.any():
             fresh[k] = (better[seen], e[seen])
     if fresh:  # (a line no shorter than the path found changes nothing: the first stands)

@@ -17,6 +17,7 @@ from coverage_ros.core.geodesic import shared_search as shared_search_module
 from coverage_ros.core.geodesic import tessellation as tessellation_module
 from coverage_ros.core.geodesic import visible_first as visible_first_module
 from coverage_ros.core.geodesic.domain import CoverageDomain
+from coverage_ros.core.geodesic.tangents import SIGHT_TILE
 from coverage_ros.errors import ConfigError
 
 
@@ -25,7 +26,8 @@ class SearchCount:
     """Work of the geodesic searches run inside :func:`counting_searches`."""
 
     settled: int = 0  # nodes taken off scipy Dijkstra's heap (finite distance), sources excluded
-    sighted: int = 0  # cells tested for line of sight (visibility sources, visible-first search)
+    sighted: int = 0  # cells tested for line of sight (visibility sources, visible-first search),
+    # one by one or a tile at a time (the free cells of every tile decided)
 
 
 #: The modules whose searches are counted (each imports scipy's ``dijkstra`` by name).
@@ -38,12 +40,15 @@ def counting_searches() -> Iterator[SearchCount]:
     """Count, inside the block, every vertex the geodesic searches settle: scipy's Dijkstra
     settles exactly the nodes it returns a finite distance for (a node beyond ``limit`` is never
     pushed), so each call adds its finite distances less its virtual sources; and every cell a
-    line-of-sight test looks at. The robots' own code runs unchanged: the counting wrappers are
-    put in place of ``dijkstra`` and ``CoverageDomain.visible_mask`` for the block only (this
-    process only; not thread-safe)."""
+    line-of-sight test looks at, one by one or a tile at a time. The robots' own code runs
+    unchanged: the counting wrappers are put in place of ``dijkstra`` and
+    ``CoverageDomain.visible_mask``, ``visible_each`` and ``sight_tiles_in`` for the block only
+    (this process only; not thread-safe)."""
     count = SearchCount()
     scipy_dijkstra = csgraph.dijkstra
     plain_mask = CoverageDomain.visible_mask
+    plain_each = CoverageDomain.visible_each
+    plain_tiles = CoverageDomain.sight_tiles_in
 
     def dijkstra(graph, *args, **kwargs):
         if "indices" not in kwargs:
@@ -59,6 +64,14 @@ def counting_searches() -> Iterator[SearchCount]:
         count.sighted += len(points)
         return plain_mask(self, origin, points, radius, depths, point_tiles)
 
+    def visible_each(self, origin, points, depths):
+        count.sighted += len(points)
+        return plain_each(self, origin, points, depths)
+
+    def sight_tiles_in(self, origin, depths, ids):
+        count.sighted += int(_free_per_tile(self)[ids].sum())
+        return plain_tiles(self, origin, depths, ids)
+
     for module in _SEARCH_MODULES:
         if module.dijkstra is not scipy_dijkstra:
             raise ConfigError.at(module.__name__, "dijkstra is not scipy's (nested counting?)")
@@ -67,8 +80,22 @@ def counting_searches() -> Iterator[SearchCount]:
         for module in _SEARCH_MODULES:
             module.dijkstra = dijkstra  # type: ignore[attr-defined]
         CoverageDomain.visible_mask = visible_mask  # type: ignore[method-assign]
+        CoverageDomain.visible_each = visible_each  # type: ignore[method-assign]
+        CoverageDomain.sight_tiles_in = sight_tiles_in  # type: ignore[method-assign]
         yield count
     finally:
         for module in _SEARCH_MODULES:
             module.dijkstra = scipy_dijkstra  # type: ignore[attr-defined]
         CoverageDomain.visible_mask = plain_mask  # type: ignore[method-assign]
+        CoverageDomain.visible_each = plain_each  # type: ignore[method-assign]
+        CoverageDomain.sight_tiles_in = plain_tiles  # type: ignore[method-assign]
+
+
+def _free_per_tile(domain: CoverageDomain) -> np.ndarray:
+    """``(tiles,)`` the free cells of every line-of-sight tile (row-major)."""
+    H, W = domain.shape
+    ny, nx = -(-H // SIGHT_TILE), -(-W // SIGHT_TILE)
+    padded = np.zeros((ny * SIGHT_TILE, nx * SIGHT_TILE), dtype=np.int64)
+    padded[:H, :W] = domain.free
+    counts: np.ndarray = padded.reshape(ny, SIGHT_TILE, nx, SIGHT_TILE).sum(axis=(1, 3)).ravel()
+    return counts

@@ -22,7 +22,12 @@ from coverage_ros.core.geodesic.tangents import (
 
 #: points from which :meth:`LineOfSight.visible_mask` decides line of sight by tiles first
 TILED_FROM = 2048
-#: The depth maps a caller keeps, by origin: ``[radius, depth map, tile states or None]``.
+#: [cells] An occluder can hide a point from an origin only within this distance of the segment
+#: between them, along each axis, plus the width of an angular bin at the point: its disc (half a
+#: cell diagonal, which seen from up close spans up to a quarter turn) reaching into the point's
+#: bin, with a cell to spare.
+SEGMENT_MARGIN = 2.2
+#: The depth maps a caller keeps, by origin: ``[box, depth map, tile states or None]``.
 DepthMaps = dict[tuple[float, float], list[Any]]
 
 
@@ -65,8 +70,8 @@ class LineOfSight:
         that every computation of "visible" agrees): enough to resolve one cell at the far
         side of the grid."""
         H, W = self.shape
-        return int(np.clip(2 ** math.ceil(math.log2(2.0 * math.pi * math.hypot(H, W))),
-                           1024, 16384))
+        bins: int = 2 ** math.ceil(math.log2(2.0 * math.pi * math.hypot(H, W)))
+        return min(max(bins, 1024), 16384)
 
     @property
     def occluder_centers(self) -> np.ndarray:
@@ -80,35 +85,44 @@ class LineOfSight:
 
     def visible_mask(self, origin: np.ndarray, points: np.ndarray, radius: float,
                      depths: DepthMaps | None = None,
-                     point_tiles: np.ndarray | None = None, by_tiles: bool = True
-                     ) -> np.ndarray:
+                     point_tiles: np.ndarray | None = None) -> np.ndarray:
         """``(N,) bool``: grid points (within ``radius`` cells of the grid point ``origin``)
         in line of sight of it; blocked cells are discs of half a cell diagonal.
 
-        ``depths``, a dict the caller keeps, holds the depth maps made so far by origin: one
-        made for a radius at least as large is used again. That changes no answer - an
-        occluder outside a radius' box is farther than any point the radius allows, so it
-        cannot hide one. With ``depths``, many points are first decided a tile at a time
-        (:meth:`sight_tiles`; same answers); ``point_tiles``, the points'
-        :func:`~coverage_ros.core.geodesic.tangents.tile_index` when the caller has them,
-        saves working them out; ``by_tiles`` False: point by point all the same (for points a
-        caller knows no tile decides whole)."""
-        held = self._depth_map(origin, radius, depths)
+        ``depths``, a dict the caller keeps, holds the depth maps made so far by origin, each
+        of the occluders in a box: one whose box holds the radius' is used again. That
+        changes no answer (:meth:`_depth_map`). With ``depths``, many points are first
+        decided a tile at a time (:meth:`sight_tiles`; same answers); ``point_tiles``, the
+        points' :func:`~coverage_ros.core.geodesic.tangents.tile_index` when the caller has
+        them, saves working them out."""
+        held = self._depth_map(origin, self._around(origin, radius), depths)
         if held is None:
             return np.ones(len(points), dtype=bool)
-        if depths is None or len(points) < TILED_FROM or not by_tiles:
+        if depths is None or len(points) < TILED_FROM:
             return visible_from(origin, points, held[1])
         if point_tiles is None:
             point_tiles = tile_index(points, self.shape)
         return visible_from(origin, points, held[1],
                             (self.sight_tiles(origin, radius, depths), point_tiles))
 
+    def visible_each(self, origin: np.ndarray, points: np.ndarray,
+                     depths: DepthMaps) -> np.ndarray:
+        """:meth:`visible_mask` of ``points (N, 2)`` anywhere, point by point, from a depth
+        map of the occluders around the segments from ``origin`` to them only (kept in
+        ``depths``)."""
+        if len(points) == 0:
+            return np.zeros(0, dtype=bool)
+        held = self._depth_map(origin, self._spanning(origin, points), depths)
+        return np.ones(len(points), dtype=bool) if held is None else visible_from(
+            origin, points, held[1])
+
     def sight_tiles(self, origin: np.ndarray, radius: float, depths: DepthMaps) -> np.ndarray:
         """:func:`~coverage_ros.core.geodesic.tangents.sight_tiles` of the depth map that
         :meth:`visible_mask` uses for ``origin`` and ``radius`` (made once, kept in
         ``depths``): per tile, 1 seen whole, 0 hidden whole, -1 to be tested point by point;
-        all 1 when no occluder lies within the radius' box."""
-        held = self._depth_map(origin, radius, depths)
+        all 1 when no occluder lies within the radius' box. Only the answers for tiles within
+        the radius are the whole domain's."""
+        held = self._depth_map(origin, self._around(origin, radius), depths)
         if held is None:
             H, W = self.shape
             return np.ones(-(-H // SIGHT_TILE) * -(-W // SIGHT_TILE), dtype=np.int8)
@@ -117,47 +131,81 @@ class LineOfSight:
         tiles: np.ndarray = held[2]
         return tiles
 
-    def sight_tiles_in(self, origin: np.ndarray, radius: float, depths: DepthMaps,
+    def sight_tiles_in(self, origin: np.ndarray, depths: DepthMaps,
                        ids: np.ndarray) -> np.ndarray:
-        """:meth:`sight_tiles` of the tiles ``ids`` (flat row-major indices), which must lie
-        within ``radius`` cells of ``origin``: from a depth map of that radius (kept in
+        """:meth:`sight_tiles` of the tiles ``ids`` (flat row-major indices) from a depth map
+        of the occluders around the segments from ``origin`` to them only (kept in
         ``depths``; the tile answers are not)."""
-        held = self._depth_map(origin, radius, depths)
+        if len(ids) == 0:
+            return np.zeros(0, dtype=np.int8)
+        nx = -(-self.shape[1] // SIGHT_TILE)
+        x0, y0 = (ids % nx) * float(SIGHT_TILE), (ids // nx) * float(SIGHT_TILE)
+        corners = np.stack([np.concatenate([x0, x0 + SIGHT_TILE]),
+                            np.concatenate([y0, y0 + SIGHT_TILE])], axis=1)
+        held = self._depth_map(origin, self._spanning(origin, corners), depths)
         if held is None:
             return np.ones(len(ids), dtype=np.int8)
         return sight_tiles(origin, held[1], self.shape, ids=ids)
 
-    def _depth_map(self, origin: np.ndarray, radius: float, depths: DepthMaps | None
+    def _around(self, origin: np.ndarray, radius: float) -> tuple[float, ...]:
+        """The box ``(x0, y0, x1, y1)`` [cells] of occluders that can hide a point within
+        ``radius`` cells of ``origin``."""
+        R = radius + 3.0  # (an occluder farther is farther than its disc reaches: > radius)
+        return self._clip((origin[0] - R, origin[1] - R, origin[0] + R, origin[1] + R))
+
+    def _spanning(self, origin: np.ndarray, points: np.ndarray) -> tuple[float, ...]:
+        """The box of occluders that can hide one of ``points`` from ``origin``: around the
+        segments between them (:data:`SEGMENT_MARGIN`)."""
+        H, W = self.shape
+        margin = SEGMENT_MARGIN + 2.0 * math.pi * math.hypot(H, W) / self.depth_bins
+        xs, ys = points[:, 0], points[:, 1]  # (column by column: a reduction along the
+        # short axis of an (N, 2) array is many times slower)
+        return self._clip((min(float(xs.min()), float(origin[0])) - margin,
+                           min(float(ys.min()), float(origin[1])) - margin,
+                           max(float(xs.max()), float(origin[0])) + margin,
+                           max(float(ys.max()), float(origin[1])) + margin))
+
+    def _clip(self, box: tuple[float, float, float, float]) -> tuple[float, ...]:
+        """``box`` within the grid (give or take a cell: every occluder lies inside)."""
+        H, W = self.shape
+        return (max(box[0], -1.0), max(box[1], -1.0), min(box[2], W + 1.0),
+                min(box[3], H + 1.0))
+
+    def _depth_map(self, origin: np.ndarray, box: tuple[float, ...], depths: DepthMaps | None
                    ) -> list[Any] | None:
-        """``[radius, depth map, tile states or None]`` for ``origin`` (kept in ``depths``),
-        or None when no occluder lies within the radius' box. A kept map of a smaller radius
-        grows by the occluders outside its box only (a depth is the least over occluders:
-        the same map as made anew)."""
+        """``[box, depth map, tile states or None]`` of the occluders in ``box`` for
+        ``origin`` (kept in ``depths``), or None when the box holds no occluder. The answer
+        for a point is the whole domain's when the box holds the segment from ``origin`` to
+        it widened by :data:`SEGMENT_MARGIN`: only an occluder whose disc reaches into the
+        point's angular bin nearer than the point can hide it, and the bins are narrower
+        than a cell at the far side of the grid. A kept map whose box holds ``box`` serves;
+        one that does not grows by the occluders outside its box to the box around both (a
+        depth is the least over occluders: the same map as made anew)."""
         key = (float(origin[0]), float(origin[1]))
         held = depths.get(key) if depths is not None else None
-        if held is not None and held[0] >= radius:
-            return held
-        occ = self._occluders_within(self.occluder_centers, origin, radius)
+        if held is not None:
+            old = held[0]
+            if old[0] <= box[0] and old[1] <= box[1] and old[2] >= box[2] and old[3] >= box[3]:
+                return held
+            box = (min(old[0], box[0]), min(old[1], box[1]), max(old[2], box[2]),
+                   max(old[3], box[3]))
+        occ = self.occluder_centers
+        occ = occ[_inside(occ, box)]
         if held is not None:  # (those of the kept map's box it has already)
-            occ = occ[~self._occluders_within(occ, origin, held[0], mask=True)]
+            occ = occ[~_inside(occ, held[0])]
         if held is None and len(occ) == 0:
             return None
         depth = polar_depth(origin, occ, self.depth_bins)
         if held is not None:
             depth = np.minimum(held[1], depth)
-        held = [radius, depth, None]
+        held = [box, depth, None]
         if depths is not None:
             depths[key] = held
         return held
 
-    def _occluders_within(self, occ: np.ndarray, origin: np.ndarray, radius: float,
-                          mask: bool = False) -> np.ndarray:
-        """The occluders of ``occ`` that can hide a point within ``radius`` cells of
-        ``origin``: those in a box around it (all of them when the box holds the domain);
-        ``mask``: which ones, as a boolean array."""
-        R = radius + 2.0
-        if R >= max(self.shape):
-            return np.ones(len(occ), dtype=bool) if mask else occ
-        inside: np.ndarray = ((np.abs(occ[:, 0] - origin[0]) <= R + 1.0)
-                              & (np.abs(occ[:, 1] - origin[1]) <= R + 1.0))
-        return inside if mask else occ[inside]
+
+def _inside(points: np.ndarray, box: tuple[float, ...]) -> np.ndarray:
+    """``(N,) bool``: the points (grid coordinates) in ``box`` ``(x0, y0, x1, y1)``."""
+    inside: np.ndarray = ((points[:, 0] >= box[0]) & (points[:, 0] <= box[2])
+                          & (points[:, 1] >= box[1]) & (points[:, 1] <= box[3]))
+    return inside

@@ -18,8 +18,6 @@ ids of the whole-domain search graph: sink 0, nodes, then one source per generat
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
@@ -61,8 +59,8 @@ def visible_first_search(domain: CoverageDomain, local: LocalGraph,
                 best[i], winner[i] = c, k
     # Settled: in line of sight of the winner (snap seeds of the winner count as seen). Cells
     # in a tile seen (hidden) whole from their winner are settled (not) by the tile's answer,
-    # the others one by one (the same answers), each generator's from a depth map reaching
-    # the tiles that hold its cells (the hidden cells' search widens them where it needs).
+    # the others one by one (the same answers), each generator's from a depth map of the
+    # occluders around its cells (the hidden cells' search widens it where it needs).
     for k in range(k_gens):
         own_snap = snap_best[k][0]
         won = own_snap[winner[own_snap] == k]
@@ -72,15 +70,11 @@ def visible_first_search(domain: CoverageDomain, local: LocalGraph,
     nx = -(-W // SIGHT_TILE)
     n_tiles = int(node_tiles[-1]) + 1
     states = np.full((k_gens, n_tiles), -1, dtype=np.int8)  # (-1: test each cell)
-    near = np.zeros(k_gens)  # [cells] the reach of each generator's tiles
     for g in np.flatnonzero(boxes[:, 0] < boxes[:, 1]):
         i0, j0 = int(boxes[g, 0]) // SIGHT_TILE, int(boxes[g, 2]) // SIGHT_TILE
         i1, j1 = -(-int(boxes[g, 1]) // SIGHT_TILE), -(-int(boxes[g, 3]) // SIGHT_TILE)
-        gx, gy = grids[g]
-        near[g] = math.hypot(max(abs(gx - j0 * SIGHT_TILE), abs(j1 * SIGHT_TILE - gx)),
-                             max(abs(gy - i0 * SIGHT_TILE), abs(i1 * SIGHT_TILE - gy)))
         ids = (np.arange(i0, i1)[:, None] * nx + np.arange(j0, j1)[None, :]).ravel()
-        states[g, ids] = domain.sight_tiles_in(grids[g], near[g], depths, ids)
+        states[g, ids] = domain.sight_tiles_in(grids[g], depths, ids)
     mine = winner >= 0
     state = states.ravel()[np.where(mine, winner, 0) * n_tiles + node_tiles]
     settled = mine & (state == 1)
@@ -90,11 +84,9 @@ def visible_first_search(domain: CoverageDomain, local: LocalGraph,
     for k in range(k_gens):
         cells = by_gen[bounds[k]:bounds[k + 1]]
         if len(cells):
-            settled[cells] = domain.visible_mask(grids[k], centers[cells], near[k], depths,
-                                                 by_tiles=False)
+            settled[cells] = domain.visible_each(grids[k], centers[cells], depths)
         own_snap = snap_best[k][0]
         settled[own_snap[winner[own_snap] == k]] = True
-    reaches = [math.hypot(max(gx, W - gx), max(gy, H - gy)) for gx, gy in grids]
     first_free = first + k_gens
     dist = np.full(first_free, np.inf)
     pred = np.full(first_free, -9999, dtype=np.int32)
@@ -105,7 +97,7 @@ def visible_first_search(domain: CoverageDomain, local: LocalGraph,
     hidden = np.flatnonzero(free & ~settled)
     if len(hidden):
         _search_hidden(domain, local, hidden, settled, dist, pred, label, grids, biases,
-                       snap_best, (depths, reaches, node_tiles[hidden]))
+                       snap_best, (depths, node_tiles[hidden]))
     return dist, pred, label
 
 
@@ -127,11 +119,10 @@ def _search_hidden(domain: CoverageDomain, local: LocalGraph, hidden: np.ndarray
                    settled: np.ndarray, dist: np.ndarray, pred: np.ndarray, label: np.ndarray,
                    grids: np.ndarray, biases: np.ndarray,
                    snap_best: list[tuple[np.ndarray, np.ndarray]],
-                   sight: tuple[DepthMaps, list[float], np.ndarray]) -> None:
+                   sight: tuple[DepthMaps, np.ndarray]) -> None:
     """Dijkstra over the hidden cells from their settled neighbours and from every generator's
     own seeds among them (in line of sight, or snap edges); fills the arrays in place.
-    ``sight``: the depth maps made so far, each generator's whole-domain reach, and the
-    hidden cells' line-of-sight tiles."""
+    ``sight``: the depth maps made so far and the hidden cells' line-of-sight tiles."""
     n = local.n
     first = n + 1
     res = domain.resolution
@@ -178,7 +169,7 @@ def _search_hidden(domain: CoverageDomain, local: LocalGraph, hidden: np.ndarray
                          indices=sources, min_only=True, return_predecessors=True)
     upper = d[:len(hidden)]
     hc = local.centers[hidden]
-    depths, reaches, tiles = sight
+    depths, tiles = sight
     # The hidden cells by line-of-sight tile, and per tile the longest path found into it: a
     # tile whose nearest point is farther from a generator in a straight line than every path
     # found into the tile cannot give that generator a shorter line (nor need its test).
@@ -194,14 +185,7 @@ def _search_hidden(domain: CoverageDomain, local: LocalGraph, hidden: np.ndarray
         may = _may_be_shorter(tiled, grids[k], biases[k], res)
         if len(may) == 0:
             continue
-        # a depth map reaching the farthest corner of these tiles answers for all of them
-        gx, gy = grids[k]
-        reach = float(np.hypot(np.maximum(np.abs(tx0[may] - gx), np.abs(tx0[may] + SIGHT_TILE
-                                                                        - gx)),
-                               np.maximum(np.abs(ty0[may] - gy), np.abs(ty0[may] + SIGHT_TILE
-                                                                        - gy))).max())
-        reach = min(reach, reaches[k])
-        state = domain.sight_tiles_in(grids[k], reach, depths, present[may])
+        state = domain.sight_tiles_in(grids[k], depths, present[may])
         may, state = may[state != 0], state[state != 0]
         if len(may) == 0:
             continue
@@ -211,8 +195,7 @@ def _search_hidden(domain: CoverageDomain, local: LocalGraph, hidden: np.ndarray
         better, e = near[keep], e[keep]
         seen = np.repeat(state, per_tile[may])[keep] == 1  # (tiles seen whole)
         test = np.flatnonzero(~seen)  # (the others: mixed)
-        seen[test] = domain.visible_mask(grids[k], hc[better[test]], reach, depths,
-                                         by_tiles=False)
+        seen[test] = domain.visible_each(grids[k], hc[better[test]], depths)
         if seen.any():
             fresh[k] = (better[seen], e[seen])
     if fresh:  # (a line no shorter than the path found changes nothing: the first stands)

@@ -1,0 +1,67 @@
+"""Depth maps of the occluders in a box around the segments asked about (LineOfSight.
+visible_each, sight_tiles_in) answer as the whole domain's map does, also once a kept map has
+grown to another box."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from coverage_ros.core.geodesic.domain import CoverageDomain
+from coverage_ros.core.geodesic.tangents import SIGHT_TILE
+from coverage_ros.core.world.grid import OCCUPIED, GridMap
+
+
+def _domain(rng: np.random.Generator, share: float) -> CoverageDomain:
+    occ = np.where(rng.random((150, 210)) < share, OCCUPIED, 0).astype(np.int8)
+    occ[60:64, 20:180] = OCCUPIED  # a long wall: far occluders in every bin along it
+    return CoverageDomain.from_grid(GridMap(occ, 0.05, (0.0, 0.0, 0.0)), 0.0)
+
+
+@pytest.mark.parametrize("share", [0.003, 0.02, 0.08])
+def test_box_maps_answer_as_the_whole_domains_map(share):
+    rng = np.random.default_rng(int(share * 1000))
+    domain = _domain(rng, share)
+    H, W = domain.shape
+    whole = 2.0 * math.hypot(H, W)
+    for _ in range(12):
+        origin = rng.uniform([0.0, 0.0], [W, H])
+        depths: dict = {}
+        for _ in range(4):  # clusters near and far, the kept map growing between them
+            centre = rng.uniform([0.0, 0.0], [W, H])
+            spread = rng.uniform(1.0, 60.0)
+            points = centre + rng.normal(0.0, spread, (300, 2))
+            expected = domain.visible_mask(origin, points, whole)
+            assert np.array_equal(domain.visible_each(origin, points, depths), expected)
+        nx, ny = -(-W // SIGHT_TILE), -(-H // SIGHT_TILE)
+        ids = rng.choice(nx * ny, 12, replace=False)
+        states = domain.sight_tiles_in(origin, depths, ids)
+        for tile, state in zip(ids, states, strict=True):
+            x0, y0 = (tile % nx) * SIGHT_TILE, (tile // nx) * SIGHT_TILE
+            yy, xx = np.mgrid[y0:y0 + SIGHT_TILE, x0:x0 + SIGHT_TILE]
+            cells = np.stack([xx.ravel() + 0.5, yy.ravel() + 0.5], axis=-1)
+            seen = domain.visible_mask(origin, cells, whole)
+            if state == 1:
+                assert seen.all()
+            elif state == 0:
+                assert not seen.any()
+
+
+def test_box_maps_along_a_wall_answer_as_the_whole_domains_map():
+    """Points in the row beside a wall, seen along it: the wall's occluders lie a cell off the
+    segments, outside the points' own box, and still hide the far ones."""
+    rng = np.random.default_rng(5)
+    domain = _domain(rng, 0.0)
+    H, W = domain.shape
+    whole = 2.0 * math.hypot(H, W)
+    answers = []
+    for row in (58.5, 59.5, 64.5, 65.5):  # the rows either side of the wall (60..63)
+        for x in (3.5, 15.5, 100.3):
+            origin = np.array([x, row + rng.uniform(-0.4, 0.4)])
+            points = np.stack([np.arange(W) + 0.5, np.full(W, row)], axis=-1)
+            expected = domain.visible_mask(origin, points, whole)
+            assert np.array_equal(domain.visible_each(origin, points, {}), expected)
+            answers.append(expected)
+    assert not np.concatenate(answers).all()  # the wall hides some of them

@@ -62,6 +62,7 @@ class _Forest:
     label: np.ndarray  # (N,) int64 generator owning each node, -1: nobody
     g: np.ndarray  # (N,) distance to the owner (any value where nobody's)
     parent: Callable[[np.ndarray], np.ndarray]  # nodes -> their parent node ids (-1: none)
+    linked: Callable[[], np.ndarray]  # the nodes whose parent is a node (not a source)
     robot: np.ndarray  # (n,) int64 the robot of each generator
 
 
@@ -127,7 +128,11 @@ def _equal_forest(domain: CoverageDomain, gens: list[Generator], snaps: list[Sna
         up: np.ndarray = search.pred[nodes + 1].astype(np.int64) - 1
         return up
 
-    return _Forest(label, search.dist[1:N + 1], parent, robot)
+    def linked() -> np.ndarray:
+        pred = search.pred[1:N + 1]  # (local ids: nodes 1..N, then the sources)
+        return np.flatnonzero((pred > 0) & (pred <= N))
+
+    return _Forest(label, search.dist[1:N + 1], parent, linked, robot)
 
 
 def _power_forest(domain: CoverageDomain, gens: list[Generator], snaps: list[Snap],
@@ -164,7 +169,10 @@ def _power_forest(domain: CoverageDomain, gens: list[Generator], snaps: list[Sna
         parents: np.ndarray = up[nodes]
         return parents
 
-    return _Forest(label[1:first], own_d[1:first], parent, np.arange(n))
+    def linked() -> np.ndarray:
+        return np.flatnonzero((up >= 0) & (up < N))
+
+    return _Forest(label[1:first], own_d[1:first], parent, linked, np.arange(n))
 
 
 def _covectors(domain: CoverageDomain, forest: _Forest, bins: np.ndarray, grids: np.ndarray,
@@ -215,14 +223,12 @@ def _deep_anchors(domain: CoverageDomain, forest: _Forest, method: str,
     (``visibility``, ``paper``) or within the look-ahead (``lookahead``); a path without one
     keeps the node's own chord."""
     label = forest.label
-    owned = label >= 0
     if method == "lookahead":
-        candidates = np.flatnonzero(owned & (forest.g > LOOKAHEAD_CELLS
-                                             * domain.graph.max_edge_cost))
-    else:
-        candidates = np.flatnonzero(owned)
-        pred = forest.parent(candidates)
-        candidates = candidates[(pred >= 0) & (pred < N)]
+        candidates = np.flatnonzero((label >= 0) & (forest.g > LOOKAHEAD_CELLS
+                                                    * domain.graph.max_edge_cost))
+    else:  # (a node joined to the source is its own anchor)
+        candidates = forest.linked()
+        candidates = candidates[label[candidates] >= 0]
     up = forest.parent(candidates)
     inside = (up >= 0) & (up < N)
     inside[inside] = label[up[inside]] == label[candidates[inside]]

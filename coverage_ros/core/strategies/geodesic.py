@@ -55,6 +55,9 @@ class GeodesicParams:
     escape_transit: int = 600
     #: Lloyd steps of the second generator when a robot prices a split of its cell
     escape_steps: int = 3
+    #: Lloyd steps of the re-spreading neighbours in the joint bound (enough for a neighbour
+    #: to shift by a room: fewer see only the moves that pay at once)
+    escape_joint_steps: int = 10
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
@@ -66,7 +69,8 @@ class GeodesicParams:
             if isinstance(v, bool) or not isinstance(v, int | float) or not (
                     math.isfinite(v) and v >= 0):
                 raise ConfigError.at(name, "must be a finite number >= 0", v)
-        for name in ("escape_cooldown", "escape_wait", "escape_transit", "escape_steps"):
+        for name in ("escape_cooldown", "escape_wait", "escape_transit", "escape_steps",
+                     "escape_joint_steps"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < 1:
                 raise ConfigError.at(name, "must be an integer >= 1", v)
@@ -74,7 +78,8 @@ class GeodesicParams:
     def handover(self) -> HandoverSettings:
         return HandoverSettings(gain=float(self.escape_gain), settle=float(self.escape_settle),
                                 cooldown=self.escape_cooldown, wait=self.escape_wait,
-                                transit=self.escape_transit, steps=self.escape_steps)
+                                transit=self.escape_transit, steps=self.escape_steps,
+                                joint_steps=self.escape_joint_steps)
 
 
 @dataclass(frozen=True)

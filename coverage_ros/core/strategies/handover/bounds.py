@@ -182,12 +182,15 @@ def _lloyd_in(domain: CoverageDomain, U: np.ndarray, movers: np.ndarray, fixed: 
             best, at = value, pos.copy()
         if step == steps:
             break
+        last = pos.copy()
         for k in range(len(pos)):
             part = lab == k
             m = float(w[part].sum())
             if m > 0:
                 centroid = (pts[part] * w[part, None]).sum(axis=0) / m
                 pos[k] = pts[part][int(np.argmin(np.hypot(*(pts[part] - centroid).T)))]
+        if np.array_equal(pos, last):
+            break  # a fixed point: every further step gives the same cost
     return best, at
 
 

@@ -74,7 +74,8 @@ class HandoverSettings:
     cooldown: int  # [updates] after a relocation or a dropped claim, before the next claim
     wait: int  # [updates] a claim waits this long for its grant
     transit: int  # [updates] a relocating robot gives up after this many
-    steps: int  # Lloyd steps of the split
+    steps: int  # Lloyd steps of the split and of the removal
+    joint_steps: int = 10  # Lloyd steps of the joint bound
 
 
 @dataclass(frozen=True)
@@ -253,7 +254,7 @@ class Handover:
         if memo not in values:
             t = 1 + [n.robot_id for n in neighbours].index(target.robot_id)
             values[memo] = joint_change(self.domain, known, weight, t, point,
-                                        self.settings.steps, self.method).increase
+                                        self.settings.joint_steps, self.method).increase
         return values[memo]
 
     def _cached_removal(self, key: np.ndarray, position: np.ndarray, weight: float,

@@ -290,7 +290,8 @@ def test_update_takes_only_the_observation_and_the_neighbours():
 @pytest.mark.parametrize("name,value", [
     ("escape", "yes"), ("escape_gain", -0.1), ("escape_gain", math.inf),
     ("escape_settle", -1.0), ("escape_cooldown", 0), ("escape_wait", 0),
-    ("escape_transit", 0), ("escape_steps", 0), ("escape_steps", 1.5)])
+    ("escape_transit", 0), ("escape_steps", 0), ("escape_steps", 1.5),
+    ("escape_joint_steps", 0)])
 def test_settings_are_checked_by_name(name, value):
     with pytest.raises(ConfigError, match=name):
         GeodesicParams(**{name: value})

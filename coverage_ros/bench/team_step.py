@@ -7,7 +7,8 @@
   --solver decentralized`` and the robots run), timed interleaved in rounds on the same
   positions; ``lloyd_speedup`` is the median over rounds of their ratio.
 * ``geodesic_ms`` - the geodesic team step (:class:`coverage_ros.core.offline.lloyd_team.
-  GeodesicTeam`: one shared search, cells settled by line of sight first) against
+  GeodesicTeam`: one tessellation - one search, cells settled by line of sight first, every
+  robot's sums and control at once; target 10 ms) against
   ``geodesic_robots_ms``, the eight robots' own decentralized geodesic updates (the ``coverage-plan
   --strategy geodesic --solver decentralized`` iteration), at positions of the plain Lloyd run;
   then plain and accelerated generalized Lloyd with the geodesic team step.

@@ -24,7 +24,7 @@ from scipy.sparse.csgraph import dijkstra
 
 from coverage_ros.core.geodesic.domain import CoverageDomain, Snap, tie_bias
 from coverage_ros.core.geodesic.local_search import LocalGraph
-from coverage_ros.core.geodesic.sight import DepthMaps
+from coverage_ros.core.geodesic.sight import TILED_FROM, DepthMaps
 from coverage_ros.core.geodesic.straight_winner import grow_boxes, straight_winner
 from coverage_ros.core.geodesic.tangents import SIGHT_TILE
 
@@ -185,8 +185,11 @@ def _search_hidden(domain: CoverageDomain, local: LocalGraph, hidden: np.ndarray
         may = _may_be_shorter(tiled, grids[k], biases[k], res)
         if len(may) == 0:
             continue
-        state = domain.sight_tiles_in(grids[k], depths, present[may])
-        may, state = may[state != 0], state[state != 0]
+        if per_tile[may].sum() >= TILED_FROM:  # (a few cells: no tile answers needed)
+            state = domain.sight_tiles_in(grids[k], depths, present[may])
+            may, state = may[state != 0], state[state != 0]
+        else:
+            state = np.full(len(may), -1, dtype=np.int8)
         if len(may) == 0:
             continue
         near = by_tile[_ranges(starts[may], per_tile[may])]

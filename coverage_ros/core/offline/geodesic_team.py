@@ -84,16 +84,19 @@ def team_cells(domain: CoverageDomain, positions: np.ndarray, weights: np.ndarra
     bins = forest.label + 1  # (bin 0: nobody's nodes, dropped)
     wdA = domain.mass_element.ravel()
     with np.errstate(invalid="ignore"):  # (nobody's nodes: inf distances, into bin 0)
-        f = forest.g * forest.g
+        gw = forest.g * wdA  # (also the control's weight of every cell)
         if np.any(R):
+            f = forest.g * forest.g
             f -= np.append(0.0, (R * R)[robot])[bins]
-        f *= wdA
+            f *= wdA
+        else:
+            f = gw * forest.g
     sums = np.stack([np.bincount(bins, weights=wdA, minlength=n + 1),
                      np.bincount(bins, weights=f, minlength=n + 1)])[:, 1:]
     masses, costs = np.zeros(n), np.zeros(n)
     masses[robot], costs[robot] = sums
     covectors = np.zeros((n, 2))
-    covectors[robot] = _covectors(domain, forest, bins, grids[robot], wdA, method)
+    covectors[robot] = _covectors(domain, forest, bins, grids[robot], gw, method)
     metric = domain.metric_at(grids)
     res = domain.resolution
     controls, goals = np.zeros((n, 2)), np.zeros((n, 2))
@@ -176,13 +179,13 @@ def _power_forest(domain: CoverageDomain, gens: list[Generator], snaps: list[Sna
 
 
 def _covectors(domain: CoverageDomain, forest: _Forest, bins: np.ndarray, grids: np.ndarray,
-               wdA: np.ndarray, method: str) -> np.ndarray:
+               gw: np.ndarray, method: str) -> np.ndarray:
     """Steps 2-3: ``(n, 2)`` every generator's I_k (grid axes, chart units; generators in the
-    forest's order, at grid points ``grids``)."""
+    forest's order, at grid points ``grids``; ``gw``: every node's g w dA)."""
     H, W = domain.shape
     N = H * W
     n = len(grids)
-    label, g = forest.label, forest.g
+    label = forest.label
     # the chord of every node to its owner's generator (cells, grid axes) ...
     ext = np.append(grids, [[0.0, 0.0]], axis=0)  # (nobody's nodes: index -1)
     dx = (np.arange(W) + 0.5)[None, :] - np.take(ext[:, 0], label).reshape(H, W)
@@ -211,7 +214,7 @@ def _covectors(domain: CoverageDomain, forest: _Forest, bins: np.ndarray, grids:
     np.sqrt(norm, out=norm)
     coef = np.zeros(N)
     with np.errstate(invalid="ignore"):  # (nobody's nodes: inf distances, into bin 0)
-        np.divide(g * wdA, norm, out=coef, where=norm > 1e-12)
+        np.divide(gw, norm, out=coef, where=norm > 1e-12)
     return np.stack([np.bincount(bins, weights=coef * mx, minlength=n + 1),
                      np.bincount(bins, weights=coef * my, minlength=n + 1)], axis=1)[1:]
 

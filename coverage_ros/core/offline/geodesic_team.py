@@ -212,9 +212,13 @@ def _covectors(domain: CoverageDomain, forest: _Forest, bins: np.ndarray, grids:
     norm = dx * mx
     norm += dy * my
     np.sqrt(norm, out=norm)
-    coef = np.zeros(N)
-    with np.errstate(invalid="ignore"):  # (nobody's nodes: inf distances, into bin 0)
-        np.divide(gw, norm, out=coef, where=norm > 1e-12)
+    with np.errstate(invalid="ignore", divide="ignore"):  # (nobody's: inf, into bin 0)
+        coef = gw / norm
+    # no chord (a cell centre or an anchor at its generator): no direction, left out - only
+    # where a generator's own cell or an anchor lies
+    own = (np.floor(grids[:, 1]) * W + np.floor(grids[:, 0])).astype(np.int64)
+    maybe = np.concatenate([own[(own >= 0) & (own < N)], deep])
+    coef[maybe[norm[maybe] <= 1e-12]] = 0.0
     return np.stack([np.bincount(bins, weights=coef * mx, minlength=n + 1),
                      np.bincount(bins, weights=coef * my, minlength=n + 1)], axis=1)[1:]
 

@@ -165,7 +165,13 @@ def run_lockstep(monitor, observer: LockstepObserver, startup_timeout: float,
         log.sim_time = max(log.sim_time, tick.time)
         if ready is None:
             if not set(monitor.alive()) <= tick.robots:
-                continue  # tick 0 while the team joins: unanswered, the world does not start
+                # Tick 0 while the team joins: unanswered, the world does not start (nor does
+                # it after its own start timeout: it waits for this answer).
+                if time.monotonic() - t0 > startup_timeout:
+                    raise RuntimeError(f"the world's lock-step did not list robots "
+                                       f"{sorted(set(monitor.alive()) - tick.robots)} within "
+                                       f"{startup_timeout:g} s (see their logs)")
+                continue
             monitor.team_ready(t0)
             ready = log.sim_time
             end = monitor.end

@@ -371,22 +371,26 @@ def test_coverage_cost_never_increases(world):
 
 
 def test_converges_to_lloyds_cvt_in_an_obstacle_free_square():
+    """Without the closet escape the geodesic strategy is Lloyd's where every line is a geodesic;
+    with it (the default) it ends at Lloyd's CVT or at a lower H."""
     from coverage_ros.core.offline.runner import OfflineConfig, run_offline
-    from coverage_ros.core.strategies import StrategyContext
+    from coverage_ros.core.strategies import StrategyContext, strategy_choice
 
     domain = CoverageDomain.from_grid(GridMap(np.zeros((80, 80), np.int8), 0.05), 0.0)
     for k, seed in ((4, 0), (5, 1)):
         starts = np.random.default_rng(seed).uniform(0.5, 1.5, (k, 2))
         ctx = [StrategyContext(domain=domain, robot_id=i, convergence_tolerance=0.005)
                for i in range(k)]
-        final = {}
-        for name in ("geodesic", "lloyd"):
-            res = run_offline(domain, name, starts, contexts=ctx,
+        final, H = {}, {}
+        for name, choice in (("geodesic", strategy_choice("geodesic", {"escape": False})),
+                             ("escape", "geodesic"), ("lloyd", "lloyd")):
+            res = run_offline(domain, choice, starts, contexts=ctx,
                               config=OfflineConfig(max_iterations=200))
             assert res.converged
-            final[name] = res.positions[-1]
+            final[name], H[name] = res.positions[-1], res.costs[-1]
         gap = np.hypot(*(final["geodesic"] - final["lloyd"]).T).max()
         assert gap <= 0.05, f"{k} robots: {gap / 0.05:.2f} cells apart"
+        assert H["escape"] <= H["lloyd"] * (1 + 1e-6)
 
 
 def _sphere_xyz(theta_phi: np.ndarray) -> np.ndarray:

@@ -225,7 +225,9 @@ def main(argv: list[str] | None = None) -> int:
     for name in maps:
         result = bench_map(name, args, stored, say)
         stored[name] = result["restarts"]
-        label["maps"][name] = {"settings": result["settings"], "cases": result["cases"]}
+        # a label's maps may come from runs of different commits: each keeps its own
+        label["maps"][name] = {"settings": result["settings"], "cases": result["cases"],
+                               "provenance": label["provenance"]}
         write(data, args.json, args.label)
     print(table(data))
     say(f"wrote {args.json}")
@@ -259,8 +261,8 @@ def rows(data: dict) -> list[dict]:
                         "ratios": [round(c["ratio"], 4) for c in m["cases"]],
                         "relocations": [c.get("relocations", 0) for c in m["cases"]],
                         "worst_ratio": m["worst_ratio"], "met": m["met"],
-                        "run": {"commit": run["provenance"].get("commit"),
-                                "date": run["provenance"].get("date")}})
+                        "run": {"commit": m.get("provenance", run["provenance"]).get("commit"),
+                                "date": m.get("provenance", run["provenance"]).get("date")}})
     return out
 
 
@@ -299,10 +301,6 @@ def table(data: dict) -> str:
     return "\n".join(rows)
 
 
-if __name__ == "__main__":
-    sys.exit(main())
-
-
 def summary_table(data: dict, labels: tuple[str, str] = ("before", "after")) -> str:
     """Markdown: per map, H_final / H_best of every start seed under each of ``labels``."""
     lines = [f"| map | best known H (N restarts) | {labels[0]}: H / best, each start "
@@ -327,3 +325,7 @@ def update_readme(data: dict, path: Path) -> bool:
     tail = rest.split(README_END, 1)[1]
     path.write_text(f"{head}{README_BEGIN}\n{summary_table(data)}\n{README_END}{tail}")
     return True
+
+
+if __name__ == "__main__":
+    sys.exit(main())

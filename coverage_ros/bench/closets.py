@@ -295,9 +295,10 @@ def table(data: dict) -> str:
         for name, m in run["maps"].items():
             best = data["best"].get(name, {})
             ratios = " ".join(f"{c['ratio']:.3f}" for c in m["cases"])
+            worst = "-" if m["worst_ratio"] is None else f"{m['worst_ratio']:.3f}"
             rows.append(f"{label:10s} {name:12s} {best.get('restarts', 0):3d} "
                         f"{best.get('H', math.nan):10.4g}  {ratios:26s} "
-                        f"{m['worst_ratio']:.3f}  {'met' if m['met'] else 'not met'}")
+                        f"{worst:5s}  {'met' if m['met'] else 'not met'}")
     return "\n".join(rows)
 
 

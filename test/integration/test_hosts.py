@@ -65,7 +65,7 @@ def test_a_team_split_over_two_hosts_covers_as_on_one(tmp_path, discovery_server
     # could not join them, so a team that works found itself through the server.
     with hosts_network(2, multicast=not discovery_server) as hosts:
         run = run_across_hosts(hosts, out, [
-            "--world", str(sandbox), "--robots", "4", "--duration", "40", "--seed", "5",
+            "--world", str(sandbox), "--robots", "4", "--duration", "60", "--seed", "5",
             "--no-markers",
             "--domain-id", str(domain_id(24 if discovery_server else 25))],
             remote={2: 1, 3: 1}, discovery_server=discovery_server)

@@ -19,7 +19,12 @@ Writes ``docs/results/closets.json`` (``--json``): one row per label and map (``
 runs under their ``--label`` (e.g. before / after), each with its settings and provenance, and
 the restarts per map (kept and reused by later labels with the same settings).
 
+With ``--live`` the cases are the launcher's team instead, run in lock-step on the same
+rasters and scored the same way (:mod:`coverage_ros.bench.closets_live`); the README's table
+gets a column for them.
+
     scripts/bench_closets --label before [--maps ward,office] [--seeds 3] [--restarts 8]
+    scripts/bench_closets --label live --live [--duration 300] [--maps ward]
 """
 
 from __future__ import annotations
@@ -59,6 +64,7 @@ ROBOTS = 8
 RESOLUTION = 0.1  # [m] benchmark raster: a restart on warehouse (30 x 50 m) in seconds
 TOLERANCE = 0.02  # [m] converged when no robot moves more than this (coverage-plan's default)
 MAX_ITERATIONS = 300  # coverage-plan's default
+LIVE_DURATION = 300.0  # [s] simulated time of a live run (--live)
 TARGET = 1.05  # H_final / H_best at most
 RESULTS = REPO / "docs" / "results" / "closets.json"
 README = REPO / "README.md"
@@ -72,6 +78,11 @@ def hostel() -> WorldSpec:
     """16 m x 9 m: a 1.2 m corridor at y 4-5.2 m, five rooms 4 m deep below it and five
     3.8 m deep above it, each with one door onto the corridor (rooms 2 m wide are closets of
     8 m^2 or less)."""
+    return parse_world(hostel_plan())
+
+
+def hostel_plan() -> dict:
+    """:func:`hostel` as a world file's mapping."""
     walls = []
 
     def wall(a: tuple[float, float], b: tuple[float, float]) -> None:
@@ -85,8 +96,8 @@ def hostel() -> WorldSpec:
             x += width
             if x < 16.0:
                 wall((x, y), (x, y_far))
-    return parse_world({"name": "hostel", "resolution": RESOLUTION,
-                        "bounds": [0.0, 0.0, 16.0, 9.0], "obstacles": walls})
+    return {"name": "hostel", "resolution": RESOLUTION, "bounds": [0.0, 0.0, 16.0, 9.0],
+            "obstacles": walls}
 
 
 def coarse_world(world: WorldSpec, resolution: float) -> WorldSpec:
@@ -201,8 +212,15 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--max-iterations", type=int, default=MAX_ITERATIONS)
     ap.add_argument("--strategy-params", default="",
                     help="YAML mapping of the geodesic strategy's settings for the cases")
+    ap.add_argument("--live", action="store_true",
+                    help="run the launcher's team in lock-step instead of the offline cases "
+                         "(coverage_ros.bench.closets_live)")
+    ap.add_argument("--duration", type=float, default=LIVE_DURATION,
+                    help="[s] with --live: simulated time of each run")
     ap.add_argument("--json", type=Path, default=RESULTS)
     args = ap.parse_args(argv)
+    if args.duration <= 0:
+        raise ConfigError.at("--duration", "must be > 0", args.duration)
     from coverage_ros.core.world.yaml_io import yaml_mapping
 
     args.params = yaml_mapping(args.strategy_params, "--strategy-params")
@@ -222,7 +240,18 @@ def main(argv: list[str] | None = None) -> int:
                  settings={"seeds": args.seeds, "restarts": args.restarts,
                            "robots": args.robots, "resolution": args.resolution,
                            "tolerance": TOLERANCE, "max_iterations": args.max_iterations})
-    for name in maps:
+    if args.live:
+        from coverage_ros.bench.closets_live import bench_live, check_maps
+
+        _best_and_ratios(data)
+        check_maps(maps, data)
+        label["settings"].update(live=True, duration=args.duration)
+        label["settings"].pop("restarts")
+        for name in maps:
+            result = bench_live(args, [name], data, say)[name]
+            label["maps"][name] = {**result, "provenance": label["provenance"]}
+            write(data, args.json, args.label)
+    for name in [] if args.live else maps:
         result = bench_map(name, args, stored, say)
         stored[name] = result["restarts"]
         # a label's maps may come from runs of different commits: each keeps its own
@@ -302,18 +331,30 @@ def table(data: dict) -> str:
     return "\n".join(rows)
 
 
-def summary_table(data: dict, labels: tuple[str, str] = ("before", "after")) -> str:
-    """Markdown: per map, H_final / H_best of every start seed under each of ``labels``."""
-    lines = [f"| map | best known H (N restarts) | {labels[0]}: H / best, each start "
-             f"| {labels[1]} |", "|---|---|---|---|"]
+def summary_table(data: dict, labels: tuple[str, ...] = ("before", "after"),
+                  live: str = "live") -> str:
+    """Markdown: per map, H_final / H_best of every start seed under each of ``labels``, and
+    under ``live`` (the launcher's team, ``--live``) when the results have such a run ('-'
+    for a map it did not run)."""
+    live_run = data["runs"].get(live)
+    heads = [f"{labels[0]}: H / best, each start", *labels[1:]]
+    if live_run is not None:
+        heads.append(f"{live}: the launcher's team, lock-step (sim time)")
+    lines = [f"| map | best known H (N restarts) | {' | '.join(heads)} |",
+             "|---|---|" + "---|" * len(heads)]
     for name in MAPS:
         runs = [data["runs"].get(label, {}).get("maps", {}).get(name) for label in labels]
         if name not in data.get("best", {}) or not all(runs):
             continue
+        if live_run is not None:
+            runs.append(live_run["maps"].get(name))
         best = data["best"][name]
-        cells = [" / ".join(f"{c['ratio']:.3f}" for c in m["cases"]) for m in runs if m]
-        lines.append(f"| {name} | {best['H']:.5g} ({best['restarts']}) | {cells[0]} "
-                     f"| {cells[1]} |")
+        cells = ["-" if m is None else " / ".join(f"{c['ratio']:.3f}" for c in m["cases"])
+                 for m in runs]
+        if live_run is not None and runs[-1] is not None:
+            cells[-1] += f" ({runs[-1]['settings']['duration']:g} s)"
+        lines.append(f"| {name} | {best['H']:.5g} ({best['restarts']}) | "
+                     f"{' | '.join(cells)} |")
     return "\n".join(lines)
 
 

@@ -12,11 +12,16 @@ from coverage_ros.bench.closets import (
     README,
     README_BEGIN,
     README_END,
+    RESOLUTION,
     RESULTS,
+    coarse_world,
     hostel,
     summary_table,
     update_readme,
 )
+from coverage_ros.bench.closets_live import within_at, world_file
+from coverage_ros.bench.environment import SHARED_MAPS
+from coverage_ros.core.world import load_world
 from coverage_ros.core.world.placement import largest_free_region
 
 
@@ -69,3 +74,39 @@ def _spans(rooms):
     for width, _ in rooms:
         yield x, x + width
         x += width
+
+
+def test_live_column_shows_each_start_and_maps_not_run():
+    data = _data([2.0, 1.5], [1.0, 1.01])
+    data["best"]["office"] = {"H": 178.9, "restarts": 10}
+    for label, ratios in (("before", [2.5]), ("after", [1.0])):
+        data["runs"][label]["maps"]["office"] = {"cases": [{"ratio": r} for r in ratios]}
+    data["runs"]["live"] = {"settings": {"duration": 300.0}, "maps": {
+        "ward": {"settings": {"duration": 400.0},
+                 "cases": [{"ratio": 1.02}, {"ratio": 1.104}]}}}
+    lines = summary_table(data).splitlines()
+    assert lines[0].endswith("| after | live: the launcher's team, lock-step (sim time) |")
+    assert lines[1] == "|---|---|---|---|---|"
+    assert lines[2] == "| office | 178.9 (10) | 2.500 | 1.000 | - |"
+    assert lines[3] == ("| ward | 498.6 (10) | 2.000 / 1.500 | 1.000 / 1.010 "
+                        "| 1.020 / 1.104 (400 s) |")
+
+
+def test_within_at_is_the_start_of_the_last_stay_within_five_percent():
+    series = [[0.0, 300.0], [10.0, 104.0], [20.0, 106.0], [30.0, 104.9], [40.0, 101.0]]
+    assert within_at(series, 100.0) == 30.0
+    assert within_at(series[:3], 100.0) is None
+    assert within_at([], 100.0) is None
+
+
+def test_live_worlds_are_the_offline_rasters(tmp_path):
+    """What the launcher loads for a live run is the world the offline cases score on: a floor
+    plan at the benchmark's resolution, a map_server map in blocks of its cells."""
+    for name in ("ward", "hostel", "tb3_sandbox"):
+        path, world = world_file(name, RESOLUTION, tmp_path)
+        loaded = load_world(str(path))
+        assert loaded.grid.resolution == RESOLUTION, name
+        assert np.array_equal(loaded.grid.occupancy, world.grid.occupancy), name
+    base = load_world(str(SHARED_MAPS / "tb3_sandbox.yaml"))
+    assert np.array_equal(load_world(str(tmp_path / "tb3_sandbox.yaml")).grid.occupancy,
+                          coarse_world(base, RESOLUTION).grid.occupancy)

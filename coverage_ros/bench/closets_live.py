@@ -1,0 +1,134 @@
+"""Live geodesic teams and dead-end rooms (``scripts/bench_closets --live``): the real
+launcher's team, run in lock-step, against the best known configuration of
+``scripts/bench_closets``.
+
+For every map and start seed, ``coverage-team --strategy geodesic --lockstep`` runs the world
+node and one robot process per robot for ``--duration`` seconds of simulated time from the
+launcher's start cluster (the same cluster the offline cases start from). The world is the
+benchmark's raster of the map (:func:`~coverage_ros.bench.closets.coarse_world`), written as a
+world file (floor plans) or a map_server map (the shared maps) that the launcher loads as a user
+would. The robots' final positions are scored as the offline cases are
+(:func:`~coverage_ros.bench.closets.score`), so ``ratio = H_final / H_best`` compares with the
+offline rows and the best known H of ``docs/results/closets.json``; the target is again
+ratio <= 1.05. The run's own H series gives the sim time from which H stayed within 5 % of the
+best known.
+
+The cases go into the results file under ``--label`` (default ``live``) with their own
+settings (the duration), so they never count towards the best known H.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from coverage_ros.bench.closets import MAPS, TARGET, coarse_world, hostel_plan, score
+from coverage_ros.core.geodesic.world_domain import world_domain
+from coverage_ros.core.world import WorldSpec, load_world, parse_world
+from coverage_ros.core.world.map_server import write_map_yaml
+from coverage_ros.errors import ConfigError
+from coverage_ros.worlds import resolve_world_path
+
+TEAM = [sys.executable, "-m", "coverage_ros.cli.team"]
+#: [s] wall-clock limit of one live run (a run that overstays is a failure, not a result).
+RUN_TIMEOUT = 3600.0
+
+
+def world_file(name: str, resolution: float, folder: Path) -> tuple[Path, WorldSpec]:
+    """Map ``name`` at the benchmark's raster as a file the launcher loads, and its spec as
+    the offline cases see it."""
+    folder.mkdir(parents=True, exist_ok=True)
+    if name == "hostel":
+        plan = hostel_plan()
+    else:
+        path = Path(resolve_world_path(str(MAPS[name]), "--maps"))
+        plan = yaml.safe_load(path.read_text())
+        if "image" in plan:  # a map_server map: its cells in blocks
+            world = coarse_world(load_world(str(path)), resolution)
+            assert world.base_map is not None
+            out = write_map_yaml(world.base_map, folder / f"{name}.yaml")
+            return out, world
+    plan = {**plan, "resolution": max(float(plan.get("resolution", resolution)), resolution)}
+    out = folder / f"{name}.yaml"
+    out.write_text(yaml.safe_dump(plan, sort_keys=False))
+    return out, parse_world(plan)
+
+
+def run_case(name: str, seed: int, args, folder: Path, say) -> dict:
+    """One live run of map ``name`` from start seed ``seed``; its case row."""
+    path, world = world_file(name, args.resolution, folder)
+    out = folder / f"{name}-{seed}"
+    cmd = ["--world", str(path), "--robots", str(args.robots), "--strategy", "geodesic",
+           "--lockstep", "--duration", f"{args.duration:g}", "--seed", str(seed),
+           "--out", str(out), "--quiet"]
+    if args.params:
+        cmd += ["--strategy-params", json.dumps(args.params)]
+    t0 = time.perf_counter()
+    proc = subprocess.run(TEAM + cmd, capture_output=True, text=True, timeout=RUN_TIMEOUT)
+    if proc.returncode != 0:
+        raise RuntimeError(f"coverage-team {' '.join(cmd)} failed ({proc.returncode}):\n"
+                           f"{proc.stderr[-2000:]}")
+    summary = json.loads((out / "summary.json").read_text())
+    specs = [world.robot_spec(i) for i in range(args.robots)]
+    domain = world_domain(world, max(s.radius for s in specs))
+    final = np.array([r["final"][:2] for r in summary["robots"]], dtype=np.float64)
+    start = np.array([r["start"][:2] for r in summary["robots"]], dtype=np.float64)
+    H, masses = score(domain, final)
+    return {"seed": seed, "H": H, "H_start": score(domain, start)[0],
+            "sim_time": summary["sim_time"], "rtf": summary["rtf"],
+            "seconds": round(time.perf_counter() - t0, 1),
+            "H_series": summary["metrics"].get("H_series", []),
+            "collisions": int(sum(r["collisions"] for r in summary["robots"])),
+            "masses": np.round(masses, 4).tolist(), "positions": np.round(final, 3).tolist(),
+            "all_free": bool(all(domain.is_free_point(p) for p in final))}
+
+
+def within_at(series: list, H_best: float, share: float = TARGET - 1.0) -> float | None:
+    """First sim time [s] from which the run's H series stayed within ``share`` of
+    ``H_best`` (None: it did not end there)."""
+    t_in = None
+    for t, h in reversed(series):
+        if not h <= (1.0 + share) * H_best:
+            break
+        t_in = t
+    return t_in
+
+
+def bench_live(args, maps: list[str], data: dict, say) -> dict[str, dict]:
+    """Every map and start seed live; per map its settings and cases."""
+    best = data.get("best", {})
+    results = {}
+    with tempfile.TemporaryDirectory(prefix="bench-closets-live-") as tmp:
+        for name in maps:
+            settings = {"robots": args.robots, "resolution": args.resolution,
+                        "live": True, "duration": args.duration}
+            cases = []
+            for seed in range(args.seeds):
+                case = run_case(name, seed, args, Path(tmp), say)
+                H_best = best.get(name, {}).get("H")
+                case["within_at"] = None if H_best is None else within_at(
+                    case.pop("H_series"), H_best)
+                case.pop("H_series", None)
+                cases.append(case)
+                ratio = "-" if H_best is None else f"{case['H'] / H_best:.3f}"
+                say(f"  {name} start seed {seed}: H {case['H_start']:.4g} -> {case['H']:.4g} "
+                    f"(x{ratio} the best known) after {case['sim_time']:g} s of sim time "
+                    f"(rtf {case['rtf']:.2f}, {case['seconds']:g} s, within 5 % from "
+                    f"{case['within_at']} s)")
+            results[name] = {"settings": settings, "cases": cases}
+    return results
+
+
+def check_maps(maps: list[str], data: dict) -> None:
+    """Refuse a map without a best known H before anything starts."""
+    missing = [m for m in maps if m not in data.get("best", {})]
+    if missing:
+        raise ConfigError.at("--maps", "no best known H in the results file (run "
+                             "scripts/bench_closets for them first)", missing)

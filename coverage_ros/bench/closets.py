@@ -280,7 +280,8 @@ def write(data: dict, path: Path, label: str) -> None:
 
 
 def rows(data: dict) -> list[dict]:
-    """One row per label and map: N, the best known H, each start seed's ratio."""
+    """One row per label and map: N, the best known H, each start seed's ratio and
+    relocations (None where a run does not count them: the live ones)."""
     out = []
     for label, run in data["runs"].items():
         for name, m in run["maps"].items():
@@ -288,7 +289,7 @@ def rows(data: dict) -> list[dict]:
             out.append({"label": label, "map": name, "restarts": best.get("restarts"),
                         "H_best": best.get("H"),
                         "ratios": [round(c["ratio"], 4) for c in m["cases"]],
-                        "relocations": [c.get("relocations", 0) for c in m["cases"]],
+                        "relocations": [c.get("relocations") for c in m["cases"]],
                         "worst_ratio": m["worst_ratio"], "met": m["met"],
                         "run": {"commit": m.get("provenance", run["provenance"]).get("commit"),
                                 "date": m.get("provenance", run["provenance"]).get("date")}})

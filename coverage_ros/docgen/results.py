@@ -19,10 +19,13 @@ RESULTS = REPO / "docs" / "results"
 SCRIPTS = {"lockstep": "scripts/bench_lockstep", "team": "scripts/bench_team",
            "core": "scripts/bench_core", "explore": "scripts/bench_explore",
            "faults": "scripts/bench_faults", "papers": "scripts/bench_papers",
-           "planner": "scripts/bench_planner"}
+           "planner": "scripts/bench_planner", "closets": "scripts/bench_closets"}
 PROVENANCE = ("machine", "cores", "python", "date", "commit", "command")
 #: Keys that say where a figure came from, not what it is: shown in the note under a table.
 QUIET = set(PROVENANCE) | {"note", "settings"}
+#: Results whose page shows their targets and rows only (every run's cases, restarts and
+#: positions stay in the file).
+ROWS_ONLY = {"closets"}
 #: Longer lists of rows than this, beside a file's main rows, are left to the file.
 MAX_ROWS = 12
 #: Column headings that say more than the key: where a column is itself the target.
@@ -122,7 +125,7 @@ def part_markdown(data: dict, name: str) -> str:
         blocks.append(rows_table(data["rows"], COLUMNS.get(name)))
     scalars = {}
     for key, value in data.items():
-        if key in ("rows", "targets") or key in QUIET:
+        if key in ("rows", "targets") or key in QUIET or name in ROWS_ONLY:
             continue
         title = f"**{key.replace('_', ' ')}**\n\n"
         if is_rows(value) and len(value) > MAX_ROWS:

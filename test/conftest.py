@@ -46,6 +46,20 @@ def shared_map(name: str) -> Path:
     return path
 
 
+def random_points(domain, n_free: int, n_blocked: int, seed: int):
+    """``(n_free + n_blocked, 2)`` [m] random free points of a CoverageDomain, then points on
+    blocked cells (robots inside the inflated margin), 0.2 m inside its extent."""
+    import numpy as np
+
+    rng = np.random.default_rng(seed)
+    xmin, ymin, xmax, ymax = domain.geometry.extent()
+    free, blocked = [], []
+    while len(free) < n_free or len(blocked) < n_blocked:
+        p = rng.uniform([xmin + 0.2, ymin + 0.2], [xmax - 0.2, ymax - 0.2])
+        (free if domain.is_free_point(p) else blocked).append(p)
+    return np.array(free[:n_free] + blocked[:n_blocked])
+
+
 @pytest.fixture
 def rng():
     import numpy as np

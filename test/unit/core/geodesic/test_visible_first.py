@@ -6,25 +6,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import WORLDS, shared_map
+from conftest import WORLDS, random_points, shared_map
 
 from coverage_ros.core.geodesic.cell import geodesic_cell
-from coverage_ros.core.geodesic.domain import CoverageDomain
 from coverage_ros.core.geodesic.euclidean import euclidean_labels
 from coverage_ros.core.geodesic.tessellation import Generator, fast_tessellate, tessellate
 from coverage_ros.core.geodesic.world_domain import world_domain
 from coverage_ros.core.world import load_world
-
-
-def _points(domain: CoverageDomain, n_free: int, n_blocked: int, seed: int) -> np.ndarray:
-    """Random free points, and points on blocked cells (robots inside the inflated margin)."""
-    rng = np.random.default_rng(seed)
-    xmin, ymin, xmax, ymax = domain.geometry.extent()
-    free, blocked = [], []
-    while len(free) < n_free or len(blocked) < n_blocked:
-        p = rng.uniform([xmin + 0.2, ymin + 0.2], [xmax - 0.2, ymax - 0.2])
-        (free if domain.is_free_point(p) else blocked).append(p)
-    return np.array(free[:n_free] + blocked[:n_blocked])
 
 
 @pytest.mark.parametrize("world, seed, blocked", [
@@ -33,7 +21,7 @@ def _points(domain: CoverageDomain, n_free: int, n_blocked: int, seed: int) -> n
 ])
 def test_shared_search_cells_equal_each_robots_own_search(world, seed, blocked):
     domain = world_domain(load_world(WORLDS / f"{world}.yaml"), 0.105)
-    P = _points(domain, 6 - blocked, blocked, seed)
+    P = random_points(domain, 6 - blocked, blocked, seed)
     gens = [Generator(p) for p in P]
     tess = tessellate(domain, gens)
     labels = np.full(domain.shape, -1)
@@ -60,7 +48,7 @@ def test_shared_search_cells_equal_each_robots_own_search(world, seed, blocked):
 def test_one_search_is_kept_per_domain():
     domain = world_domain(load_world(WORLDS / "l_shape.yaml"), 0.105)
     for seed in range(4):
-        gens = [Generator(p) for p in _points(domain, 3, 0, seed)]
+        gens = [Generator(p) for p in random_points(domain, 3, 0, seed)]
         geodesic_cell(domain, gens[0], gens[1:], whole=True)
     assert sum(1 for k in domain._cache if "shared" in str(k)) == 1
 
@@ -73,7 +61,7 @@ def test_fast_tessellation_is_the_centralized_one(world, seed, blocked):
     distances, masses and costs; with unequal power weights it is tessellate itself."""
     path = WORLDS / f"{world}.yaml" if (WORLDS / f"{world}.yaml").exists() else shared_map(world)
     domain = world_domain(load_world(path), 0.105)
-    P = _points(domain, 12 - blocked, blocked, seed)
+    P = random_points(domain, 12 - blocked, blocked, seed)
     gens = [Generator(p) for p in P]
     fast, ref = fast_tessellate(domain, gens), tessellate(domain, gens)
     assert np.array_equal(fast.labels, ref.labels)

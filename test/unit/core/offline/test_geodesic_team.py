@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import WORLDS, shared_map
+from conftest import WORLDS, random_points, shared_map
 
 from coverage_ros.core.geodesic.domain import CoverageDomain
 from coverage_ros.core.geodesic.euclidean import euclidean_labels
@@ -20,17 +20,6 @@ from coverage_ros.core.world.grid import OCCUPIED, GridMap
 def _domain(world: str, connectivity: int = 8) -> CoverageDomain:
     path = WORLDS / f"{world}.yaml" if (WORLDS / f"{world}.yaml").exists() else shared_map(world)
     return world_domain(load_world(path), 0.105, connectivity=connectivity)
-
-
-def _points(domain: CoverageDomain, n_free: int, n_blocked: int, seed: int) -> np.ndarray:
-    """Random free points, and points on blocked cells (robots inside the inflated margin)."""
-    rng = np.random.default_rng(seed)
-    xmin, ymin, xmax, ymax = domain.geometry.extent()
-    free, blocked = [], []
-    while len(free) < n_free or len(blocked) < n_blocked:
-        p = rng.uniform([xmin + 0.2, ymin + 0.2], [xmax - 0.2, ymax - 0.2])
-        (free if domain.is_free_point(p) else blocked).append(p)
-    return np.array(free[:n_free] + blocked[:n_blocked])
 
 
 def _assert_same(fast: TeamStep, ref: TeamStep) -> None:
@@ -54,7 +43,7 @@ def _reference(team: GeodesicTeam, P: np.ndarray, R: np.ndarray) -> TeamStep:
 ])
 def test_team_step_equals_every_robots_own_update(world, connectivity, method, seed, blocked):
     domain = _domain(world, connectivity)
-    P = _points(domain, 7 - blocked, blocked, seed)
+    P = random_points(domain, 7 - blocked, blocked, seed)
     R = np.zeros(len(P))
     team = GeodesicTeam(domain, method)
     fast = team.step(P, R)
@@ -71,7 +60,7 @@ def test_team_step_equals_every_robots_own_update(world, connectivity, method, s
 ])
 def test_power_team_step_equals_every_robots_own_update(world, connectivity, method, seed):
     domain = _domain(world, connectivity)
-    P = _points(domain, 5, 0, seed)
+    P = random_points(domain, 5, 0, seed)
     R = np.random.default_rng(seed).uniform(0.0, 1.5, len(P))
     team = GeodesicTeam(domain, method)
     fast = team.step(P, R)
@@ -95,7 +84,7 @@ def test_a_robot_with_an_empty_cell_stays():
     """Two robots at one point: the first in source order keeps the cell, the other has no
     mass and stays (each robot's own update would claim the cell for itself)."""
     domain = _domain("u_shape")
-    P = _points(domain, 3, 0, 21)
+    P = random_points(domain, 3, 0, 21)
     team = GeodesicTeam(domain)
     alone = team.step(P)
     twice = team.step(np.vstack([P, P[:1]]))

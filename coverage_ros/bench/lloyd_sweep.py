@@ -15,7 +15,10 @@ Per scenario, both solvers from the same starts until no robot moves more than `
 
 Summary: the median over scenarios of accelerated / plain steps to converge and of accelerated
 steps within 0.1 % over plain's steps to converge (and over plain's own steps within 0.1 %), the
-worst (largest) of these ratios, and the H gaps.
+worst (largest) of these ratios, and the H gaps. The targets: the median and the worst case of
+steps to within 0.1 % over plain's steps (<= 0.5, <= 1), the largest gap (<= 0.1 %), and, a
+stricter reading of the worst case, steps to converge (<= plain's: an accelerated run that goes
+on into a lower minimum than plain's counts as slower).
 """
 
 from __future__ import annotations
@@ -138,7 +141,11 @@ def run_sweep(seed_set: str, count: int, say, solvers=("lloyd", "accelerated"),
          "met": met["median_within_0.1%_in_half_plain_steps"]},
         {"target": "final H never more than 0.1 % above plain's", "value": f"largest gap "
          f"{summary['max_gap_percent']:+.4f} %", "met": met["never_more_than_0.1%_above_plain_H"]},
-        {"target": "worst case steps <= plain's", "value": summary["worst_ratio_steps"],
+        {"target": "worst case steps to within 0.1 % of plain's final H <= plain's steps",
+         "value": summary["worst_ratio_within"],
+         "met": met["worst_case_within_0.1%_no_slower_than_plain"]},
+        {"target": "worst case steps to converge <= plain's (stricter: the accelerated run "
+         "may go on into a lower minimum)", "value": summary["worst_ratio_steps"],
          "met": met["worst_case_no_slower_than_plain"]}]
     return {"seed_set": seed_set, "seeds": [r["seed"] for r in rows], "tolerance_m": TOLERANCE,
             "targets": targets, "summary": summary, "scenarios": rows}
@@ -164,4 +171,5 @@ def summarize(rows: list[dict]) -> dict:
                 "median_within_0.1%_in_half_plain_steps": statistics.median(
                     col("ratio_within")) <= 0.5,
                 "never_more_than_0.1%_above_plain_H": max(gaps) <= 0.1,
+                "worst_case_within_0.1%_no_slower_than_plain": max(col("ratio_within")) <= 1.0,
                 "worst_case_no_slower_than_plain": max(col("ratio_steps")) <= 1.0}}

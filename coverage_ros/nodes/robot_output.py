@@ -25,6 +25,8 @@ class RobotOutput:
                  warn: Callable[[str, str], object]) -> None:
         self.config, self.frames, self.warn = config, frames, warn
         self.robot_id = config.controller.robot_id
+        self.logger = node.get_logger()
+        self.mode = ""  # the last update's decision mode (a change is logged)
 
         def publisher(msg_type, topic):
             return node.create_publisher(msg_type, topic, TEAM_QOS,
@@ -46,6 +48,11 @@ class RobotOutput:
         neighbour, so their number must not grow with the update rate."""
         stamp = conv.to_time_msg(now)
         d = result.decision
+        if d.mode != self.mode and "relocate" in (d.mode, self.mode):
+            where = "" if d.goal is None else f" for ({d.goal[0]:.2f}, {d.goal[1]:.2f})"
+            self.logger.info(f"t {now:.1f} s: mode {self.mode or '-'} -> {d.mode}{where} from "
+                             f"({result.pose[0]:.2f}, {result.pose[1]:.2f})")
+        self.mode = d.mode
         self.cell_pub.publish(conv.cell_grid_msg(c.domain.geometry, d.cell, stamp))
         if d.cell_polygon is not None and len(d.cell_polygon):
             self.polygon_pub.publish(conv.polygon_msg(stamp, d.cell_polygon))

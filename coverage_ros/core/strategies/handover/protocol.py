@@ -4,7 +4,8 @@ bound says H drops (:mod:`.bounds`), after a claim its neighbour grants.
 Every robot publishes, with its state (``SharedState.extra``):
 
 * ``settled`` (1/0): its Lloyd step is shorter than ``escape_settle``, or it moved less than the
-  convergence tolerance since its last update;
+  convergence tolerance over its last :data:`STILL_UPDATES` updates (a step it does not take:
+  blocked by the monotone rule or by another robot);
 * ``offer_gain``, ``offer_x``, ``offer_y``, ``offer_base``: settled, what splitting its own cell
   with a second generator at (x, y) would save, and its cell's cost (:func:`.bounds.split_offer`;
   gain 0: no offer);
@@ -13,19 +14,21 @@ Every robot publishes, with its state (``SharedState.extra``):
 * ``grant``: the one claimant it lets in (-1: none).
 
 Robot i claims neighbour j (any robot it hears: the offer is j's, the removal i's own, so the
-bound needs no common border) when i and all its bordering neighbours are settled, no
-neighbour claims i or claims with a higher priority (saving, then lower id), j neither claims
-nor grants another, and ``offer_gain(j) - removal_increase(i)`` exceeds ``escape_gain`` times
-the pair's cost ``H_i + H_j``. When no offer passes so and i stood still at its last update
-(Lloyd's end), the same test runs on the joint bound instead (:func:`.bounds.joint_change`:
-i at j's offered point, every robot whose cell touches i's or j's re-spreading, against the
-same steps without the move), which sees moves that pay only once the neighbours of both
-cells shift along. Robot j grants the claim of the highest priority among those on
-it unless it claims itself. Granted, i drives to j's offered point (mode ``relocate``), keeping
-its claim, so that j lets nobody else in and i's neighbours do not leave meanwhile; there it
-drops the claim and waits ``escape_cooldown`` updates before it may claim again (hysteresis).
-A claim not granted within ``escape_wait`` updates, or whose target grants another, is
-dropped the same way.
+bound needs no common border) when i and every robot it hears are settled and none of them
+claims (one move at a time: a robot on its way leaves its cell to the others, who spread into
+it until it arrives, so a bound priced meanwhile would price a passing state; of claims made at
+once, all but the one of the highest priority - saving, then lower id - are dropped before a
+grant), j neither claims nor grants another, and ``offer_gain(j) - removal_increase(i)``
+exceeds ``escape_gain`` times the pair's cost ``H_i + H_j``. When no offer passes so and i
+stood still at its last update (Lloyd's end), the same test runs on the joint bound instead
+(:func:`.bounds.joint_change`: i at j's offered point, every robot whose cell touches i's or
+j's re-spreading, against the same steps without the move), which sees moves that pay only once
+the neighbours of both cells shift along. Robot j grants the claim of the highest priority
+(saving, then lower id) among those on it unless it claims itself. Granted, i drives to j's
+offered point (mode ``relocate``), keeping its claim, so that j lets nobody else in and i's
+neighbours do not leave meanwhile; there it drops the claim and waits ``escape_cooldown``
+updates before it may claim again (hysteresis). A claim not granted within ``escape_wait``
+updates, or whose target grants another, is dropped the same way.
 
 Each move is backed by a configuration next to it with H lower by at least ``escape_gain`` of
 a pair's cost (:mod:`.bounds`), and the cooldown keeps a robot from moving back and forth.
@@ -56,6 +59,9 @@ from coverage_ros.core.strategies.handover.bounds import (
     split_offer,
 )
 
+#: [updates] standing still this long counts as settled: a robot turning towards a new goal
+#: stands still for an update or two (half a turn at 2.84 rad/s takes 1.1 s, at 2 Hz).
+STILL_UPDATES = 4
 #: Power weights closer than this [m] count as equal (the bound assumes equal weights).
 WEIGHT_MATCH = 1e-9
 #: A relocating robot has arrived within this many convergence tolerances of its point ...
@@ -103,6 +109,7 @@ class Handover:
     cooldown: int = 0  # [updates]
     relocations: int = 0  # moves made
     _last: np.ndarray | None = field(default=None, repr=False)  # (2,) [m] previous position
+    _still: int = 0  # [updates] in a row that moved less than the convergence tolerance
     _offer: tuple[np.ndarray, SplitOffer | None] | None = field(default=None, repr=False)
     _removal: tuple[np.ndarray, dict[int, float], RowCache, Tessellations] | None = field(
         default=None, repr=False)
@@ -124,7 +131,8 @@ class Handover:
         # standing still counts too: a step the robot does not take (monotone rule, blocked)
         moved = math.inf if self._last is None else float(np.hypot(*(position - self._last)))
         self._last = np.array(position, dtype=np.float64)
-        settled = step < s.settle or moved < convergence_tolerance
+        self._still = self._still + 1 if moved < convergence_tolerance else 0
+        settled = step < s.settle or self._still >= STILL_UPDATES
         key = _key(position, neighbours)
         offer = None
         if settled and self.claim < 0:
@@ -137,7 +145,7 @@ class Handover:
         if self.claim >= 0:
             self._follow_claim(by_id)
         elif (settled and self.cooldown == 0 and not claimants
-              and all(_f(by_id[j], "settled") > 0 for j in bordering if j in by_id)):
+              and all(_f(n, "settled") > 0 for n in neighbours)):
             self._consider(key, position, weight, cell, neighbours, bordering,
                            stopped=moved < convergence_tolerance)
         grant = NONE if self.claim >= 0 or not claimants else float(-claimants[0][1])
@@ -149,7 +157,10 @@ class Handover:
         if offer is not None and grant == NONE and self.claim < 0:
             extra.update(offer_gain=offer.gain, offer_x=float(offer.point[0]),
                          offer_y=float(offer.point[1]), offer_base=offer.base)
-        busy = self.claim >= 0 or grant != NONE
+        # standing still away from the Lloyd goal, not yet for long enough to count as settled:
+        # not done either (it may claim once it is)
+        waiting = 0 < self._still < STILL_UPDATES and step >= s.settle
+        busy = self.claim >= 0 or grant != NONE or waiting
         return HandoverStep(self.target.copy() if self.relocating else None, extra, busy)
 
     def _transit(self, position: np.ndarray, by_id: dict[int, Neighbour],
@@ -170,22 +181,28 @@ class Handover:
         return HandoverStep(target.copy(), extra, busy=True)
 
     def _follow_claim(self, by_id: dict[int, Neighbour]) -> None:
-        """A claim made earlier: relocate once granted, drop it when refused or stale."""
+        """A claim made earlier: relocate once granted, drop it when refused, stale or
+        outranked by another claim made meanwhile (one move at a time)."""
         j = by_id.get(self.claim)
         self.claim_age += 1
         grant = NONE if j is None else _f(j, "grant", NONE)
+        mine = (self.claim_gain, -self.robot_id)
+        outranked = any(_f(n, "claim", NONE) >= 0 and (_f(n, "claim_gain"), -n.robot_id) > mine
+                        for n in by_id.values())
         if j is not None and grant == self.robot_id:
             self.relocating, self.claim_age = True, 0
-        elif j is None or grant != NONE or self.claim_age > self.settings.wait:
+        elif j is None or grant != NONE or outranked or self.claim_age > self.settings.wait:
             self._drop()
 
     def _consider(self, key: np.ndarray, position: np.ndarray, weight: float,
                   cell: CellResult, neighbours: Sequence[Neighbour],
                   bordering: Sequence[int], stopped: bool) -> None:
-        """Claim the neighbour whose offer beats the own removal most, if by enough and no
-        neighbour claims with a higher priority; if none does and the robot stands still
-        (``stopped``: Lloyd's end, where staying is what the joint bound compares with), the
-        offer whose joint bound saves most."""
+        """Unless a robot it hears claims: the neighbour whose offer beats the own removal
+        most, if by enough; if none does and the robot stands still (``stopped``: Lloyd's end,
+        where staying is what the joint bound compares with), the offer whose joint bound
+        saves most."""
+        if any(_f(n, "claim", NONE) >= 0 for n in neighbours):
+            return  # one move at a time (module docstring)
         offers = [n for n in neighbours if _f(n, "offer_gain") > 0 and _f(n, "claim", NONE) < 0
                   and _f(n, "grant", NONE) == NONE
                   and abs(n.state.weight - weight) < WEIGHT_MATCH
@@ -207,10 +224,6 @@ class Handover:
                 n.robot_id: -self._cached_joint(key, position, weight, neighbours, n)
                 for n in offers})
         if best is None:
-            return
-        rivals = [(_f(n, "claim_gain"), -n.robot_id) for n in neighbours
-                  if _f(n, "claim", NONE) >= 0]
-        if rivals and max(rivals) > (saving, -self.robot_id):
             return
         self.claim, self.claim_gain, self.claim_age = best.robot_id, saving, 0
         self.target = np.array([_f(best, "offer_x"), _f(best, "offer_y")])

@@ -7,6 +7,7 @@ hears."""
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import math
 from functools import cache
@@ -32,6 +33,7 @@ from coverage_ros.core.strategies.handover import (
     removal_increase,
     split_offer,
 )
+from coverage_ros.core.strategies.handover.protocol import STILL_UPDATES
 from coverage_ros.core.world import parse_world
 from coverage_ros.core.world.placement import largest_free_region, team_starts
 from coverage_ros.errors import ConfigError
@@ -224,7 +226,7 @@ def test_one_claimant_per_cell_and_claims_follow_grants():
     published = [s.shared_state(Observation(i, np.array([*P[i], 0.0]), 0.0))
                  for i, s in enumerate(team)]
     relocated = False
-    for _ in range(6):
+    for _ in range(STILL_UPDATES + 6):
         decisions = _round(team, P, published)
         claims = [int(d.shared.extra["claim"]) for d in decisions]
         grants = [int(d.shared.extra["grant"]) for d in decisions]
@@ -235,10 +237,56 @@ def test_one_claimant_per_cell_and_claims_follow_grants():
         targets = [c for i, c in enumerate(claims) if decisions[i].mode == "relocate"]
         assert len(targets) == len(set(targets))
         for j, g in enumerate(grants):
-            if g >= 0:
-                assert claims[g] == j and claims[j] < 0
+            if g >= 0:  # a grant answers a claim on the cell (it may be dropped meanwhile)
+                assert int(published[g].extra["claim"]) == j and claims[j] < 0
         published = [d.shared for d in decisions]
     assert relocated
+
+
+def test_standing_still_away_from_the_centroid_settles_only_after_a_while():
+    """Robots of the start cluster that have not begun to drive (turning, waiting) are not
+    settled, so they neither offer nor claim, until they stood still STILL_UPDATES updates."""
+    P = cluster(0)[:, :2]
+    team = _team(P)
+    published = [s.shared_state(Observation(i, np.array([*P[i], 0.0]), 0.0))
+                 for i, s in enumerate(team)]
+    for k in range(STILL_UPDATES + 1):
+        decisions = _round(team, P, published)
+        far = [i for i, d in enumerate(decisions)
+               if np.hypot(*(d.goal - P[i])) >= GeodesicParams().escape_settle]
+        assert len(far) >= ROBOTS // 2
+        for i in far:
+            # the first update has no previous position; the k-th has k - 1 still ones before
+            assert decisions[i].shared.extra["settled"] == float(k >= STILL_UPDATES), (k, i)
+            assert decisions[i].shared.extra["claim"] < 0 or k >= STILL_UPDATES
+        published = [d.shared for d in decisions]
+
+
+def test_no_claim_while_another_robot_claims():
+    """One move at a time: at plain Lloyd's end (in two wards side by side) robots claim a
+    cell, but none does while a robot it hears has a claim out, however small its saving."""
+    domain = two_wards()
+    half = run(cluster(2), escape=False).positions[-1]
+    P = np.vstack([half, half + [10.0, 0.0]])
+    team = _team(P, domain)
+    published = [s.shared_state(Observation(i, np.array([*P[i], 0.0]), 0.0))
+                 for i, s in enumerate(team)]
+
+    def claims(states):  # the next round from the same robots' states
+        return [int(d.shared.extra["claim"]) for d in _round(copy.deepcopy(team), P, states)]
+
+    for _ in range(STILL_UPDATES + 4):  # until the next round has a claim
+        published = [d.shared for d in _round(team, P, published)]
+        free = claims(published)
+        if any(c >= 0 for c in free):
+            break
+    else:
+        pytest.fail("nobody claimed a cell")
+    quiet, target = 0, 1
+    held = list(published)
+    held[quiet] = dataclasses.replace(published[quiet], extra={
+        **published[quiet].extra, "claim": float(target), "claim_gain": 1e-6})
+    assert [c for i, c in enumerate(claims(held)) if i != quiet] == [-1] * (len(P) - 1)
 
 
 def test_a_claim_uses_only_the_neighbourhood_and_the_offers():

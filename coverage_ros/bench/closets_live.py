@@ -5,10 +5,10 @@ launcher's team, run in lock-step, against the best known configuration of
 For every map and start seed, ``coverage-team --strategy geodesic --lockstep`` runs the world
 node and one robot process per robot for ``--duration`` seconds of simulated time from the
 launcher's start cluster (the same cluster the offline cases start from). The world is the
-benchmark's raster of the map (:func:`~coverage_ros.bench.closets.coarse_world`), written as a
+benchmark's raster of the map (:func:`~coverage_ros.bench.closet_maps.coarse_world`), written as a
 world file (floor plans) or a map_server map (the shared maps) that the launcher loads as a user
 would. The robots' final positions are scored as the offline cases are
-(:func:`~coverage_ros.bench.closets.score`), so ``ratio = H_final / H_best`` compares with the
+(:func:`~coverage_ros.bench.closet_maps.score`), so ``ratio = H_final / H_best`` compares with the
 offline rows and the best known H of ``docs/results/closets.json``; the target is again
 ratio <= 1.05. The run's own H series gives the sim time from which H stayed within 5 % of the
 best known.
@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from coverage_ros.bench.closets import MAPS, TARGET, coarse_world, hostel_plan, score
+from coverage_ros.bench.closet_maps import MAPS, TARGET, coarse_world, hostel_plan, score
 from coverage_ros.core.geodesic.world_domain import world_domain
 from coverage_ros.core.world import WorldSpec, load_world, parse_world
 from coverage_ros.core.world.map_server import write_map_yaml

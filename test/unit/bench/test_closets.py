@@ -6,16 +6,18 @@ import json
 
 import numpy as np
 
-from coverage_ros.bench.closets import (
+from coverage_ros.bench.closet_maps import (
     HOSTEL_ABOVE,
     HOSTEL_BELOW,
+    RESOLUTION,
+    coarse_world,
+    hostel,
+)
+from coverage_ros.bench.closets import (
     README,
     README_BEGIN,
     README_END,
-    RESOLUTION,
     RESULTS,
-    coarse_world,
-    hostel,
     summary_table,
     update_readme,
 )

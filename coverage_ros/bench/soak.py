@@ -57,8 +57,10 @@ def growth(samples: list[tuple[float, float]]) -> float | None:
 
 def soak_section(duration: float, folder: Path, say, robots: int = 8, world: str = "office",
                  period: float = 180.0, rtf: float = 2.0,
-                 sample_period: float = SAMPLE_PERIOD, domain: int | None = None) -> dict:
-    """``domain``: the team's ROS_DOMAIN_ID (None: a fresh one the launcher picks)."""
+                 sample_period: float = SAMPLE_PERIOD, domain: int | None = None,
+                 strategy_params: str | None = None) -> dict:
+    """``domain``: the team's ROS_DOMAIN_ID (None: a fresh one the launcher picks);
+    ``strategy_params``: the launcher's ``--strategy-params`` (None: the defaults)."""
     import psutil
 
     out = folder / "soak"
@@ -68,6 +70,8 @@ def soak_section(duration: float, folder: Path, say, robots: int = 8, world: str
            "--out", str(out)] + [a for r in restarts for a in ("--restart", r)]
     if domain is not None:
         cmd += ["--domain-id", str(domain)]
+    if strategy_params is not None:
+        cmd += ["--strategy-params", strategy_params]
     say(f"soak: {robots} robots on {world} for {duration:g} s sim time at {rtf:g} x real time, "
         f"{len(restarts)} restarts ...")
     launcher = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,

@@ -262,15 +262,22 @@ def test_standing_still_away_from_the_centroid_settles_only_after_a_while():
         published = [d.shared for d in decisions]
 
 
-def test_no_claim_while_another_robot_claims():
-    """One move at a time: at plain Lloyd's end (in two wards side by side) robots claim a
-    cell, but none does while a robot it hears has a claim out, however small its saving."""
+def _two_wards_at_lloyds_end():
+    """Two wards side by side, plain Lloyd's end state of the ward in each: the domain, the
+    positions, a fresh team there and what it publishes before its first update."""
     domain = two_wards()
     half = run(cluster(2), escape=False).positions[-1]
     P = np.vstack([half, half + [10.0, 0.0]])
     team = _team(P, domain)
     published = [s.shared_state(Observation(i, np.array([*P[i], 0.0]), 0.0))
                  for i, s in enumerate(team)]
+    return domain, P, team, published
+
+
+def test_no_claim_while_another_robot_claims():
+    """One move at a time: at plain Lloyd's end (in two wards side by side) robots claim a
+    cell, but none does while a robot it hears has a claim out, however small its saving."""
+    _, P, team, published = _two_wards_at_lloyds_end()
 
     def claims(states):  # the next round from the same robots' states
         return [int(d.shared.extra["claim"]) for d in _round(copy.deepcopy(team), P, states)]
@@ -294,12 +301,7 @@ def test_a_claim_uses_only_the_neighbourhood_and_the_offers():
     list cut down to the robot whose offer it takes and the robots whose cells border its own
     or the target's, or theirs (the cells its bounds re-tessellate). Two wards side by side,
     plain Lloyd's end state of the ward in each."""
-    domain = two_wards()
-    half = run(cluster(2), escape=False).positions[-1]
-    P = np.vstack([half, half + [10.0, 0.0]])
-    team = _team(P, domain)
-    published = [s.shared_state(Observation(i, np.array([*P[i], 0.0]), 0.0))
-                 for i, s in enumerate(team)]
+    domain, P, team, published = _two_wards_at_lloyds_end()
     for _ in range(6):
         before = [dataclasses.replace(s.handover) for s in team]
         decisions = _round(team, P, published)

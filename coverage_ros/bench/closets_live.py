@@ -61,7 +61,7 @@ def world_file(name: str, resolution: float, folder: Path) -> tuple[Path, WorldS
     return out, parse_world(plan)
 
 
-def run_case(name: str, seed: int, args, folder: Path, say) -> dict:
+def run_case(name: str, seed: int, args, folder: Path) -> dict:
     """One live run of map ``name`` from start seed ``seed``; its case row."""
     path, world = world_file(name, args.resolution, folder)
     out = folder / f"{name}-{seed}"
@@ -111,11 +111,10 @@ def bench_live(args, maps: list[str], data: dict, say) -> dict[str, dict]:
                         "live": True, "duration": args.duration}
             cases = []
             for seed in range(args.seeds):
-                case = run_case(name, seed, args, Path(tmp), say)
+                case = run_case(name, seed, args, Path(tmp))
                 H_best = best.get(name, {}).get("H")
-                case["within_at"] = None if H_best is None else within_at(
-                    case.pop("H_series"), H_best)
-                case.pop("H_series", None)
+                series = case.pop("H_series")
+                case["within_at"] = None if H_best is None else within_at(series, H_best)
                 cases.append(case)
                 ratio = "-" if H_best is None else f"{case['H'] / H_best:.3f}"
                 say(f"  {name} start seed {seed}: H {case['H_start']:.4g} -> {case['H']:.4g} "

@@ -76,7 +76,8 @@ def visible_first_search(domain: CoverageDomain, local: LocalGraph,
         ids = (np.arange(i0, i1)[:, None] * nx + np.arange(j0, j1)[None, :]).ravel()
         states[g, ids] = domain.sight_tiles_in(grids[g], depths, ids)
     mine = winner >= 0
-    state = states.ravel()[np.where(mine, winner, 0) * n_tiles + node_tiles]
+    # (winner -1, nobody's: a negative index into the last row, masked out by mine)
+    state = np.take(states.ravel(), winner * n_tiles + node_tiles)
     settled = mine & (state == 1)
     mixed = np.flatnonzero(mine & (state < 0))
     by_gen = mixed[np.argsort(winner[mixed], kind="stable")]

@@ -200,9 +200,7 @@ def _covectors(domain: CoverageDomain, forest: _Forest, bins: np.ndarray, grids:
         dx = (dx + 0.5 * W) % W - 0.5 * W
     if domain.graph.wrap[0]:
         dy = (dy + 0.5 * H) % H - 0.5 * H
-    res = domain.resolution
-    dx *= res
-    dy *= res
+    # (in cells, not metres: only the chord's direction counts, gw d / |d|_M)
     if domain.tensor is None and domain.zeta is None:
         mx, my = dx, dy
     else:

@@ -349,8 +349,12 @@ def test_bench_team_reads_every_robots_update_periods_from_the_logs(tmp_path):
     """The benchmark's update periods come from the robots' own summary lines (the worker's
     format, whatever process the robot ran in)."""
     worker = UpdateWorker(lambda now: None, load=1.0)
-    for _ in range(4):
-        worker.request(0.0)
+    deadline = time.monotonic() + 30.0  # (a busy host may keep the worker's thread waiting)
+    for k in range(4):
+        while not worker.request(0.0) and time.monotonic() < deadline:
+            time.sleep(0.005)
+        while worker.calls <= k and time.monotonic() < deadline:
+            time.sleep(0.005)
         time.sleep(0.05)
     worker.close()
     line = worker.summary()
@@ -362,7 +366,7 @@ def test_bench_team_reads_every_robots_update_periods_from_the_logs(tmp_path):
     periods = update_periods(tmp_path)
     assert sorted(periods) == [0, 2, 3]
     assert periods[2]["updates"] == 4
-    assert 0.04 <= periods[3]["median_s"] <= periods[3]["longest_s"] < 1.0
+    assert 0.04 <= periods[3]["median_s"] <= periods[3]["longest_s"] < 30.0
 
 
 def test_process_figures_per_robot_count_shared_processes_once():

@@ -26,6 +26,10 @@ import numpy as np
 
 #: Largest (pairs x rows) block evaluated at once [elements]; bounds the memory.
 BLOCK = 1 << 21
+#: A cell lighter than this share of the running mass at its runs' ends is summed cell by
+#: cell (:meth:`RowSums.moments`): the running sums' rounding (~1e-16 of them) would be
+#: ~1e-8 of its own mass and more.
+CANCELLATION = 1e-8
 
 
 @dataclass(frozen=True)
@@ -165,11 +169,31 @@ class RowSums:
         return np.stack([w, w * cx, w * cy, w * (cx * cx + cy * cy)])
 
     def moments(self, runs: RowRuns) -> np.ndarray:
-        """``(n, 4)``: every cell's ``sum w``, ``sum w x``, ``sum w y``, ``sum w (x^2 + y^2)``."""
+        """``(n, 4)``: every cell's ``sum w``, ``sum w x``, ``sum w y``, ``sum w (x^2 + y^2)``.
+
+        A cell whose mass is below :data:`CANCELLATION` of the running mass at its runs' ends
+        (a cell in a tail of the density beside heavy ones on its rows) is summed cell by
+        cell instead: there the differences of running sums are mostly their rounding."""
         stop = np.maximum(runs.stop, runs.start)
         q = self._q
-        sums: np.ndarray = (q[self._rows, stop] - q[self._rows, runs.start]).sum(axis=1)
+        ends = q[self._rows, stop]
+        sums: np.ndarray = (ends - q[self._rows, runs.start]).sum(axis=1)
+        for k in np.flatnonzero(sums[:, 0] < CANCELLATION * ends[:, :, 0].sum(axis=1)):
+            sums[k] = self._direct(runs.start[k], stop[k])
         return sums
+
+    def _direct(self, start: np.ndarray, stop: np.ndarray) -> np.ndarray:
+        """``(4,)`` the sums of :meth:`moments` over the cells ``start[r] <= c < stop[r]`` of
+        every row ``r``, added cell by cell."""
+        W = self._w.shape[1]
+        rows = np.flatnonzero(stop > start)
+        counts = stop[rows] - start[rows]
+        first = rows * W + start[rows]
+        offsets = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)
+        cells = np.repeat(first, counts) + offsets
+        r, c = cells // W, cells % W
+        w, x, y = self._w[r, c], self._cx[c], self._cy[r]
+        return np.array([w.sum(), (w * x).sum(), (w * y).sum(), (w * (x * x + y * y)).sum()])
 
 
 class RowNearest:

@@ -16,6 +16,7 @@ from coverage_ros.core.geodesic.tessellation import Generator
 from coverage_ros.core.geodesic.world_domain import world_domain
 from coverage_ros.core.offline.lloyd_team import EuclideanTeam, solve_lloyd
 from coverage_ros.core.world import load_world
+from coverage_ros.core.world.density import GaussianMixture
 from coverage_ros.core.world.grid import OCCUPIED, GridMap
 from coverage_ros.errors import ConfigError
 
@@ -55,6 +56,25 @@ def test_team_step_equals_every_robots_decentralized_update(field, seed, weighte
         assert step.costs[i] == pytest.approx(cell.cost, rel=1e-7, abs=1e-9)
         assert np.allclose(step.centroids[i], cell.centroid, atol=1e-9)
         assert np.allclose(step.goals[i], cell.goal, atol=1e-9)
+
+
+def test_a_cell_in_the_far_tail_of_the_density_has_its_own_centroid():
+    """A robot whose cell holds only the far tail of a narrow Gaussian (mass ~1e-56 beside
+    cells of mass ~1 on the same rows): its centroid and goal are the decentralized update's,
+    inside its cell, not the rounding of the heavy cells' running sums."""
+    occ = np.zeros((200, 200), dtype=np.int8)
+    density = GaussianMixture(np.array([[1.0, 5.0]]), np.array([np.diag([0.3 ** 2] * 2)]),
+                              np.array([1.0]))
+    domain = CoverageDomain.from_grid(GridMap(occ, 0.05, (0.0, 0.0, 0.0)), 0.0, density)
+    P = np.array([[1.0, 5.0], [2.0, 4.0], [2.0, 6.0], [9.5, 5.0]])
+    step = EuclideanTeam(domain).step(P)
+    gens = [Generator(p) for p in P]
+    far = euclidean_cell(domain, gens[3], gens[:3])
+    assert 0.0 < step.masses[3] < 1e-30  # the case: a cell of next to no mass
+    assert step.masses[3] == pytest.approx(far.mass, rel=1e-9)
+    assert np.allclose(step.centroids[3], far.centroid, atol=1e-9)
+    assert np.allclose(step.goals[3], far.goal, atol=1e-9)
+    assert domain.is_free_point(step.goals[3])
 
 
 def test_projection_of_a_centroid_on_an_obstacle():

@@ -11,7 +11,10 @@ Per scenario, both solvers from the same starts until no robot moves more than `
 
 * ``steps`` - tessellations to converge (an accelerated solver's rejected tries count);
 * ``steps_within`` - tessellations until H was within 0.1 % of plain Lloyd's final H;
-* ``gap`` - final H / plain Lloyd's final H - 1.
+* ``gap`` - final H / plain Lloyd's final H - 1;
+* ``plain_nudged`` - plain Lloyd again from starts moved by :data:`NUDGE` (1 mm): its gap and
+  steps against plain Lloyd's own run, the spread of the end that the landscape alone makes
+  (many local minima a few tenths of a percent apart), for scale.
 
 Summary: the median over scenarios of accelerated / plain steps to converge and of accelerated
 steps within 0.1 % over plain's steps to converge (and over plain's own steps within 0.1 %), the
@@ -23,6 +26,7 @@ on into a lower minimum than plain's counts as slower).
 
 from __future__ import annotations
 
+import math
 import statistics
 import time
 
@@ -41,6 +45,9 @@ MAX_STEPS = 3000
 KINDS = ("gaussians", "uniform", "gaussians", "obstacles")
 TEAMS = (8, 16, 32)
 SEEDS = {"train": 1000, "held-out": 5000}
+#: [m] plain Lloyd's own spread (``plain_nudged``): the scenario again from starts moved this
+#: far in seeded directions, against plain Lloyd - how far its end moves with the starts alone.
+NUDGE = 1e-3
 
 
 def scenario(seed: int, index: int) -> tuple[CoverageDomain, np.ndarray, dict]:
@@ -108,9 +115,21 @@ def compare(domain: CoverageDomain, starts: np.ndarray, solvers=("lloyd", "accel
     return out
 
 
+def nudged(domain: CoverageDomain, starts: np.ndarray, seed: int) -> np.ndarray:
+    """``starts`` each moved by :data:`NUDGE` in a direction drawn from ``seed`` (the other
+    way, or not at all, where that leaves the free space)."""
+    angle = np.random.default_rng(seed).uniform(0.0, 2.0 * np.pi, len(starts))
+    step = NUDGE * np.stack([np.cos(angle), np.sin(angle)], axis=1)
+    out = starts.copy()
+    for k, p in enumerate(starts):
+        out[k] = next((q for q in (p + step[k], p - step[k]) if domain.is_free_point(q)), p)
+    return out
+
+
 def run_sweep(seed_set: str, count: int, say, solvers=("lloyd", "accelerated"),
               **options) -> dict:
-    """``count`` scenarios of ``seed_set``, each compared (module docstring); a summary."""
+    """``count`` scenarios of ``seed_set``, each compared (module docstring), and plain Lloyd
+    from starts nudged by :data:`NUDGE`; a summary."""
     base = SEEDS[seed_set]
     rows = []
     for i in range(count):
@@ -118,15 +137,21 @@ def run_sweep(seed_set: str, count: int, say, solvers=("lloyd", "accelerated"),
         domain, starts, about = scenario(seed, i)
         res = compare(domain, starts, solvers, **options)
         p, a = res["lloyd"], res[solvers[-1]]
+        again = solve_lloyd(EuclideanTeam(domain), nudged(domain, starts, seed),
+                            tolerance=TOLERANCE, max_steps=MAX_STEPS)
         row = {**about, "plain": p, "accelerated": a,
                "ratio_steps": a["steps"] / p["steps"],
                "ratio_within": (a["steps_within"] or a["steps"]) / p["steps"],
-               "ratio_within_own": (a["steps_within"] or a["steps"]) / p["steps_within"]}
+               "ratio_within_own": (a["steps_within"] or a["steps"]) / p["steps_within"],
+               "plain_nudged": {"steps": again.steps, "converged": again.converged,
+                                "gap": again.cost / p["H"] - 1.0,
+                                "ratio_steps": again.steps / p["steps"]}}
         rows.append(row)
         say(f"  seed {seed}: {about['kind']:9s} {about['robots']:2d} robots: plain "
             f"{p['steps']:4d} steps ({p['steps_within']} within 0.1 %), accelerated "
             f"{a['steps']:4d} ({a['steps_within']}), steps {row['ratio_steps']:.2f}, "
-            f"within {row['ratio_within']:.2f}, H gap {100 * a['gap']:+.3f} %")
+            f"within {row['ratio_within']:.2f}, H gap {100 * a['gap']:+.3f} %; plain nudged "
+            f"{again.steps} steps, H gap {100 * row['plain_nudged']['gap']:+.3f} %")
     summary = summarize(rows)
     say(f"  {seed_set}: median accelerated / plain steps {summary['median_ratio_steps']:.2f} "
         f"(worst {summary['worst_ratio_steps']:.2f}); within 0.1 % of plain's H after "
@@ -134,6 +159,11 @@ def run_sweep(seed_set: str, count: int, say, solvers=("lloyd", "accelerated"),
         f"{summary['worst_ratio_within']:.2f}; {summary['median_ratio_within_own']:.2f} of "
         f"plain's own steps to within 0.1 %); H gap median {summary['median_gap_percent']:+.4f}"
         f" %, largest {summary['max_gap_percent']:+.4f} %")
+    spread = summary["plain_nudged"]
+    say(f"  plain Lloyd from starts moved {1e3 * NUDGE:g} mm: H gap to its own run "
+        f"{spread['min_gap_percent']:+.4f} % to {spread['max_gap_percent']:+.4f} % "
+        f"({spread['above_0.1%']} scenarios above +0.1 %), steps worst "
+        f"{spread['worst_ratio_steps']:.2f} ({spread['slower']} scenarios slower)")
     met = summary["targets_met"]
     targets = [
         {"target": "median steps to within 0.1 % of plain's final H <= 0.5 x plain's steps",
@@ -156,7 +186,17 @@ def summarize(rows: list[dict]) -> dict:
         return [r[key] for r in rows]
 
     gaps = [100 * r["accelerated"]["gap"] for r in rows]
+    spread = [r["plain_nudged"] for r in rows if "plain_nudged" in r]
+    nudged_gaps = [100 * n["gap"] for n in spread]
     return {"scenarios": len(rows),
+            # plain Lloyd against itself from starts 1 mm away: the landscape's own spread
+            "plain_nudged": {"nudge_m": NUDGE,
+                             "max_gap_percent": max(nudged_gaps, default=math.nan),
+                             "min_gap_percent": min(nudged_gaps, default=math.nan),
+                             "above_0.1%": sum(g > 0.1 for g in nudged_gaps),
+                             "worst_ratio_steps": max((n["ratio_steps"] for n in spread),
+                                                      default=math.nan),
+                             "slower": sum(n["ratio_steps"] > 1.0 for n in spread)},
             "median_ratio_steps": statistics.median(col("ratio_steps")),
             "worst_ratio_steps": max(col("ratio_steps")),
             "median_ratio_within": statistics.median(col("ratio_within")),

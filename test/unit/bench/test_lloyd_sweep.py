@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
-from coverage_ros.bench.lloyd_sweep import summarize
+import numpy as np
+
+from coverage_ros.bench.lloyd_sweep import NUDGE, nudged, scenario, summarize
 
 
 def _row(steps_plain, steps_acc, within, gap):
@@ -23,3 +25,21 @@ def test_targets_follow_median_worst_and_gap():
     assert not met["never_more_than_0.1%_above_plain_H"]  # +0.11 %
     assert not met["worst_case_within_0.1%_no_slower_than_plain"]
     assert not met["median_within_0.1%_in_half_plain_steps"]  # median (45 + 70) / 2 / 100
+
+
+def test_plain_nudged_spread_counts_gaps_above_a_tenth_of_a_percent_and_slower_runs():
+    rows = [_row(100, 60, 40, 0.0), _row(100, 50, 45, 0.0), _row(100, 70, 50, 0.0)]
+    for r, (gap, steps) in zip(rows, [(0.002, 90), (-0.01, 130), (0.0004, 100)], strict=True):
+        r["plain_nudged"] = {"gap": gap, "ratio_steps": steps / 100}
+    spread = summarize(rows)["plain_nudged"]
+    assert spread["max_gap_percent"] == 0.2 and spread["min_gap_percent"] == -1.0
+    assert spread["above_0.1%"] == 1 and spread["slower"] == 1
+    assert spread["worst_ratio_steps"] == 1.3
+
+
+def test_nudged_starts_move_by_the_nudge_and_stay_free():
+    domain, starts, _ = scenario(5003, 3)  # box obstacles
+    moved = nudged(domain, starts, 5003)
+    assert np.allclose(np.hypot(*(moved - starts).T), NUDGE)
+    assert all(domain.is_free_point(p) for p in moved)
+    assert np.array_equal(moved, nudged(domain, starts, 5003))  # drawn from the seed

@@ -518,7 +518,7 @@ def test_line_of_sight_decided_by_tiles_equals_the_test_point_by_point():
 def test_the_whole_domain_search_gives_each_robots_cell_with_tiles_as_without(monkeypatch):
     """The visible-first search with line of sight decided by tiles settles the same cells as
     with every point tested alone (the tiles switched off)."""
-    from coverage_ros.core.geodesic import sight
+    from coverage_ros.core.geodesic import sight, visible_first
     world = load_world(WORLDS / "office.yaml")
     starts = cluster_starts(world.grid, 6, 0.105, np.random.default_rng(1))
     gens = [Generator(p) for p in starts[:, :2]]
@@ -537,6 +537,7 @@ def test_the_whole_domain_search_gives_each_robots_cell_with_tiles_as_without(mo
     tiled = cells(world_domain(world, 0.105))
     assert calls  # the whole-domain search ran and used the tiles
     monkeypatch.setattr(sight, "TILED_FROM", 10**12)
+    monkeypatch.setattr(visible_first, "TILED_FROM", 10**12)  # (its own imported copy)
     monkeypatch.setattr(sight.LineOfSight, "sight_tiles",  # every tile to be tested
                         lambda self, *a: np.full(len(plain(self, *a)), -1, dtype=np.int8))
     monkeypatch.setattr(sight.LineOfSight, "sight_tiles_in",

@@ -3,7 +3,8 @@ launcher's team, run in lock-step, against the best known configuration of
 ``scripts/bench_closets``.
 
 For every map and start seed, ``coverage-team --strategy geodesic --lockstep`` runs the world
-node and one robot process per robot for ``--duration`` seconds of simulated time from the
+node and one robot process per robot for ``--duration`` seconds of simulated time (by default
+per map: :func:`~coverage_ros.bench.closets.live_duration`) from the
 launcher's start cluster (the same cluster the offline cases start from). The world is the
 benchmark's raster of the map (:func:`~coverage_ros.bench.closet_maps.coarse_world`), written as a
 world file (floor plans) or a map_server map (the shared maps) that the launcher loads as a user
@@ -61,12 +62,13 @@ def world_file(name: str, resolution: float, folder: Path) -> tuple[Path, WorldS
     return out, parse_world(plan)
 
 
-def run_case(name: str, seed: int, args, folder: Path) -> dict:
-    """One live run of map ``name`` from start seed ``seed``; its case row."""
+def run_case(name: str, seed: int, args, folder: Path, duration: float) -> dict:
+    """One live run of map ``name`` from start seed ``seed`` for ``duration`` [s] of sim
+    time; its case row."""
     path, world = world_file(name, args.resolution, folder)
     out = folder / f"{name}-{seed}"
     cmd = ["--world", str(path), "--robots", str(args.robots), "--strategy", "geodesic",
-           "--lockstep", "--duration", f"{args.duration:g}", "--seed", str(seed),
+           "--lockstep", "--duration", f"{duration:g}", "--seed", str(seed),
            "--out", str(out), "--quiet"]
     if args.params:
         cmd += ["--strategy-params", json.dumps(args.params)]
@@ -101,17 +103,18 @@ def within_at(series: list, H_best: float, share: float = TARGET - 1.0) -> float
     return t_in
 
 
-def bench_live(args, maps: list[str], data: dict, say) -> dict[str, dict]:
-    """Every map and start seed live; per map its settings and cases."""
+def bench_live(args, maps: list[str], data: dict, say, duration: float) -> dict[str, dict]:
+    """Every map and start seed live for ``duration`` [s] of sim time; per map its settings
+    and cases."""
     best = data.get("best", {})
     results = {}
     with tempfile.TemporaryDirectory(prefix="bench-closets-live-") as tmp:
         for name in maps:
             settings = {"robots": args.robots, "resolution": args.resolution,
-                        "live": True, "duration": args.duration}
+                        "live": True, "duration": duration}
             cases = []
             for seed in range(args.seeds):
-                case = run_case(name, seed, args, Path(tmp))
+                case = run_case(name, seed, args, Path(tmp), duration)
                 H_best = best.get(name, {}).get("H")
                 series = case.pop("H_series")
                 case["within_at"] = None if H_best is None else within_at(series, H_best)

@@ -3,7 +3,8 @@
 Every robot's decentralized update is run centrally, iteration after iteration, until the
 team converges (see :mod:`coverage_ros.core.offline.runner`); with ``--solver lloyd`` or
 ``accelerated`` (strategies lloyd and geodesic) the whole team's step is computed at once
-instead, plain or Anderson-accelerated (:mod:`coverage_ros.core.offline.lloyd_team`). Writes a
+instead, plain Lloyd or Lloyd then L-BFGS on H once plain Lloyd's tail settles
+(:mod:`coverage_ros.core.offline.lloyd_solvers`). Writes a
 JSON summary, a PNG picture and optionally a rerun recording; prints progress to stderr.
 
     coverage-plan --map ../shared/maps/tb3_sandbox.yaml --robots 6 --json plan.json --png plan.png
@@ -66,8 +67,8 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--solver", default="decentralized",
                     choices=("decentralized",) + SOLVERS,
                     help="with --strategy lloyd or geodesic: 'lloyd' / 'accelerated' run the "
-                    "whole team's step at once (plain / Anderson-accelerated Lloyd) instead of "
-                    "every robot's own update")
+                    "whole team's step at once (plain Lloyd / Lloyd, then L-BFGS on H once "
+                    "Lloyd's tail settles) instead of every robot's own update")
     ap.add_argument("--connectivity", type=int, default=8, choices=(8, 16))
     ap.add_argument("--explore", action="store_true",
                     help="the robots start with no map and explore it (simulated lidar)")

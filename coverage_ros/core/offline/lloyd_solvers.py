@@ -27,7 +27,14 @@ CVTs. A team (:class:`Team`) makes one tessellation per call; every call counts 
   still differs from plain Lloyd's, and by how much, ``scripts/bench_planner`` measures on
   random scenarios (``docs/results/planner.json``).
 
-Both stop when no robot's Lloyd step is longer than ``tolerance``.
+The plain step is monotone, as the offline runner's robots are: the team moves to its goals if
+H does not rise, else it tries half the step, and so on while the longest step is at least
+``tolerance`` (each try counts as a step). A Euclidean Lloyd step to the centroids lowers H
+anyway; a generalized Lloyd step on geodesic cells (a gradient step of size ``1 / m_i``) can
+overshoot where a cell changes shape across a doorway, and the team would swing there for good.
+
+Both stop when no robot's Lloyd step is longer than ``tolerance``, or when no step that long
+lowers H.
 """
 
 from __future__ import annotations
@@ -45,6 +52,8 @@ SOLVERS = ("lloyd", "accelerated")
 TAIL_WINDOW = 3
 #: Armijo's sufficient decrease: the share of the linear prediction an L-BFGS step must reach.
 ARMIJO = 1e-4
+#: [relative] rounding allowed in a plain step's H before it counts as a rise
+RISE = 1e-12
 
 
 class Team(Protocol):
@@ -111,6 +120,7 @@ def solve_lloyd(team: Team, starts: np.ndarray, weights: np.ndarray | None = Non
         return s
 
     cur = start = evaluate(np.asarray(starts, dtype=np.float64)[:, :2].copy())
+    stalled = False
     path = [cur.positions.copy()]
     plain = [cur.cost]  # energies of the plain steps before the switch
     switched_at = None
@@ -136,7 +146,10 @@ def solve_lloyd(team: Team, starts: np.ndarray, weights: np.ndarray | None = Non
         if nxt is None:
             if len(energies) >= max_steps:
                 break
-            nxt = evaluate(cur.goals)
+            nxt = _monotone_step(cur, team, evaluate, tolerance, max_steps - len(energies))
+            if nxt is None:  # (no step of at least the tolerance lowers H, or out of steps)
+                stalled = len(energies) < max_steps
+                break
             if switched_at is None:
                 plain.append(nxt.cost)
         new = _gradient(nxt)
@@ -145,7 +158,27 @@ def solve_lloyd(team: Team, starts: np.ndarray, weights: np.ndarray | None = Non
         cur, grad = nxt, new
         path.append(cur.positions.copy())
     return LloydSolution(np.array(path), energies, len(energies),
-                         bool(cur.step_length < tolerance), cur, start, switched_at)
+                         bool(stalled or cur.step_length < tolerance), cur, start, switched_at)
+
+
+def _monotone_step(cur: Any, team: Team, evaluate: Callable[[np.ndarray], Any],
+                   tolerance: float, budget: int) -> Any | None:
+    """The team step at the goals of ``cur``, or at the first of half, a quarter, ... of the
+    way whose H is no higher than ``cur``'s (module docstring); None when every try whose
+    longest step is at least ``tolerance`` raises H, or ``budget`` tessellations did."""
+    step = cur.goals - cur.positions
+    longest = cur.step_length
+    share = 1.0
+    while budget > 0 and share * longest >= tolerance:
+        X = cur.positions + share * step
+        share *= 0.5
+        if share < 0.5 and not all(team.domain.is_free_point(q) for q in X):
+            continue  # (part of the way crosses a wall: shorter still)
+        trial = evaluate(X)
+        budget -= 1
+        if trial.cost <= cur.cost * (1.0 + RISE) + RISE:
+            return trial
+    return None
 
 
 def _gradient(step: Any) -> np.ndarray:

@@ -12,9 +12,10 @@ from coverage_ros.core.geodesic.domain import CoverageDomain
 from coverage_ros.core.geodesic.euclidean import euclidean_labels
 from coverage_ros.core.geodesic.tessellation import Generator, tessellate
 from coverage_ros.core.geodesic.world_domain import world_domain
-from coverage_ros.core.offline.lloyd_team import GeodesicTeam, TeamStep
+from coverage_ros.core.offline.lloyd_team import GeodesicTeam, TeamStep, solve_lloyd
 from coverage_ros.core.world import load_world
 from coverage_ros.core.world.grid import OCCUPIED, GridMap
+from coverage_ros.core.world.placement import team_starts
 
 
 def _domain(world: str, connectivity: int = 8) -> CoverageDomain:
@@ -93,3 +94,20 @@ def test_a_robot_with_an_empty_cell_stays():
     assert np.array_equal(twice.centroids[:3], alone.centroids)
     assert twice.masses[3] == 0.0 and twice.costs[3] == 0.0
     assert np.array_equal(twice.centroids[3], P[0]) and np.array_equal(twice.goals[3], P[0])
+
+
+def test_plain_geodesic_lloyd_settles_where_full_steps_swing_across_doorways():
+    """Six robots from the launcher's cluster in the office: full generalized Lloyd steps
+    overshoot through the doorways and H swings for hundreds of steps; the monotone plain step
+    (half the way, a quarter, ... where H would rise) never raises H and settles."""
+    world = load_world(WORLDS / "office.yaml")
+    specs = [world.robot_spec(i) for i in range(6)]
+    domain = world_domain(world, max(s.radius for s in specs))
+    starts = team_starts(world, specs, None, 0)[:, :2]
+    team = GeodesicTeam(domain)
+    run = solve_lloyd(team, starts, tolerance=0.02, max_steps=300)
+    assert run.converged and run.steps < 150
+    E = np.array([team.step(P).cost for P in run.positions])  # H of the accepted positions
+    assert np.all(np.diff(E) <= 1e-9 * E[:-1]), "an accepted step raised H"
+    assert len(run.positions) < run.steps  # some full steps were refused (they count)
+    assert E[-1] < 0.1 * E[0]

@@ -20,6 +20,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import argparse
 import json
+import math
 import sys
 import time
 from pathlib import Path
@@ -38,11 +39,17 @@ from coverage_ros.core.offline.lloyd_team import (
     solve_lloyd,
 )
 from coverage_ros.core.world import WorldSpec, load_world
-from coverage_ros.core.world.placement import team_starts
+from coverage_ros.core.world.placement import check_free_area, team_starts
 from coverage_ros.core.world.robot import TB3_RADIUS
 from coverage_ros.core.world.yaml_io import yaml_mapping
 from coverage_ros.errors import ConfigError, CoverageError
 from coverage_ros.worlds import resolve_world_path
+
+
+#: [s] sim time of an exploration at most, unless --duration
+EXPLORE_DURATION = 900.0
+#: picture formats --png writes (by the file's extension)
+IMAGE_SUFFIXES = frozenset({".png", ".jpg", ".jpeg", ".bmp", ".gif", ".tif", ".tiff", ".webp"})
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -72,8 +79,8 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--connectivity", type=int, default=8, choices=(8, 16))
     ap.add_argument("--explore", action="store_true",
                     help="the robots start with no map and explore it (simulated lidar)")
-    ap.add_argument("--duration", type=float, default=900.0,
-                    help="[s] with --explore: sim time at most")
+    ap.add_argument("--duration", type=float, default=None,
+                    help=f"[s] with --explore: sim time at most (default {EXPLORE_DURATION:g})")
     ap.add_argument("--until-explored", type=float, default=None, metavar="F",
                     help="with --explore: stop once this share of the free area is explored")
     ap.add_argument("--json", type=Path, help="write the JSON summary here")
@@ -81,6 +88,28 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--record", type=Path, help="write a rerun recording (.rrd) here")
     ap.add_argument("--quiet", action="store_true", help="no progress output")
     return ap
+
+
+def check_outputs(args: argparse.Namespace) -> None:
+    """Refuse output paths that cannot be written before anything runs: a directory given
+    for a file, a parent that is a file, a picture without a known image extension; make the
+    missing parent directories."""
+    for option, out in (("--json", args.json), ("--png", args.png), ("--record", args.record)):
+        if out is None:
+            continue
+        if out.is_dir():
+            raise ConfigError.at(option, "is a directory", str(out), "a file path")
+        if option == "--png" and out.suffix.lower() not in IMAGE_SUFFIXES:
+            raise ConfigError.at(option, "needs an image file extension", str(out),
+                                 f"one of {sorted(IMAGE_SUFFIXES)}")
+        parent = next((p for p in (out.parent, *out.parent.parents) if p.exists()), None)
+        if parent is not None and not parent.is_dir():
+            raise ConfigError.at(option, f"{parent} is a file, not a directory", str(out))
+        try:
+            out.parent.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise ConfigError.at(option, f"cannot make its directory ({exc.strerror})",
+                                 str(out)) from None
 
 
 class Run(NamedTuple):
@@ -99,9 +128,19 @@ def run(args: argparse.Namespace) -> dict:
     say = (lambda *_: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
     if args.robots < 1:
         raise ConfigError.at("--robots", "must be >= 1", args.robots)
-    for out in (args.json, args.png, args.record):
-        if out is not None:
-            out.parent.mkdir(parents=True, exist_ok=True)
+    if not (math.isfinite(args.tolerance) and args.tolerance > 0):
+        raise ConfigError.at("--tolerance", "must be a finite number > 0", args.tolerance)
+    if args.max_iterations < 1:
+        raise ConfigError.at("--max-iterations", "must be >= 1", args.max_iterations)
+    if args.duration is not None and not args.explore:
+        raise ConfigError.at("--duration", "needs --explore (a plan without it runs until it "
+                             "converges or --max-iterations)", args.duration)
+    if args.record is not None and args.explore:
+        raise ConfigError.at("--record", "not with --explore (record a live exploration with "
+                             "coverage-team --explore --record)", str(args.record))
+    check_outputs(args)
+    if args.explore and args.duration is None:
+        args.duration = EXPLORE_DURATION
     path = resolve_world_path(args.map, "--map")
     world = load_world(path)
     settings = yaml_mapping(args.strategy_params, "--strategy-params")
@@ -125,6 +164,7 @@ def run(args: argparse.Namespace) -> dict:
         specs = [s.with_overrides({"radius": args.robot_radius}, "--robot-radius")
                  for s in specs]
     radius = max(s.radius for s in specs)
+    check_free_area(world, args.robots, radius)
     starts = team_starts(world, specs, args.starts, args.seed)
     if args.explore:
         assert choice is not None  # (exploring plans are decentralized)
@@ -160,6 +200,9 @@ def run(args: argparse.Namespace) -> dict:
     else:
         team = EuclideanTeam(domain) if args.strategy == "lloyd" or choice is None else \
             GeodesicTeam(domain, choice.params.method)
+        if getattr(choice and choice.params, "escape", False):
+            say("  note: the team solvers run Lloyd alone; a robot left in a dead-end room stays "
+                "there (the escape runs in the robots' own updates: --solver decentralized)")
         result, first, last = _solve_team(args, team, weights, starts, progress)
     final, H0 = _score(domain, result.positions[-1], weights, last), \
         _score(domain, result.positions[0], weights, first).cost
@@ -191,7 +234,9 @@ def run(args: argparse.Namespace) -> dict:
         from coverage_ros.viz.png import density_underlay, render_plan
 
         render_plan(world.grid, final.labels, result.positions, args.png,
-                    title=f"{args.strategy}: {args.robots} robots, H = {final.cost:.4g}",
+                    title=f"{args.strategy}"
+                    f"{'' if args.solver == 'decentralized' else f' ({args.solver} solver)'}: "
+                    f"{args.robots} robots, H = {final.cost:.4g}",
                     underlay=density_underlay(domain.density)
                     if domain.density.shape == world.grid.shape else None)
         say(f"  wrote {args.png}")

@@ -62,9 +62,10 @@ def plan_exploration(args, world: WorldSpec, path: Path, choice: StrategyChoice,
                                           strict=True)]},
         "wall_time_s": round(time.perf_counter() - t0, 3),
     }
+    at95 = run.explored_at["0.95"]
     say(f"  explored {100 * run.explored[-1]:.1f} % in {run.sim_time:.0f} s sim time "
-        f"(95 % at {run.explored_at['0.95']} s), false free {100 * run.false_free[-1]:.2f} %, "
-        f"{run.collisions} collisions")
+        f"({'95 % not reached' if at95 is None else f'95 % at {at95} s'}), false free "
+        f"{100 * run.false_free[-1]:.2f} %, {run.collisions} collisions")
     out = next((p.parent for p in (args.json, args.png) if p is not None), None)
     if out is not None:
         summary["explored_map"] = str(write_map_yaml(trinary_grid(run.snapshot),

@@ -9,7 +9,7 @@ from dataclasses import replace
 from coverage_ros.cli.team.options import RunConfig
 from coverage_ros.cli.team.robots import default_robots_per_process
 from coverage_ros.core.world import TeamMember, load_team
-from coverage_ros.core.world.placement import CLUSTER_GAP, team_starts
+from coverage_ros.core.world.placement import check_free_area, team_starts
 from coverage_ros.core.world.spec import WorldSpec
 from coverage_ros.errors import ConfigError
 
@@ -75,15 +75,8 @@ def check_room(world: WorldSpec, robots: int, radius: float, bridge: bool,
     and spacing (hexagonal packing, CLUSTER_GAP apart), or more memory than the machine has
     available (``available_mb``: default, what psutil says) for them, ``per_process`` robots
     to a process."""
-    free = world.grid.inflated_free_mask(radius)
-    area = float(free.sum()) * world.grid.resolution ** 2
-    spacing = 2.0 * radius + CLUSTER_GAP
-    per_robot = spacing * spacing * math.sqrt(3.0) / 2.0
-    if robots * per_robot > area:
-        raise ConfigError.at("--robots", f"{robots} robots of radius {radius:g} m need about "
-                             f"{robots * per_robot:.1f} m^2 packed {CLUSTER_GAP:g} m apart; "
-                             f"{world.name} has {area:.1f} m^2 of free space for them",
-                             expected=f"at most {int(area // per_robot)}")
+    check_free_area(world, robots, radius, radius_where="radius (of the world's or team "
+                    "file's robots)")
     need = robots_mb(robots, per_process) + WORLD_MB + (BRIDGE_MB if bridge else 0.0) + \
         (MARKERS_MB if markers else 0.0)
     if available_mb is None:

@@ -139,6 +139,25 @@ def parse_poses(text: str, where: str = "starts") -> np.ndarray:
     return np.array(rows)
 
 
+def check_free_area(world: WorldSpec, robots: int, radius: float, where: str = "--robots",
+                    radius_where: str = "--robot-radius") -> None:
+    """Refuse more robots than ``world``'s free area holds at their radius and spacing
+    (hexagonal packing, :data:`CLUSTER_GAP` apart), naming the options ``where`` (the team
+    size) and ``radius_where`` (the radius, when no free space is wide enough for one)."""
+    free = world.grid.inflated_free_mask(radius)
+    area = float(free.sum()) * world.grid.resolution ** 2
+    if area == 0.0:
+        raise ConfigError.at(radius_where, f"{world.name} has no free space wide enough for a "
+                             "robot of this radius", radius)
+    spacing = 2.0 * radius + CLUSTER_GAP
+    per_robot = spacing * spacing * math.sqrt(3.0) / 2.0
+    if robots * per_robot > area:
+        raise ConfigError.at(where, f"{robots} robots of radius {radius:g} m need about "
+                             f"{robots * per_robot:.1f} m^2 packed {CLUSTER_GAP:g} m apart; "
+                             f"{world.name} has {area:.1f} m^2 of free space for them",
+                             expected=f"at most {int(area // per_robot)}")
+
+
 def team_starts(world: WorldSpec, specs: Sequence[RobotSpec], starts: str | None, seed: int,
                 where: str = "--starts") -> np.ndarray:
     """``(n, 3)`` start poses of a team of robots ``specs``: the poses typed in ``starts``

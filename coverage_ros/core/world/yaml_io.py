@@ -17,6 +17,9 @@ def read_yaml_mapping(path: Path) -> dict[str, Any]:
         text = Path(path).read_text()
     except FileNotFoundError:
         raise MapError(f"{path}: file not found") from None
+    except UnicodeDecodeError:
+        raise MapError.at(str(path), "is not a text file", "binary data",
+                          "a YAML file (for a map_server map: its .yaml, not the image)") from None
     except OSError as exc:
         raise MapError(f"{path}: cannot read ({exc.strerror})") from None
     try:

@@ -71,6 +71,14 @@ def test_recording_holds_the_expected_entities(plan):
      "--starts: gives 1 poses for 2 robots"),
     (["--map", "office", "--robots", "1", "--starts", "4.0,1.5"], r"--starts\[0\].*inside"),
     (["--map", "nosuchworld", "--robots", "1"], "no shipped world of that name"),
+    (["--map", "office", "--robots", "5000"], r"--robots: 5000 robots .* \(expected at most \d+\)"),
+    (["--map", "office", "--robots", "2", "--robot-radius", "5"],
+     "--robot-radius: office has no free space wide enough"),
+    (["--map", "office", "--robots", "2", "--tolerance", "-1"], "--tolerance: must be"),
+    (["--map", "office", "--robots", "2", "--max-iterations", "0"], "--max-iterations: must be"),
+    (["--map", "office", "--robots", "2", "--duration", "10"], "--duration: needs --explore"),
+    (["--map", "office", "--robots", "2", "--explore", "--record", "x.rrd"],
+     "--record: not with --explore"),
 ])
 def test_errors_are_one_line_and_named(args, message, capsys):
     assert main(args + ["--quiet"]) == 2
@@ -79,6 +87,20 @@ def test_errors_are_one_line_and_named(args, message, capsys):
     import re
 
     assert re.search(message, err), err
+
+
+def test_outputs_that_cannot_be_written_are_refused_before_the_plan(tmp_path, capsys):
+    a_file = tmp_path / "a.json"
+    a_file.write_text("{}")
+    for option, path, message in (
+            ("--json", a_file / "x.json", "a.json is a file, not a directory"),
+            ("--json", tmp_path, "is a directory"),
+            ("--png", tmp_path / "picture", "needs an image file extension"),
+            ("--record", tmp_path, "is a directory")):
+        assert main(["--map", "office", "--robots", "2", option, str(path), "--quiet"]) == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and f"{option}: " in err and message in err, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.json"]  # nothing was written
 
 
 def test_coordinates_may_begin_with_a_minus_sign(tmp_path):

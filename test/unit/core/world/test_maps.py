@@ -142,3 +142,10 @@ def test_missing_and_malformed_files(tmp_path):
     bad.write_text("image: [unclosed\n")
     with pytest.raises(MapError, match=r"bad.yaml:\d+: malformed YAML"):
         load_map_yaml(bad)
+
+
+def test_the_image_given_for_the_yaml_is_named(tmp_path):
+    image = tmp_path / "map.pgm"
+    image.write_bytes(b"P5\n2 2\n255\n\xcd\xff\x00\xfe")
+    with pytest.raises(MapError, match=r"map.pgm: is not a text file .*its \.yaml, not the image"):
+        load_map_yaml(image)

@@ -28,10 +28,11 @@ CVTs. A team (:class:`Team`) makes one tessellation per call; every call counts 
   random scenarios (``docs/results/planner.json``).
 
 The plain step is monotone, as the offline runner's robots are: the team moves to its goals if
-H does not rise, else it tries half the step, and so on while the longest step is at least
-``tolerance`` (each try counts as a step). A Euclidean Lloyd step to the centroids lowers H
-anyway; a generalized Lloyd step on geodesic cells (a gradient step of size ``1 / m_i``) can
-overshoot where a cell changes shape across a doorway, and the team would swing there for good.
+H does not rise; else the robots whose cells' cost rose try half their steps (every robot, when
+no cell's cost rose), and so on, a robot whose step falls below ``tolerance`` staying where it
+is (each try counts as a step). A Euclidean Lloyd step to the centroids lowers H anyway; a
+generalized Lloyd step on geodesic cells (a gradient step of size ``1 / m_i``) can overshoot
+where a cell changes shape across a doorway, and the team would swing there for good.
 
 Both stop when no robot's Lloyd step is longer than ``tolerance``, or when no step that long
 lowers H.
@@ -163,21 +164,28 @@ def solve_lloyd(team: Team, starts: np.ndarray, weights: np.ndarray | None = Non
 
 def _monotone_step(cur: Any, team: Team, evaluate: Callable[[np.ndarray], Any],
                    tolerance: float, budget: int) -> Any | None:
-    """The team step at the goals of ``cur``, or at the first of half, a quarter, ... of the
-    way whose H is no higher than ``cur``'s (module docstring); None when every try whose
-    longest step is at least ``tolerance`` raises H, or ``budget`` tessellations did."""
+    """The team step at the goals of ``cur`` if its H is no higher than ``cur``'s; else the
+    steps of the robots whose cells' cost rose are halved (every robot's when none did), a
+    robot whose step falls below ``tolerance`` stays, and so on (module docstring). None when
+    every robot stays, or ``budget`` tessellations raised H."""
     step = cur.goals - cur.positions
-    longest = cur.step_length
-    share = 1.0
-    while budget > 0 and share * longest >= tolerance:
-        X = cur.positions + share * step
-        share *= 0.5
-        if share < 0.5 and not all(team.domain.is_free_point(q) for q in X):
-            continue  # (part of the way crosses a wall: shorter still)
-        trial = evaluate(X)
-        budget -= 1
-        if trial.cost <= cur.cost * (1.0 + RISE) + RISE:
-            return trial
+    length = np.hypot(step[:, 0], step[:, 1])
+    share = np.ones(len(step))
+    while budget > 0:
+        X = cur.positions + share[:, None] * step
+        walled = np.array([not team.domain.is_free_point(q) for q in X])
+        if walled.any():  # (halfway across a wall: shorter still)
+            share[walled] *= 0.5
+        else:
+            trial = evaluate(X)
+            budget -= 1
+            if trial.cost <= cur.cost * (1.0 + RISE) + RISE:
+                return trial
+            rose = (trial.costs > cur.costs) & (share > 0)
+            share[rose if rose.any() else share > 0] *= 0.5
+        share[share * length < tolerance] = 0.0
+        if not share.any():
+            return None
     return None
 
 

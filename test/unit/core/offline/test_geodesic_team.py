@@ -111,3 +111,28 @@ def test_plain_geodesic_lloyd_settles_where_full_steps_swing_across_doorways():
     assert np.all(np.diff(E) <= 1e-9 * E[:-1]), "an accepted step raised H"
     assert len(run.positions) < run.steps  # some full steps were refused (they count)
     assert E[-1] < 0.1 * E[0]
+
+
+def test_plain_geodesic_lloyd_ends_where_the_robots_own_updates_do():
+    """Eight robots from the launcher's cluster in the ward: the team solver's monotone step
+    halves only the steps of the robots whose cells' cost rose, as each robot's own monotone
+    step does in the offline runner, and ends at the runner's H (escape off, so Lloyd alone on
+    both sides). Halving every robot's step whenever H rises stops the team early (H 30 %
+    higher here)."""
+    from coverage_ros.core.offline.runner import OfflineConfig, run_offline
+    from coverage_ros.core.strategies import StrategyContext, strategy_choice
+
+    world = load_world(WORLDS / "ward.yaml")
+    specs = [world.robot_spec(i) for i in range(8)]
+    domain = world_domain(world, max(s.radius for s in specs))
+    starts = team_starts(world, specs, None, 0)[:, :2]
+    team = GeodesicTeam(domain)
+    run = solve_lloyd(team, starts, tolerance=0.02, max_steps=300)
+    choice = strategy_choice("geodesic", {"escape": False}, "test")
+    contexts = [StrategyContext(domain=domain, robot=specs[i], robot_id=i,
+                                convergence_tolerance=0.02) for i in range(8)]
+    own = run_offline(domain, choice, starts, contexts=contexts,
+                      config=OfflineConfig(max_iterations=300))
+    H_own = team.step(own.positions[-1]).cost
+    assert run.converged and own.converged
+    assert abs(run.cost / H_own - 1.0) < 0.02, (run.cost, H_own)

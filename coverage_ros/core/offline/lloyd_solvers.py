@@ -30,9 +30,10 @@ CVTs. A team (:class:`Team`) makes one tessellation per call; every call counts 
 The plain step is monotone, as the offline runner's robots are: the team moves to its goals if
 H does not rise; else the robots whose cells' cost rose try half their steps (every robot, when
 no cell's cost rose), and so on, a robot whose step falls below ``tolerance`` staying where it
-is (each try counts as a step). A Euclidean Lloyd step to the centroids lowers H anyway; a
-generalized Lloyd step on geodesic cells (a gradient step of size ``1 / m_i``) can overshoot
-where a cell changes shape across a doorway, and the team would swing there for good.
+is (each try counts as a step). A generalized Lloyd step on geodesic cells (a gradient step of
+size ``1 / m_i``) can overshoot where a cell changes shape across a doorway, and the team would
+swing there for good. A Euclidean Lloyd step to the centroids cannot raise H: only a goal
+projected off an infeasible centroid can, and that robot stays (``Team.overshoots``).
 
 Both stop when no robot's Lloyd step is longer than ``tolerance``, or when no step that long
 lowers H.
@@ -58,10 +59,15 @@ RISE = 1e-12
 
 
 class Team(Protocol):
-    """What the solvers need of a team: its domain (``is_free_point``) and its steps, each with
-    ``positions``, ``masses``, ``goals``, ``cost`` and ``step_length``."""
+    """What the solvers need of a team: its domain (``is_free_point``), whether a step to its
+    goals can overshoot (``overshoots``) and its steps, each with ``positions``, ``masses``,
+    ``costs``, ``goals``, ``cost`` and ``step_length``."""
 
     domain: Any
+    #: A step to the goals can raise a cell's cost by going too far (a gradient step: halve
+    #: it); else only a goal moved off its centroid (projected to a feasible cell) can, and the
+    #: robot stays.
+    overshoots: bool
 
     def step(self, positions: np.ndarray, weights: np.ndarray | None = None) -> Any: ...
 
@@ -182,7 +188,10 @@ def _monotone_step(cur: Any, team: Team, evaluate: Callable[[np.ndarray], Any],
             if trial.cost <= cur.cost * (1.0 + RISE) + RISE:
                 return trial
             rose = (trial.costs > cur.costs) & (share > 0)
-            share[rose if rose.any() else share > 0] *= 0.5
+            if rose.any() and not team.overshoots:
+                share[rose] = 0.0
+            else:
+                share[rose if rose.any() else share > 0] *= 0.5
         share[share * length < tolerance] = 0.0
         if not share.any():
             return None

@@ -55,6 +55,8 @@ class TeamStep:
 class EuclideanTeam:
     """Euclidean power Voronoi team steps on a domain's grid (see module docstring)."""
 
+    overshoots = False  # (a step to the centroids lowers H; a projected goal may not)
+
     def __init__(self, domain: CoverageDomain) -> None:
         if any(domain.graph.wrap):
             raise ConfigError.at("domain", "a wrapping chart has no Euclidean Voronoi cells",
@@ -192,6 +194,8 @@ class GeodesicTeam:
     search, sums over the labels); :meth:`reference_step` runs the robots' own updates, for
     the parity tests. ``centroids`` are the virtual centroids (position + control), ``goals``
     their reachable part."""
+
+    overshoots = True  # (a generalized Lloyd step is a gradient step of size 1 / m_i)
 
     def __init__(self, domain: CoverageDomain, method: str = "auto") -> None:
         self.domain = domain

@@ -83,6 +83,8 @@ class _Penalized:
     """A team whose H is raised by 1 wherever the positions are not the Lloyd goals of the step
     before: every extrapolation looks worse, and the safeguard must refuse it."""
 
+    overshoots = False
+
     def __init__(self, team: EuclideanTeam) -> None:
         self.domain = team.domain
         self._team = team

@@ -45,7 +45,6 @@ from coverage_ros.core.world.yaml_io import yaml_mapping
 from coverage_ros.errors import ConfigError, CoverageError
 from coverage_ros.worlds import resolve_world_path
 
-
 #: [s] sim time of an exploration at most, unless --duration
 EXPLORE_DURATION = 900.0
 #: picture formats --png writes (by the file's extension)

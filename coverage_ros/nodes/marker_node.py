@@ -173,7 +173,7 @@ def _same(a: np.ndarray | None, b: np.ndarray | None) -> bool:
 
 
 def main(args=None) -> int:
-    return run_node("marker_node", MarkerNode, args)
+    return run_node("marker_node", MarkerNode, args, parameters=PARAMETERS)
 
 
 if __name__ == "__main__":

@@ -59,3 +59,15 @@ def markdown_table(table: ParameterTable) -> str:
         meaning = text.replace("|", r"\|")
         rows.append(f"| `{name}` | `{shown}` | {meaning} |")
     return "\n".join(rows)
+
+
+def usage_text(node: str, table: ParameterTable) -> str:
+    """``--help`` of node executable ``node``: how to start it, and its parameters (name,
+    default, meaning)."""
+    lines = [f"usage: ros2 run coverage_ros {node} [--ros-args -p NAME:=VALUE ... "
+             "| --params-file FILE]"]
+    if table:
+        width = max(len(k) for k in table)
+        lines += ["", "parameters:"] + [f"  {k:<{width}}  {yaml_value(d)}: {text}"
+                                        for k, (d, text) in table.items()]
+    return "\n".join(lines)

@@ -272,7 +272,7 @@ def main(args=None) -> int:
     # The file is written without rerun's in-memory chunk index (indexed at the end instead):
     # rerun's warning about that, once per run, would only alarm (set before rerun loads).
     os.environ.setdefault("RUST_LOG", "warn,re_log_encoding::rrd::file_sink=error")
-    return run_node("rerun_bridge", RerunBridge, args, cleanup=_close)
+    return run_node("rerun_bridge", RerunBridge, args, cleanup=_close, parameters=PARAMETERS)
 
 
 if __name__ == "__main__":

@@ -330,7 +330,7 @@ class RobotNode(Node):
 
 
 def main(args=None) -> int:
-    return run_node("robot_node", RobotNode, args, cleanup=RobotNode.stop)
+    return run_node("robot_node", RobotNode, args, cleanup=RobotNode.stop, parameters=PARAMETERS)
 
 
 if __name__ == "__main__":

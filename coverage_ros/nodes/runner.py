@@ -39,6 +39,7 @@ from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
 from coverage_ros.errors import CoverageError
+from coverage_ros.nodes.parameters import ParameterTable, usage_text
 
 STARTUP_ERRORS = (CoverageError, ParameterException, OSError)
 #: Values of ``COVERAGE_ROS_EXECUTOR`` (module docstring); the first is the default.
@@ -129,19 +130,32 @@ class FatalConfigError(CoverageError):
     """A configuration error found after start-up (e.g. when the map arrives): ends the node."""
 
 
+def wants_help(argv: list[str]) -> bool:
+    """``-h`` or ``--help`` among the arguments before ``--ros-args`` (program name first)."""
+    own = argv[1:argv.index("--ros-args")] if "--ros-args" in argv else argv[1:]
+    return "-h" in own or "--help" in own
+
+
 def run_node(name: str, make_node: Callable[[], Node], args=None,
-             cleanup: Callable[[Any], None] | None = None) -> int:
+             cleanup: Callable[[Any], None] | None = None,
+             parameters: ParameterTable | None = None) -> int:
     """Initialise rclpy, build the node, spin it until shutdown; the process exit code.
 
     ``cleanup(node)`` runs before the node is destroyed, whatever ended the spin; an error in
     it is reported on stderr and does not change the exit code."""
-    return run_nodes(name, lambda: [make_node()], args, cleanup)
+    return run_nodes(name, lambda: [make_node()], args, cleanup, parameters)
 
 
 def run_nodes(name: str, make_nodes: Callable[[], list[Node]], args=None,
-              cleanup: Callable[[Any], None] | None = None) -> int:
+              cleanup: Callable[[Any], None] | None = None,
+              parameters: ParameterTable | None = None) -> int:
     """:func:`run_node` for several nodes in one process (the composition idiom): all of them
-    on one executor (module docstring); ``cleanup`` runs for each before it is destroyed."""
+    on one executor (module docstring); ``cleanup`` runs for each before it is destroyed.
+    ``-h`` / ``--help`` before any ROS arguments prints the usage and the node's
+    ``parameters``."""
+    if wants_help(sys.argv if args is None else args):
+        print(usage_text(name, parameters or {}))
+        return 0
     try:
         kind = executor_kind()
     except CoverageError as exc:

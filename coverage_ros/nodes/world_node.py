@@ -296,7 +296,7 @@ class WorldNode(Node):
 
 
 def main(args=None) -> int:
-    return run_node("world_node", WorldNode, args)
+    return run_node("world_node", WorldNode, args, parameters=PARAMETERS)
 
 
 if __name__ == "__main__":

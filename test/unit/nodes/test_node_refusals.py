@@ -68,3 +68,26 @@ def test_bad_world_gives_a_one_line_error(tmp_path, case, world_yaml, expected):
     assert len(lines) == 1, out.stderr
     assert lines[0].startswith("world_node: error: ") and expected in lines[0]
     assert case in lines[0] or case == "missing_map"  # names the file
+
+
+@pytest.mark.parametrize("node, parameter", [
+    ("world_node", "world"), ("robot_node", "strategy"), ("rerun_bridge", "record_path"),
+    ("marker_node", "robot_prefix")])
+def test_help_prints_the_usage_and_every_parameter_without_starting(node, parameter):
+    from coverage_ros.nodes.reference import node_tables
+
+    env = ros_env(domain_id(11))
+    out = subprocess.run([sys.executable, "-m", f"coverage_ros.nodes.{node}", "--help"], env=env,
+                         capture_output=True, text=True, timeout=60, cwd=REPO)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.startswith(f"usage: ros2 run coverage_ros {node} ")
+    listed = {line.split()[0] for line in out.stdout.splitlines() if line.startswith("  ")}
+    assert parameter in listed and listed == set(node_tables()[node])
+    assert "executor" not in out.stderr  # (no node was built)
+
+
+def test_help_after_ros_arguments_is_a_ros_argument():
+    from coverage_ros.nodes.runner import wants_help
+
+    assert wants_help(["robot_node", "--help"]) and wants_help(["robot_node", "-h", "--ros-args"])
+    assert not wants_help(["robot_node", "--ros-args", "-p", "x:=1", "--help"])

@@ -74,6 +74,24 @@ class LineOfSight:
         return min(max(bins, 1024), 16384)
 
     @property
+    def free_rectangle(self) -> tuple[float, float, float, float] | None:
+        """``(x0, y0, x1, y1)`` [cells, grid coordinates]: the rectangle the free cells fill
+        when they fill their bounding box (an open field inside its walls), else None. Every
+        segment between two of its points stays in it, so nothing hides a free cell from a
+        point in it."""
+        key = "free_rectangle"
+        if key not in self._cache:
+            rows, cols = np.nonzero(self.free)
+            box = None
+            if len(rows) and self.free[rows.min():rows.max() + 1,
+                                       cols.min():cols.max() + 1].all():
+                box = (float(cols.min()), float(rows.min()), float(cols.max() + 1),
+                       float(rows.max() + 1))
+            self._cache[key] = box
+        rectangle: tuple[float, float, float, float] | None = self._cache[key]
+        return rectangle
+
+    @property
     def occluder_centers(self) -> np.ndarray:
         """``(M, 2)`` grid coordinates of the :attr:`occluders`' centres (x = column + 0.5)."""
         key = "occluder_centers"
@@ -174,13 +192,18 @@ class LineOfSight:
     def _depth_map(self, origin: np.ndarray, box: tuple[float, ...], depths: DepthMaps | None
                    ) -> list[Any] | None:
         """``[box, depth map, tile states or None]`` of the occluders in ``box`` for
-        ``origin`` (kept in ``depths``), or None when the box holds no occluder. The answer
+        ``origin`` (kept in ``depths``), or None when the box holds no occluder or the origin
+        lies in the :attr:`free_rectangle` (the points asked about are free cells). The answer
         for a point is the whole domain's when the box holds the segment from ``origin`` to
         it widened by :data:`SEGMENT_MARGIN`: only an occluder whose disc reaches into the
         point's angular bin nearer than the point can hide it, and the bins are narrower
         than a cell at the far side of the grid. A kept map whose box holds ``box`` serves;
         one that does not grows by the occluders outside its box to the box around both (a
         depth is the least over occluders: the same map as made anew)."""
+        rect = self.free_rectangle
+        if rect is not None and rect[0] <= origin[0] <= rect[2] and \
+                rect[1] <= origin[1] <= rect[3]:
+            return None  # (a free cell is seen from anywhere in the free rectangle)
         key = (float(origin[0]), float(origin[1]))
         held = depths.get(key) if depths is not None else None
         if held is not None:

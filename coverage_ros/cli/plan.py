@@ -137,6 +137,9 @@ def run(args: argparse.Namespace) -> dict:
     if args.record is not None and args.explore:
         raise ConfigError.at("--record", "not with --explore (record a live exploration with "
                              "coverage-team --explore --record)", str(args.record))
+    if args.starts is not None and not args.starts.strip():
+        raise ConfigError.at("--starts", "is empty", args.starts,
+                             "'x,y;x,y;...' [m], one per robot (or no --starts: a cluster)")
     check_outputs(args)
     if args.explore and args.duration is None:
         args.duration = EXPLORE_DURATION

@@ -78,6 +78,7 @@ def test_recording_holds_the_expected_entities(plan):
     (["--map", "office", "--robots", "2", "--tolerance", "-1"], "--tolerance: must be"),
     (["--map", "office", "--robots", "2", "--max-iterations", "0"], "--max-iterations: must be"),
     (["--map", "office", "--robots", "2", "--duration", "10"], "--duration: needs --explore"),
+    (["--map", "office", "--robots", "2", "--starts", " "], "--starts: is empty"),
     (["--map", "office", "--robots", "2", "--explore", "--record", "x.rrd"],
      "--record: not with --explore"),
 ])

@@ -96,16 +96,21 @@ def test_a_robot_with_an_empty_cell_stays():
     assert np.array_equal(twice.centroids[3], P[0]) and np.array_equal(twice.goals[3], P[0])
 
 
+def _lloyd_from_the_cluster(name: str, n: int):
+    """A geodesic team of ``n`` robots on shipped world ``name`` from the launcher's start
+    cluster (seed 0), with its specs, starts and plain Lloyd run (2 cm tolerance)."""
+    world = load_world(WORLDS / f"{name}.yaml")
+    specs = [world.robot_spec(i) for i in range(n)]
+    team = GeodesicTeam(world_domain(world, max(s.radius for s in specs)))
+    starts = team_starts(world, specs, None, 0)[:, :2]
+    return team, specs, starts, solve_lloyd(team, starts, tolerance=0.02, max_steps=300)
+
+
 def test_plain_geodesic_lloyd_settles_where_full_steps_swing_across_doorways():
     """Six robots from the launcher's cluster in the office: full generalized Lloyd steps
     overshoot through the doorways and H swings for hundreds of steps; the monotone plain step
     (half the way, a quarter, ... where H would rise) never raises H and settles."""
-    world = load_world(WORLDS / "office.yaml")
-    specs = [world.robot_spec(i) for i in range(6)]
-    domain = world_domain(world, max(s.radius for s in specs))
-    starts = team_starts(world, specs, None, 0)[:, :2]
-    team = GeodesicTeam(domain)
-    run = solve_lloyd(team, starts, tolerance=0.02, max_steps=300)
+    team, _, _, run = _lloyd_from_the_cluster("office", 6)
     assert run.converged and run.steps < 150
     E = np.array([team.step(P).cost for P in run.positions])  # H of the accepted positions
     assert np.all(np.diff(E) <= 1e-9 * E[:-1]), "an accepted step raised H"
@@ -122,12 +127,8 @@ def test_plain_geodesic_lloyd_ends_where_the_robots_own_updates_do():
     from coverage_ros.core.offline.runner import OfflineConfig, run_offline
     from coverage_ros.core.strategies import StrategyContext, strategy_choice
 
-    world = load_world(WORLDS / "ward.yaml")
-    specs = [world.robot_spec(i) for i in range(8)]
-    domain = world_domain(world, max(s.radius for s in specs))
-    starts = team_starts(world, specs, None, 0)[:, :2]
-    team = GeodesicTeam(domain)
-    run = solve_lloyd(team, starts, tolerance=0.02, max_steps=300)
+    team, specs, starts, run = _lloyd_from_the_cluster("ward", 8)
+    domain = team.domain
     choice = strategy_choice("geodesic", {"escape": False}, "test")
     contexts = [StrategyContext(domain=domain, robot=specs[i], robot_id=i,
                                 convergence_tolerance=0.02) for i in range(8)]

@@ -202,7 +202,7 @@ def run(args: argparse.Namespace) -> dict:
     else:
         team = EuclideanTeam(domain) if args.strategy == "lloyd" or choice is None else \
             GeodesicTeam(domain, choice.params.method)
-        if getattr(choice and choice.params, "escape", False):
+        if choice is not None and getattr(choice.params, "escape", False):  # (geodesic's)
             say("  note: the team solvers run Lloyd alone; a robot left in a dead-end room stays "
                 "there (the escape runs in the robots' own updates: --solver decentralized)")
         result, first, last = _solve_team(args, team, weights, starts, progress)

@@ -171,31 +171,37 @@ def solve_lloyd(team: Team, starts: np.ndarray, weights: np.ndarray | None = Non
 def _monotone_step(cur: Any, team: Team, evaluate: Callable[[np.ndarray], Any],
                    tolerance: float, budget: int) -> Any | None:
     """The team step at the goals of ``cur`` if its H is no higher than ``cur``'s; else the
-    steps of the robots whose cells' cost rose are halved (every robot's when none did), a
-    robot whose step falls below ``tolerance`` stays, and so on (module docstring). None when
-    every robot stays, or ``budget`` tessellations raised H."""
+    steps of the robots whose cells' cost rose are halved (or, on a team that does not
+    overshoot, dropped; every robot's halved when no cell's cost rose), a robot whose step
+    falls below ``tolerance`` stays, and so on (module docstring). None when every robot
+    stays, or ``budget`` tessellations raised H."""
+    trial = evaluate(cur.goals)  # (the goals are free: the whole step needs no check)
+    if trial.cost <= cur.cost * (1.0 + RISE) + RISE:
+        return trial
     step = cur.goals - cur.positions
     length = np.hypot(step[:, 0], step[:, 1])
     share = np.ones(len(step))
-    while budget > 0:
+    budget -= 1
+    while True:
+        rose = (trial.costs > cur.costs) & (share > 0)
+        if rose.any() and not team.overshoots:
+            share[rose] = 0.0
+        else:
+            share[rose if rose.any() else share > 0] *= 0.5
+        share[share * length < tolerance] = 0.0
         X = cur.positions + share[:, None] * step
         walled = np.array([not team.domain.is_free_point(q) for q in X])
-        if walled.any():  # (halfway across a wall: shorter still)
+        while walled.any():  # (part of the way across a wall: shorter still)
             share[walled] *= 0.5
-        else:
-            trial = evaluate(X)
-            budget -= 1
-            if trial.cost <= cur.cost * (1.0 + RISE) + RISE:
-                return trial
-            rose = (trial.costs > cur.costs) & (share > 0)
-            if rose.any() and not team.overshoots:
-                share[rose] = 0.0
-            else:
-                share[rose if rose.any() else share > 0] *= 0.5
-        share[share * length < tolerance] = 0.0
-        if not share.any():
+            share[share * length < tolerance] = 0.0
+            X = cur.positions + share[:, None] * step
+            walled = np.array([not team.domain.is_free_point(q) for q in X])
+        if not share.any() or budget == 0:
             return None
-    return None
+        trial = evaluate(X)
+        budget -= 1
+        if trial.cost <= cur.cost * (1.0 + RISE) + RISE:
+            return trial
 
 
 def _gradient(step: Any) -> np.ndarray:

@@ -32,8 +32,9 @@ class Fault:
 
 
 def parse_faults(kills: tuple[str, ...] | list[str], restarts: tuple[str, ...] | list[str],
-                 n: int) -> list[Fault]:
-    """``--kill`` and ``--restart`` ``ID@SECONDS`` items for a team of ``n``, sorted by time."""
+                 n: int, duration: float = math.inf) -> list[Fault]:
+    """``--kill`` and ``--restart`` ``ID@SECONDS`` items for a team of ``n`` in a run of
+    ``duration`` [s], sorted by time."""
     out: list[Fault] = []
     for option, action, specs in (("--kill", KILL, kills), ("--restart", RESTART, restarts)):
         for spec in specs:
@@ -46,7 +47,14 @@ def parse_faults(kills: tuple[str, ...] | list[str], restarts: tuple[str, ...] |
                 raise ConfigError.at(option, f"robot id out of range 0..{n - 1}", spec)
             if not (math.isfinite(fault.time) and fault.time >= 0):
                 raise ConfigError.at(option, "needs a time >= 0 [s]", spec)
+            if fault.time >= duration:
+                raise ConfigError.at(option, f"comes after the run's end (--duration "
+                                     f"{duration:g} s)", spec)
             out.append(fault)
+    kill_list = [f.robot for f in out if f.action == KILL]
+    twice = sorted({r for r in kill_list if kill_list.count(r) > 1})
+    if twice:
+        raise ConfigError.at("--kill", "kills a robot twice", twice, "each robot at most once")
     killed = {f.robot: f.time for f in out if f.action == KILL}
     for f in out:
         if f.action == RESTART and killed.get(f.robot, math.inf) <= f.time:

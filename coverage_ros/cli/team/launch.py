@@ -31,7 +31,7 @@ from coverage_ros.cli.team.plan import MONITOR_ENV, RunPlan, plan_run
 from coverage_ros.cli.team.processes import ProcessSet, executable, ros_args
 from coverage_ros.cli.team.summary import RunLog, picture, summarize, summary_table
 from coverage_ros.core.world import write_team
-from coverage_ros.errors import CoverageError
+from coverage_ros.errors import ConfigError, CoverageError
 
 #: [s] wall time the children get to stop cleanly after an interrupt before SIGTERM, then SIGKILL
 #: (everything is gone within 10 s).
@@ -46,6 +46,23 @@ def main(argv: list[str] | None = None) -> int:
     except CoverageError as exc:
         print(f"coverage-team: error: {exc}", file=sys.stderr)
         return 2
+
+
+#: What a run writes in its folder (besides logs/, params/ and remote/, cleared too).
+RUN_FILES = ("team.yaml", "summary.json", "summary.png", "recording.rrd", "explored_map.yaml",
+             "explored_map.pgm")
+
+
+def clear_previous_run(out: Path) -> bool:
+    """Remove what an earlier run left in ``out`` (:data:`RUN_FILES`, its logs, params and
+    remote scripts) so that no file of it passes for this run's; whether there was one."""
+    old = [out / name for name in RUN_FILES if (out / name).is_file()]
+    for sub in ("logs", "params", "remote"):
+        if (out / sub).is_dir():
+            old += [p for p in (out / sub).iterdir() if p.is_file()]
+    for path in old:
+        path.unlink()
+    return bool(old)
 
 
 def _sayer(config: RunConfig):
@@ -67,7 +84,13 @@ def run(plan: RunPlan) -> int:
     for key in MONITOR_ENV:  # the launcher's own monitor node joins the same domain
         if key in env:
             os.environ[key] = env[key]
-    out.mkdir(parents=True, exist_ok=True)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:  # (before any process starts)
+        raise ConfigError.at("--out", f"cannot make the folder ({exc.strerror})",
+                             str(out)) from None
+    if clear_previous_run(out):
+        say(f"coverage-team: {out} held an earlier run: its outputs were removed")
     (out / "logs").mkdir(exist_ok=True)
     write_team(out / "team.yaml", plan.team)
     for proc in plan.processes:

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -42,7 +43,7 @@ def build_parser() -> argparse.ArgumentParser:
                     help="coverage strategy; exploring: geodesic or frontier")
     ap.add_argument("--strategy-params", default="",
                     help="YAML mapping of strategy settings for every robot, e.g. "
-                    "'{variant: nearest}' (robot_node's strategy_params)")
+                    "'{escape: false}' (robot_node's strategy_params)")
     ap.add_argument("--explore", action="store_true",
                     help="the robots start with no map and explore (the world's true map is "
                     "only simulated and used for scoring)")
@@ -118,7 +119,8 @@ def build_parser() -> argparse.ArgumentParser:
                     help="rclpy executor of every node process (COVERAGE_ROS_EXECUTOR; default "
                     "events: rclpy's EventsExecutor, a fraction of the CPU per message; "
                     "single: SingleThreadedExecutor)")
-    ap.add_argument("--quiet", action="store_true", help="no progress display")
+    ap.add_argument("--quiet", action="store_true",
+                    help="print nothing but errors (no progress, no summary lines)")
     return ap
 
 
@@ -182,6 +184,18 @@ def parse_config(argv: list[str] | None = None) -> RunConfig:
     return config_from_args(args)
 
 
+def check_out_folder(out: Path) -> None:
+    """Refuse an ``--out`` that cannot be the run's folder: a file, under a file, or where no
+    folder can be made."""
+    if out.exists() and not out.is_dir():
+        raise ConfigError.at("--out", "is a file, not a folder", str(out))
+    parent = next((p for p in (out, *out.parents) if p.exists()), Path("."))
+    if not parent.is_dir():
+        raise ConfigError.at("--out", f"{parent} is a file, not a folder", str(out))
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise ConfigError.at("--out", f"{parent} is not writable", str(out))
+
+
 def _finite(option: str, value: float, low: float, strict: bool, unit: str) -> float:
     ok = math.isfinite(value) and (value > low if strict else value >= low)
     if not ok:
@@ -221,6 +235,17 @@ def config_from_args(args: argparse.Namespace) -> RunConfig:
                              "belief's entropy)", args.region)
     discovery = (parse_discovery_address(args.discovery_server)
                  if args.discovery_server is not None else None)
+    if args.out is not None:
+        check_out_folder(args.out)
+    if args.viewer and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+        raise ConfigError.at("--viewer", "needs a display (DISPLAY or WAYLAND_DISPLAY is unset)",
+                             expected="--serve-web (a browser) or --record (a file to open)")
+    params = robot_params(args.robot_param)
+    if "strategy" in params or "strategy_params" in params:  # (checked as --strategy is)
+        strategy_choice(str(params.get("strategy", args.strategy)),
+                        yaml_mapping(str(params.get("strategy_params", args.strategy_params)),
+                                     "--robot-param strategy_params"),
+                        "--robot-param strategy_params", explore=args.explore)
     return RunConfig(
         world=args.world, strategy=args.strategy, strategy_params=args.strategy_params,
         choice=choice, robots=args.robots, team_file=args.team, humans=tuple(args.human),
@@ -230,7 +255,7 @@ def config_from_args(args: argparse.Namespace) -> RunConfig:
         domain_id=args.domain_id, control_rate=control_rate, update_load=args.update_load,
         state_rate=args.state_rate, clock_rate=clock_rate, odom_rate=odom_rate,
         sensor_radius=args.sensor_radius,
-        robot_params=MappingProxyType(robot_params(args.robot_param)),
+        robot_params=MappingProxyType(params),
         robots_per_process=args.robots_per_process, kills=tuple(args.kill),
         restarts=tuple(args.restart), regions=tuple(args.region), region=region,
         markers=not args.no_markers, stats=args.stats, remote_robots=args.remote_robots,

@@ -126,7 +126,7 @@ def plan_run(config: RunConfig, out: Path, env: Mapping[str, str] | None = None,
     world = load_planar_world(world_path, "--world")
     team = tuple(build_team(world, config))  # refuses teams the map or the machine cannot hold
     n = len(team)
-    faults = parse_faults(config.kills, config.restarts, n)
+    faults = parse_faults(config.kills, config.restarts, n, config.duration)
     remote = parse_remote_robots(config.remote_robots, n)
     if any(f.robot in remote for f in faults):
         raise ConfigError.at("--kill/--restart", "cannot reach a robot on another host",

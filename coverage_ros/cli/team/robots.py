@@ -84,18 +84,43 @@ def default_robots_per_process(robots: int, cores: int | None = None) -> int:
 def robot_params(items: list[str]) -> dict[str, object]:
     """``--robot-param NAME:=VALUE`` items as robot_node parameter values, read as rcl reads
     ``-p`` values (YAML), except that a YAML mapping (``strategy_params:={variant:
-    nearest}``) stays the string it is meant to be."""
+    nearest}``) stays the string it is meant to be. Each name must be one of robot_node's
+    parameters and each value of its type (an integer serves for a number), so that a robot
+    does not refuse it after the team has started."""
     params: dict[str, object] = {}
     for item in items:
         if ":=" not in item:
             raise ConfigError.at("--robot-param", "must be NAME:=VALUE", item)
         k, v = item.split(":=", 1)
+        k = k.strip()
+        if k not in PARAMETERS:
+            raise ConfigError.at(f"--robot-param {k}", "is not a robot_node parameter", k,
+                                 "one that `robot_node --help` lists")
         try:
             value = yaml.safe_load(v)
         except yaml.YAMLError:
             value = v
-        params[k.strip()] = v if isinstance(value, dict) or value is None else value
+        params[k] = _typed(k, v, value, PARAMETERS[k][0])
     return params
+
+
+def _typed(name: str, text: str, value: object, default: object) -> object:
+    """``value`` (``text`` as YAML) as the type of the parameter's ``default``."""
+    if isinstance(default, str):
+        return value if isinstance(value, str) else text
+    if isinstance(default, bool):
+        if isinstance(value, bool):
+            return value
+        expected = "true or false"
+    elif isinstance(default, int):
+        if isinstance(value, int) and not isinstance(value, bool):
+            return value
+        expected = "an integer"
+    else:
+        if isinstance(value, (int, float)) and not isinstance(value, bool):
+            return float(value)
+        expected = "a number"
+    raise ConfigError.at(f"--robot-param {name}", "has the wrong type", text, expected)
 
 
 def spec_parameters(spec: RobotSpec) -> dict[str, float]:

@@ -9,7 +9,8 @@ The metrics of ``summary.json`` (definitions in README "Team launcher"):
 * ``coverage_ratio``: free area within its sensing radius and line of sight of some robot;
 * ``min_separation``: smallest distance between two robot centres during the run (the
   simulator checks every physics step);
-* ``converged_at``: first sim time from which H stayed within 2 % of its final value;
+* ``converged_at``: first sim time from which H stayed within 2 % of its final value (None
+  when only the last sample did);
 * ``H_series``: ``[[t, H], ...]`` as the monitor sampled it (t: sim time since the team was
   ready).
 
@@ -42,7 +43,8 @@ WALL_CLOCK_KEYS = ("wall_time", "rtf", "processes")
 def converged_at(samples: list[tuple[float, float]], H_final: float,
                  ready_at: float | None) -> float | None:
     """First sim time [s, since ``ready_at``] from which the ``(t, H)`` samples stayed within
-    CONVERGED_BAND of ``H_final``; None if there is none."""
+    CONVERGED_BAND of ``H_final``; None if there is none, or only the last sample is (H was
+    still moving when the run ended)."""
     if not samples or not math.isfinite(H_final):
         return None
     t_conv = None
@@ -50,7 +52,9 @@ def converged_at(samples: list[tuple[float, float]], H_final: float,
         if not abs(h - H_final) <= CONVERGED_BAND * H_final:
             break
         t_conv = t
-    return None if t_conv is None else round(t_conv - (ready_at or 0.0), 3)
+    if t_conv is None or (len(samples) > 1 and t_conv == samples[-1][0]):
+        return None
+    return round(t_conv - (ready_at or 0.0), 3)
 
 
 @dataclass
@@ -257,8 +261,9 @@ def summary_table(summary: dict) -> str:
         lines.append(f"{r['id']:>5} {xy(r['start']):>16} {final:>16} {r['path_length']:>9.2f} "
                      f"{r['collisions']:>10d}")
     drop = 100.0 * (1.0 - m["H"] / m["H_start"]) if m["H_start"] else math.nan
+    change = f"{drop:.0f} % lower" if not drop < 0 else f"{-drop:.0f} % higher"
     conv_at = "-" if m["converged_at"] is None else f"{m['converged_at']:.1f} s"
-    lines.append(f"H {num(m['H'], 4)} (start {num(m['H_start'], 4)}, {drop:.0f} % lower), "
+    lines.append(f"H {num(m['H'], 4)} (start {num(m['H_start'], 4)}, {change}), "
                  f"I {num(m['mass_deviation_I'])}, coverage {100 * m['coverage_ratio']:.0f} %, "
                  f"min separation {num(m['min_separation'])} m, converged at {conv_at}")
     ex = summary.get("exploration")

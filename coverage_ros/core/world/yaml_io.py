@@ -40,7 +40,10 @@ def yaml_mapping(text: str, where: str) -> dict[str, Any]:
     try:
         data = yaml.safe_load(text) if text else {}
     except yaml.YAMLError as exc:
-        raise ConfigError.at(where, f"is not valid YAML ({exc})", text) from None
+        mark = getattr(exc, "problem_mark", None)
+        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+        at = f" at column {mark.column + 1}" if mark is not None else ""
+        raise ConfigError.at(where, f"is not valid YAML ({problem}{at})", text) from None
     if data is None:
         return {}
     if not isinstance(data, dict):

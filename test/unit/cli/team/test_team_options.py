@@ -34,6 +34,13 @@ def own_lock_dir(tmp_path, monkeypatch):
     (["--robots", "3", "--remote-robots", "1", "--discovery-server", "127.0.0.1",
       "--restart", "1@5"], "--kill/--restart: cannot reach a robot on another host"),
     (["--discovery-server", "localhost:x"], "--discovery-server: must be IPV4[:PORT]"),
+    (["--robot-param", "nosuch:=3"], "--robot-param nosuch: is not a robot_node parameter"),
+    (["--robot-param", "control_rate:=abc"], "--robot-param control_rate: has the wrong type"),
+    (["--robot-param", "strategy_params:={nosuch: 1}"],
+     "--robot-param strategy_params: geodesic: unknown parameters"),
+    (["--duration", "10", "--kill", "1@50"], "--kill: comes after the run's end"),
+    (["--kill", "1@5", "--kill", "1@6"], "--kill: kills a robot twice"),
+    (["--strategy-params", "not: [valid"], "--strategy-params: is not valid YAML ("),
 ])
 def test_impossible_runs_are_refused_before_anything_starts(tmp_path, args, message):
     out = tmp_path / "team"
@@ -64,3 +71,31 @@ def test_faults_are_checked_before_anything_starts():
                                      (["1@3"], ["1@4"], "killed"), ([], ["0@-1"], ">= 0")]:
         with pytest.raises(ConfigError, match=message):
             _faults(kills, restarts, 2)
+
+
+def test_an_out_that_cannot_be_the_runs_folder_and_a_viewer_without_a_display_are_refused(
+        tmp_path):
+    a_file = tmp_path / "a_file"
+    a_file.write_text("")
+    env = {k: v for k, v in ros_env(domain_id(26)).items()
+           if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    for args, message in (
+            (["--out", str(a_file)], "--out: is a file, not a folder"),
+            (["--out", str(a_file / "run")], "is a file, not a folder"),
+            (["--out", str(tmp_path / "run"), "--viewer"], "--viewer: needs a display")):
+        proc = subprocess.run(team_cmd(*args), capture_output=True, text=True, timeout=120,
+                              env=env)
+        assert proc.returncode == 2, proc.stderr
+        lines = proc.stderr.strip().splitlines()
+        assert len(lines) == 1 and message in lines[0], proc.stderr
+    assert a_file.is_file() and not (tmp_path / "run").exists()
+
+
+def test_robot_params_take_their_parameters_types():
+    from coverage_ros.cli.team.robots import robot_params
+
+    got = robot_params(["control_rate:=5", "strategy_params:={escape: false}",
+                        "strategy:=lloyd"])
+    assert got == {"control_rate": 5.0, "strategy_params": "{escape: false}",
+                   "strategy": "lloyd"}
+    assert isinstance(got["control_rate"], float)

@@ -17,6 +17,7 @@ from coverage_ros.cli.team.summary import (
     RunLog,
     deterministic_part,
     summarize,
+    summary_table,
     team_cost,
 )
 from coverage_ros.core.geodesic.tessellation import Generator, fast_tessellate
@@ -103,6 +104,9 @@ def test_the_summary_scores_the_robots_present(tmp_path):
         moved[0, 0])
     assert summary["rtf"] == 4.0 and summary["seed"] == 7 and summary["ready_at"] == 2.0
     assert set(summary) - set(deterministic_part(summary)) == {"wall_time", "rtf"}
+    assert "% lower), " in summary_table(summary)
+    summary["metrics"]["H"] = 1.31 * summary["metrics"]["H_start"]
+    assert "31 % higher), " in summary_table(summary)
     assert set(WALL_CLOCK_KEYS) >= {"wall_time", "rtf"}
 
 
@@ -118,3 +122,25 @@ def test_a_summary_of_a_team_that_never_came_up():
     assert summary["interrupted"] and summary["metrics"]["H"] is None
     assert summary["metrics"]["converged_at"] is None and summary["rtf"] == 0.0
     assert math.isfinite(summary["metrics"]["H_start"])
+
+
+def test_converged_at_needs_h_settled_before_the_end():
+    from coverage_ros.cli.team.summary import converged_at
+
+    settled = [(0.0, 100.0), (5.0, 50.0), (10.0, 40.5), (15.0, 40.1), (20.0, 40.0)]
+    assert converged_at(settled, 40.0, None) == 10.0
+    assert converged_at(settled, 40.0, 2.0) == 8.0
+    moving = [(0.0, 100.0), (5.0, 50.0), (10.0, 89.4), (15.0, 103.7), (20.0, 135.2)]
+    assert converged_at(moving, 135.2, None) is None  # (only the last sample: still moving)
+
+
+def test_an_earlier_runs_outputs_are_cleared_and_nothing_else(tmp_path):
+    from coverage_ros.cli.team.launch import clear_previous_run
+
+    (tmp_path / "logs").mkdir()
+    for name in ("team.yaml", "summary.json", "explored_map.pgm", "logs/robot_3.log",
+                 "notes.txt"):
+        (tmp_path / name).write_text("x")
+    assert clear_previous_run(tmp_path)
+    assert sorted(p.name for p in tmp_path.rglob("*")) == ["logs", "notes.txt"]
+    assert not clear_previous_run(tmp_path)

@@ -237,7 +237,8 @@ def config_from_args(args: argparse.Namespace) -> RunConfig:
                  if args.discovery_server is not None else None)
     if args.out is not None:
         check_out_folder(args.out)
-    if args.viewer and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+    if args.viewer and sys.platform.startswith("linux") and not (
+            os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):  # (X11, Wayland)
         raise ConfigError.at("--viewer", "needs a display (DISPLAY or WAYLAND_DISPLAY is unset)",
                              expected="--serve-web (a browser) or --record (a file to open)")
     params = robot_params(args.robot_param)

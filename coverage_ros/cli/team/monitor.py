@@ -230,8 +230,8 @@ class TeamMonitor(Node):
             now = time.monotonic()
             if self.proc_stats is not None:
                 self.proc_stats.sample(now)
-            if now - last_metrics >= metrics_wait:
-                last_metrics = now
+            if now - last_metrics >= metrics_wait and log.H_samples[-1][0] != log.sim_time:
+                last_metrics = now  # (one sample per sim time: the ready one comes first)
                 log.H_samples.append((log.sim_time, self.cost()))
                 took = time.monotonic() - now
                 metrics_wait = min(METRICS_LONGEST * METRICS_PERIOD,

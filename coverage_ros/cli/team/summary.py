@@ -208,13 +208,16 @@ def summarize(log: RunLog, team: Sequence[TeamMember], world: WorldSpec,
     H = float(tess.cost) if tess is not None else math.nan
     min_sep = log.min_separation
     ready = log.ready_at or 0.0
+    samples = list(log.H_samples)
+    if math.isfinite(H) and samples and samples[-1][0] < log.sim_time:  # (an interrupted run)
+        samples.append((log.sim_time, H))
     metrics = Metrics(
         H if math.isfinite(H) else None, H_start,
         mass_deviation(tess.masses) if tess is not None else None,
         coverage_ratio(world.grid, P, sensing),
         min_sep if math.isfinite(min_sep) else None,
-        converged_at(log.H_samples, H, log.ready_at),
-        [[round(t - ready, 2), round(h, 6)] for t, h in log.H_samples if math.isfinite(h)])
+        converged_at(samples, H, log.ready_at),
+        [[round(t - ready, 2), round(h, 6)] for t, h in samples if math.isfinite(h)])
     return TeamSummary(
         str(world.source), strategy, seed, round(log.sim_time, 3), round(wall_time, 3),
         0.0 if log.run_span is None else round(log.run_span[0] / max(log.run_span[1], 1e-9), 3),

@@ -144,3 +144,17 @@ def test_an_earlier_runs_outputs_are_cleared_and_nothing_else(tmp_path):
     assert clear_previous_run(tmp_path)
     assert sorted(p.name for p in tmp_path.rglob("*")) == ["logs", "notes.txt"]
     assert not clear_previous_run(tmp_path)
+
+
+def test_an_interrupted_runs_series_ends_with_its_final_h(tmp_path):
+    plan = _plan(tmp_path, "--robots", "2")
+    starts = np.array([m.start for m in plan.team])
+    log = RunLog(sim_time=37.6, ready_at=2.0, sim_start=2.0, wall_start=0.0)
+    for i in range(2):
+        log.poses[i] = starts[i]
+        log.status[i] = {"x": starts[i, 0], "y": starts[i, 1], "yaw": 0.0}
+    log.H_samples = [(2.0, 500.0), (35.0, 400.0)]  # (the interrupt came before the next one)
+    m = summarize(log, plan.team, plan.world, plan.domain, "geodesic", 0, 5.0,
+                  True).as_dict()["metrics"]
+    assert m["H_series"][:2] == [[0.0, 500.0], [33.0, 400.0]]
+    assert m["H_series"][-1] == [35.6, pytest.approx(m["H"], abs=1e-6)]

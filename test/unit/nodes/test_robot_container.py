@@ -114,13 +114,14 @@ def test_robots_alone_in_a_big_team_publish_their_states_less_often():
         team_rates(32, 1, 1.5, None)
 
 
-def test_robot_params_are_read_as_rcl_reads_them():
+def test_robot_params_are_read_as_rcl_reads_them_in_their_parameters_types():
     got = robot_params(["drive:=false", "comm_range:=4", "goal_tolerance:=0.25",
                         "strategy_params:={variant: nearest}", "map_topic:=''",
-                        "bounds:=[0, 0, 5, 5]", "world:=office"])
-    assert got == {"drive": False, "comm_range": 4, "goal_tolerance": 0.25,
+                        "bounds:=0,0,5,5", "world:=office", "robot_prefix:=[1, 2]"])
+    assert got == {"drive": False, "comm_range": 4.0, "goal_tolerance": 0.25,
                    "strategy_params": "{variant: nearest}", "map_topic": "",
-                   "bounds": [0, 0, 5, 5], "world": "office"}
+                   "bounds": "0,0,5,5", "world": "office", "robot_prefix": "[1, 2]"}
+    assert isinstance(got["comm_range"], float)  # (a DOUBLE parameter refuses an integer)
 
 
 def test_robots_of_a_process_share_worlds_and_domains_but_only_equal_ones():

@@ -109,7 +109,10 @@ class RosClient:
         import rclpy
         from rclpy.executors import SingleThreadedExecutor
 
+        from coverage_ros.nodes.shm_ports import remove_broken_ports
+
         os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+        remove_broken_ports()  # (a test that killed a process may have left one)
         self.context = rclpy.Context()
         rclpy.init(context=self.context, domain_id=domain)
         self.node = rclpy.create_node(name, context=self.context)

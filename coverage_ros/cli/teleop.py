@@ -113,9 +113,12 @@ class Teleop:
         from rclpy.node import Node
         from std_srvs.srv import SetBool
 
+        from coverage_ros.nodes.shm_ports import warn_removed_ports
+
         self.rclpy, self.Twist, self.SetBool = rclpy, Twist, SetBool
         # Not rclpy's signal handlers: they shut ROS down at once, and the robot, never told,
         # stayed manual. Ctrl-C, SIGTERM and a closed terminal end the loop instead (below).
+        warn_removed_ports("coverage-teleop")
         rclpy.init(signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
         ns = f"/{args.prefix}{args.robot}"
         self.ns = ns

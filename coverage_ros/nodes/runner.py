@@ -40,6 +40,7 @@ from rclpy.signals import SignalHandlerOptions
 
 from coverage_ros.errors import CoverageError
 from coverage_ros.nodes.parameters import ParameterTable, usage_text
+from coverage_ros.nodes.shm_ports import warn_removed_ports
 
 STARTUP_ERRORS = (CoverageError, ParameterException, OSError)
 #: Values of ``COVERAGE_ROS_EXECUTOR`` (module docstring); the first is the default.
@@ -161,15 +162,18 @@ def run_nodes(name: str, make_nodes: Callable[[], list[Node]], args=None,
     except CoverageError as exc:
         print(f"{name}: error: {exc}", file=sys.stderr)
         return 2
+    warn_removed_ports(name)
     stop = StopRequest()
     try:
         rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
         nodes = make_nodes()
         stop.starting = False
     except StartupInterrupted:
-        rclpy.try_shutdown()  # (the nodes built so far go with the process)
-        stop.restore()
-        return 0
+        # Ends here, without shutting ROS down or tearing the half-built nodes down: either
+        # could wait on DDS threads, and a launcher that died relies on this process going.
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(0)
     except STARTUP_ERRORS as exc:
         print(f"{name}: error: {exc}", file=sys.stderr)
         rclpy.try_shutdown()

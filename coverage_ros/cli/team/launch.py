@@ -32,6 +32,7 @@ from coverage_ros.cli.team.processes import ProcessSet, executable, ros_args
 from coverage_ros.cli.team.summary import RunLog, picture, summarize, summary_table
 from coverage_ros.core.world import write_team
 from coverage_ros.errors import ConfigError, CoverageError
+from coverage_ros.nodes.shm_ports import warn_removed_ports
 
 #: [s] wall time the children get to stop cleanly after an interrupt before SIGTERM, then SIGKILL
 #: (everything is gone within 10 s).
@@ -78,6 +79,7 @@ def run(plan: RunPlan) -> int:
 
     config, out = plan.config, plan.out
     say = _sayer(config)
+    warn_removed_ports("coverage-team")  # (before the domain probe starts ROS)
     # One DDS domain per run, for sure: held until this process exits.
     domain_lock = acquire_domain(config.domain_id)
     env = plan.environment(os.environ, domain_lock.domain_id)

@@ -1,0 +1,72 @@
+"""Fast DDS shared-memory ports that a killed process left half made.
+
+Fast DDS (rmw_fastrtps) gives each DDS participant on a machine shared-memory "ports": files
+``/dev/shm/fastrtps_port<N>`` that it creates, sizes and then marks initialised. A process
+killed between the creation and the mark leaves a file that every later participant needing
+port N opens and then waits on for ever, inside ``rclpy.init`` or the first node's creation:
+the process hangs without a word (Fast-DDS issue 3878). :func:`remove_broken_ports`, called by
+every executable of this package before it starts ROS, removes such files: one still unsized or
+unmarked :data:`STALE_AGE` seconds after its last change is broken (a live creator takes
+microseconds). Participants re-create a removed port as they need it.
+"""
+
+from __future__ import annotations
+
+import re
+import sys
+import time
+from pathlib import Path
+
+SHM_DIR = Path("/dev/shm")
+#: [s] age after which an unsized or unmarked port file is taken as abandoned.
+STALE_AGE = 10.0
+_PORT_NAME = re.compile(r"fastrtps_port\d+")
+#: boost.interprocess's segment header: a 32-bit state first, ``2`` once initialised
+#: (0 not yet, 1 initialising, 3 corrupted).
+_INITIALISED = 2
+
+
+def broken_ports(shm_dir: Path = SHM_DIR, now: float | None = None) -> list[Path]:
+    """Port files in ``shm_dir`` that a participant would wait on for ever (module docstring)."""
+    now = time.time() if now is None else now
+    broken = []
+    try:
+        candidates = [p for p in shm_dir.iterdir() if _PORT_NAME.fullmatch(p.name)]
+    except OSError:  # (no such folder: not Linux)
+        return []
+    for path in candidates:
+        try:
+            info = path.stat()
+            if now - info.st_mtime < STALE_AGE:
+                continue
+            if info.st_size < 4:
+                broken.append(path)
+                continue
+            with open(path, "rb") as fh:
+                state = int.from_bytes(fh.read(4), "little")
+        except OSError:  # (gone meanwhile, or not ours to read)
+            continue
+        if state != _INITIALISED:
+            broken.append(path)
+    return broken
+
+
+def remove_broken_ports(shm_dir: Path = SHM_DIR, now: float | None = None) -> list[str]:
+    """Remove :func:`broken_ports`; the names of those removed."""
+    removed = []
+    for path in broken_ports(shm_dir, now):
+        try:
+            path.unlink()
+        except OSError:
+            continue
+        removed.append(path.name)
+    return removed
+
+
+def warn_removed_ports(program: str) -> None:
+    """:func:`remove_broken_ports`, with one line on stderr naming them if there were any."""
+    removed = remove_broken_ports()
+    if removed:
+        print(f"{program}: warning: removed {len(removed)} broken Fast DDS shared-memory "
+              f"file(s) that a killed process left in {SHM_DIR} ({', '.join(removed[:4])})",
+              file=sys.stderr)

@@ -128,6 +128,9 @@ EXPLORE_PERIOD = 1.0
 EVIDENCE_TIMEOUT = 10.0
 #: [s] wall time between looks at the launcher's children (whether one exited).
 CHECK_PERIOD = 0.2
+#: [s] wall time without a new tick after which a started team is given up (the world drops a
+#: silent robot after 10 s, so only a stuck world or a lost link to it gets here).
+STALL_TIMEOUT = 300.0
 
 
 def run_lockstep(monitor, observer: LockstepObserver, startup_timeout: float,
@@ -143,6 +146,7 @@ def run_lockstep(monitor, observer: LockstepObserver, startup_timeout: float,
     end = next_metrics = next_explore = math.inf
     ready: float | None = None  # [s] sim time the team was ready
     last_progress = last_check = 0.0
+    last_tick = t0  # [s] wall time the last tick arrived
     while True:
         rclpy.spin_once(monitor, timeout_sec=0.02)
         observer.beat()
@@ -157,11 +161,16 @@ def run_lockstep(monitor, observer: LockstepObserver, startup_timeout: float,
             raise RuntimeError(f"the world started without robots "
                                f"{sorted(set(monitor.alive()) - tick.robots)}")
         if tick is None:
-            if log.ready_at is None and time.monotonic() - t0 > startup_timeout:
+            if log.ready_at is None and now - t0 > startup_timeout:
                 raise RuntimeError(f"the world's lock-step did not list robots "
                                    f"{sorted(set(monitor.alive()))} within "
                                    f"{startup_timeout:g} s (see their logs)")
+            if ready is not None and now - last_tick > STALL_TIMEOUT:
+                raise RuntimeError(f"the world's lock-step made no tick for "
+                                   f"{STALL_TIMEOUT:g} s of wall time after sim time "
+                                   f"{log.sim_time:.2f} s (see the world's log)")
             continue
+        last_tick = now
         log.sim_time = max(log.sim_time, tick.time)
         if ready is None:
             if not set(monitor.alive()) <= tick.robots:

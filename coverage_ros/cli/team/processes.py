@@ -2,7 +2,8 @@
 
 Every child runs in its own process group (so a Ctrl-C in the terminal reaches only the
 launcher, which then stops the children in order), asks the kernel to SIGTERM it if the
-launcher dies (Linux ``PR_SET_PDEATHSIG``), and writes its output to a log file. Processes are
+launcher dies (Linux ``PR_SET_PDEATHSIG``; a child whose launcher died before it asked ends at
+once), runs at the launcher's priority and writes its output to a log file. Processes are
 stopped by PID/process group only: SIGINT (a clean rclpy shutdown), then SIGTERM, then SIGKILL.
 """
 
@@ -16,6 +17,7 @@ import signal
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -26,10 +28,25 @@ PACKAGE = "coverage_ros"
 PR_SET_PDEATHSIG = 1  # linux/prctl.h
 
 
-def _die_with_parent() -> None:  # runs in the child between fork and exec
-    with contextlib.suppress(Exception):
-        libc = ctypes.CDLL("libc.so.6", use_errno=True)
-        libc.prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
+def _child_setup(parent: int) -> Callable[[], None]:
+    """What a child does between fork and exec (after ``setsid``): ask for SIGTERM when
+    ``parent`` (the launcher's PID) dies, and keep the launcher's priority."""
+
+    def setup() -> None:
+        with contextlib.suppress(Exception):
+            libc = ctypes.CDLL("libc.so.6", use_errno=True)
+            libc.prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
+        if os.getppid() != parent:  # the launcher died before the request: no signal comes
+            os._exit(0)
+        # A new session is a new scheduler autogroup (Linux), whose nice value starts at 0
+        # whatever the process's: without this a `nice coverage-team` would not be nice.
+        with contextlib.suppress(OSError):
+            niceness = os.nice(0)
+            if niceness > 0:
+                with open("/proc/self/autogroup", "w") as fh:
+                    fh.write(str(niceness))
+
+    return setup
 
 
 def executable(name: str) -> list[str]:
@@ -105,7 +122,7 @@ class ProcessSet:
         with open(log, "ab" if append else "wb") as fh:
             popen = subprocess.Popen(cmd, env=env, stdout=fh, stderr=subprocess.STDOUT,
                                      stdin=subprocess.DEVNULL, start_new_session=True,
-                                     preexec_fn=_die_with_parent)
+                                     preexec_fn=_child_setup(os.getpid()))
         child = Child(name, popen, log)
         self.children[name] = child
         return child

@@ -1,0 +1,44 @@
+"""The launcher's child processes (cli/team/processes.py): what each child sets up between fork
+and exec."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import time
+
+from coverage_ros.cli.team.processes import _child_setup
+
+CHILD = """
+import os, sys
+from pathlib import Path
+from coverage_ros.cli.team.processes import ProcessSet
+procs = ProcessSet(dict(os.environ), Path(sys.argv[1]))
+child = procs.start("probe", ["sh", "-c", "cat /proc/self/autogroup; ps -o ni= -p $$"])
+child.popen.wait(timeout=30)
+"""
+
+
+def test_a_child_keeps_the_launchers_priority_in_its_own_session(tmp_path):
+    """A child is in a session (so an autogroup) of its own, at the launcher's nice value: a
+    `nice coverage-team` stays nice."""
+    out = subprocess.run(["nice", "-n", "7", sys.executable, "-c", CHILD, str(tmp_path)],
+                         capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.stderr
+    autogroup, niceness = (tmp_path / "probe.log").read_text().split("\n")[:2]
+    assert int(niceness) == 7
+    assert autogroup.endswith("nice 7"), autogroup
+
+
+def test_a_child_whose_launcher_died_before_it_asked_for_the_signal_ends_at_once():
+    """The kernel only signals a child whose parent dies after its PR_SET_PDEATHSIG request; a
+    child that finds it already has another parent ends instead of living on."""
+    t0 = time.monotonic()
+    proc = subprocess.Popen(["sleep", "30"], preexec_fn=_child_setup(parent=1))  # (not ours)
+    assert proc.wait(timeout=10) == 0
+    assert time.monotonic() - t0 < 5.0
+    t0 = time.monotonic()  # (with its parent alive it runs to the end)
+    proc = subprocess.Popen(["sleep", "0.5"], preexec_fn=_child_setup(parent=os.getpid()))
+    assert proc.wait(timeout=10) == 0
+    assert time.monotonic() - t0 >= 0.5

@@ -9,7 +9,8 @@
 # It also sets DDS defaults for every process started afterwards: discovery stays on this machine
 # (ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST) unless the caller already chose something else.
 
-set -euo pipefail
+# (no shell options here: the scripts that source it set -euo pipefail themselves, and a shell
+# that sources it by hand keeps its own)
 
 COVERAGE_ROS_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 export COVERAGE_ROS_ROOT

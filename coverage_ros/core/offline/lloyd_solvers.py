@@ -33,7 +33,12 @@ no cell's cost rose), and so on, a robot whose step falls below ``tolerance`` st
 is (each try counts as a step). A generalized Lloyd step on geodesic cells (a gradient step of
 size ``1 / m_i``) can overshoot where a cell changes shape across a doorway, and the team would
 swing there for good. A Euclidean Lloyd step to the centroids cannot raise H: only a goal
-projected off an infeasible centroid can, and that robot stays (``Team.overshoots``).
+projected off an infeasible centroid can, so on such a team (``Team.overshoots`` false) the
+second try keeps still exactly the robots whose projected goals are no nearer their centroids
+than they are, which cannot raise H (one more tessellation, where halving took several; the
+whole step comes first, as the cells made at the goals can gain more than such a robot loses,
+and without it a robot held at an obstacle's side stayed there for good). The L-BFGS steps
+leave those robots where they are (an active set, as in projected quasi-Newton methods).
 
 Both stop when no robot's Lloyd step is longer than ``tolerance``, or when no step that long
 lowers H.
@@ -141,6 +146,8 @@ def solve_lloyd(team: Team, starts: np.ndarray, weights: np.ndarray | None = Non
         if switched_at is not None and pairs:
             x = cur.positions.ravel()
             d = pairs.direction(grad, cur.masses)
+            if not team.overshoots:  # (robots the projection holds stay: an active set)
+                d = (d.reshape(-1, 2) * _free_to_move(cur)[:, None]).ravel()
             slope = float(grad @ d)
             if slope < 0:
                 cand = (x + d).reshape(-1, 2)
@@ -170,7 +177,8 @@ def solve_lloyd(team: Team, starts: np.ndarray, weights: np.ndarray | None = Non
 
 def _monotone_step(cur: Any, team: Team, evaluate: Callable[[np.ndarray], Any],
                    tolerance: float, budget: int) -> Any | None:
-    """The team step at the goals of ``cur`` if its H is no higher than ``cur``'s; else the
+    """The team step at the goals of ``cur`` if its H is no higher than ``cur``'s; else, on a
+    team that does not overshoot, the step of the robots :func:`_free_to_move` alone; else the
     steps of the robots whose cells' cost rose are halved (or, on a team that does not
     overshoot, dropped; every robot's halved when no cell's cost rose), a robot whose step
     falls below ``tolerance`` stays, and so on (module docstring). None when every robot
@@ -180,8 +188,17 @@ def _monotone_step(cur: Any, team: Team, evaluate: Callable[[np.ndarray], Any],
         return trial
     step = cur.goals - cur.positions
     length = np.hypot(step[:, 0], step[:, 1])
-    share = np.ones(len(step))
     budget -= 1
+    if not team.overshoots and budget > 0:
+        free = _free_to_move(cur) & (length > 0.0)
+        X = cur.positions + free[:, None] * step
+        if (free & (length >= tolerance)).any() and not free.all() and \
+                all(team.domain.is_free_point(q) for q in X):
+            trial = evaluate(X)
+            budget -= 1
+            if trial.cost <= cur.cost * (1.0 + RISE) + RISE:
+                return trial
+    share = np.ones(len(step))  # (else rounding, or a step across a wall: halve)
     while True:
         rose = (trial.costs > cur.costs) & (share > 0)
         if rose.any() and not team.overshoots:
@@ -202,6 +219,18 @@ def _monotone_step(cur: Any, team: Team, evaluate: Callable[[np.ndarray], Any],
         budget -= 1
         if trial.cost <= cur.cost * (1.0 + RISE) + RISE:
             return trial
+
+
+def _free_to_move(cur: Any) -> np.ndarray:
+    """Robots whose goal is their centroid or a projection nearer it than they are (bool).
+
+    On the cells of ``cur`` a robot's own term changes by ``m_i (|g_i - c_i|^2 - |p_i -
+    c_i|^2)`` when it moves from p_i to g_i: no free robot raises it, so the step in which the
+    free robots go and the others stay cannot raise H (the cells then made at the new
+    positions are the best for them)."""
+    c, g, p = cur.centroids, cur.goals, cur.positions
+    free: np.ndarray = np.all(g == c, axis=1) | (np.hypot(*(g - c).T) < np.hypot(*(p - c).T))
+    return free
 
 
 def _gradient(step: Any) -> np.ndarray:

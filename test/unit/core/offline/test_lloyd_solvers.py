@@ -118,3 +118,34 @@ def test_remaining_decrease_of_a_geometric_tail():
     assert remaining_decrease(H[:3]) == float("inf")
     assert remaining_decrease([5.0, 4.0, 4.0, 3.0]) == float("inf")  # a stall: not a tail
     assert remaining_decrease([5.0, 4.5, 3.0, 1.0]) == float("inf")  # growing decrements
+
+
+def test_a_euclidean_step_that_raises_h_is_followed_by_one_that_cannot():
+    """On a Euclidean team only a projected goal can raise H: after a whole step that does, the
+    step in which the robots whose projected goals are no nearer their centroids stay is
+    accepted at once - at most one tessellation thrown away per accepted step."""
+    team = EuclideanTeam(_domain("obstacles"))
+    made = team.step
+    costs: list[float] = []
+
+    def step(positions, weights=None):
+        s = made(positions, weights)
+        costs.append(s.cost)
+        return s
+
+    team.step = step  # type: ignore[method-assign]
+    rejected = 0
+    for n, seed in ((12, 7), (16, 7), (16, 10)):  # (starts whose runs need the rule)
+        costs.clear()
+        r = solve_lloyd(team, _corner(n, seed), solver="lloyd", tolerance=TOL, max_steps=2000)
+        assert r.converged
+        accepted, runs = costs[0], [0]
+        for c in costs[1:]:
+            if c <= accepted * (1.0 + 1e-12) + 1e-12:
+                accepted = c
+                runs.append(0)
+            else:
+                runs[-1] += 1
+        assert max(runs[:-1]) <= 1, (n, seed)  # (the last: the tries before the stop)
+        rejected += sum(runs[:-1])
+    assert rejected >= 5  # (the rule was needed)

@@ -18,16 +18,19 @@ import time
 from pathlib import Path
 
 SHM_DIR = Path("/dev/shm")
-#: [s] age after which an unsized or unmarked port file is taken as abandoned.
-STALE_AGE = 10.0
+#: [s] age after which an unsized or unmarked port file is taken as abandoned (its creator
+#: sizes and marks it within milliseconds, even on a loaded machine).
+STALE_AGE = 3.0
 _PORT_NAME = re.compile(r"fastrtps_port\d+")
 #: boost.interprocess's segment header: a 32-bit state first, ``2`` once initialised
 #: (0 not yet, 1 initialising, 3 corrupted).
 _INITIALISED = 2
 
 
-def broken_ports(shm_dir: Path = SHM_DIR, now: float | None = None) -> list[Path]:
-    """Port files in ``shm_dir`` that a participant would wait on for ever (module docstring)."""
+def broken_ports(shm_dir: Path | None = None, now: float | None = None) -> list[Path]:
+    """Port files in ``shm_dir`` (default :data:`SHM_DIR`) that a participant would wait on for
+    ever (module docstring)."""
+    shm_dir = SHM_DIR if shm_dir is None else shm_dir
     now = time.time() if now is None else now
     broken = []
     try:
@@ -51,7 +54,7 @@ def broken_ports(shm_dir: Path = SHM_DIR, now: float | None = None) -> list[Path
     return broken
 
 
-def remove_broken_ports(shm_dir: Path = SHM_DIR, now: float | None = None) -> list[str]:
+def remove_broken_ports(shm_dir: Path | None = None, now: float | None = None) -> list[str]:
     """Remove :func:`broken_ports`; the names of those removed."""
     removed = []
     for path in broken_ports(shm_dir, now):
@@ -70,3 +73,14 @@ def warn_removed_ports(program: str) -> None:
         print(f"{program}: warning: removed {len(removed)} broken Fast DDS shared-memory "
               f"file(s) that a killed process left in {SHM_DIR} ({', '.join(removed[:4])})",
               file=sys.stderr)
+
+
+def startup_hint() -> str:
+    """For a start-up timeout's message: removes :func:`broken_ports` and, if there were any,
+    says that they hang a starting process (those that started meanwhile wait on for ever)."""
+    removed = remove_broken_ports()
+    if not removed:
+        return ""
+    return (f"; {len(removed)} broken Fast DDS shared-memory file(s) in {SHM_DIR}, which make a "
+            f"starting process wait for ever, were removed ({', '.join(removed[:4])}): run "
+            f"again")

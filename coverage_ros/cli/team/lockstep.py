@@ -20,6 +20,7 @@ from coverage_ros.core.lockstep import Inbox, Tick
 from coverage_ros.core.lockstep.barrier import DONE, JOIN, WORKING
 from coverage_ros.nodes import conversions as conv
 from coverage_ros.nodes.qos import LOCKSTEP_STATE_QOS, REPORT_QOS, TICK_QOS, quiet_subscription
+from coverage_ros.nodes.shm_ports import startup_hint
 
 #: The monitor's member name (world_node's lockstep_observers).
 OBSERVER = "coverage_team"
@@ -164,7 +165,7 @@ def run_lockstep(monitor, observer: LockstepObserver, startup_timeout: float,
             if log.ready_at is None and now - t0 > startup_timeout:
                 raise RuntimeError(f"the world's lock-step did not list robots "
                                    f"{sorted(set(monitor.alive()))} within "
-                                   f"{startup_timeout:g} s (see their logs)")
+                                   f"{startup_timeout:g} s (see their logs){startup_hint()}")
             if ready is not None and now - last_tick > STALL_TIMEOUT:
                 raise RuntimeError(f"the world's lock-step made no tick for "
                                    f"{STALL_TIMEOUT:g} s of wall time after sim time "
@@ -179,7 +180,7 @@ def run_lockstep(monitor, observer: LockstepObserver, startup_timeout: float,
                 if time.monotonic() - t0 > startup_timeout:
                     raise RuntimeError(f"the world's lock-step did not list robots "
                                        f"{sorted(set(monitor.alive()) - tick.robots)} within "
-                                       f"{startup_timeout:g} s (see their logs)")
+                                       f"{startup_timeout:g} s (see their logs){startup_hint()}")
                 continue
             monitor.team_ready(t0)
             ready = log.sim_time

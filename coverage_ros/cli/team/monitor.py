@@ -37,6 +37,7 @@ from coverage_ros.nodes import conversions as conv
 from coverage_ros.nodes.clock_guard import ClockGuard
 from coverage_ros.nodes.qos import quiet_subscription
 from coverage_ros.nodes.region_input import REGION_QOS, REGION_TOPIC, RegionInput
+from coverage_ros.nodes.shm_ports import startup_hint
 
 PROGRESS_PERIOD = 0.5  # [s] wall time between progress refreshes
 #: [s] wall time between coverage cost evaluations for the progress bar (a tessellation of a
@@ -210,7 +211,8 @@ class TeamMonitor(Node):
             elif time.monotonic() - t0 > self.plan.startup_timeout:
                 missing = sorted(set(range(self.n)) - self.states_seen)
                 raise RuntimeError(f"robots {missing} did not start within "
-                                   f"{self.plan.startup_timeout:g} s (see their logs)")
+                                   f"{self.plan.startup_timeout:g} s (see their logs)"
+                                   f"{startup_hint()}")
         end = self.end
         ready = log.sim_start if log.sim_start is not None else log.sim_time  # (= ready_at)
         last_progress = last_metrics = last_explored = 0.0

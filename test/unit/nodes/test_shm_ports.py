@@ -34,3 +34,15 @@ def test_only_old_unsized_or_unmarked_ports_are_broken(tmp_path):
 
 def test_a_missing_folder_has_no_broken_ports(tmp_path):
     assert broken_ports(tmp_path / "none") == []
+
+
+def test_a_start_up_timeout_names_the_broken_ports_it_removed(tmp_path, monkeypatch):
+    from coverage_ros.nodes import shm_ports
+
+    monkeypatch.setattr(shm_ports, "SHM_DIR", tmp_path)
+    assert shm_ports.startup_hint() == ""
+    now = os.path.getmtime(tmp_path)
+    _port(tmp_path, "fastrtps_port7007", None, STALE_AGE + 60.0, now)
+    hint = shm_ports.startup_hint()
+    assert "1 broken Fast DDS shared-memory file(s)" in hint and "fastrtps_port7007" in hint
+    assert "run again" in hint and not (tmp_path / "fastrtps_port7007").exists()

@@ -12,6 +12,7 @@ microseconds). Participants re-create a removed port as they need it.
 
 from __future__ import annotations
 
+import os
 import re
 import sys
 import time
@@ -27,6 +28,14 @@ _PORT_NAME = re.compile(r"fastrtps_port\d+")
 _INITIALISED = 2
 
 
+def _is_broken(path: Path) -> bool:
+    """Unsized, or its header not marked initialised (OSError if it cannot be read)."""
+    if path.stat().st_size < 4:
+        return True
+    with open(path, "rb") as fh:
+        return int.from_bytes(fh.read(4), "little") != _INITIALISED
+
+
 def broken_ports(shm_dir: Path | None = None, now: float | None = None) -> list[Path]:
     """Port files in ``shm_dir`` (default :data:`SHM_DIR`) that a participant would wait on for
     ever (module docstring)."""
@@ -39,19 +48,29 @@ def broken_ports(shm_dir: Path | None = None, now: float | None = None) -> list[
         return []
     for path in candidates:
         try:
-            info = path.stat()
-            if now - info.st_mtime < STALE_AGE:
-                continue
-            if info.st_size < 4:
+            if now - path.stat().st_mtime >= STALE_AGE and _is_broken(path):
                 broken.append(path)
-                continue
-            with open(path, "rb") as fh:
-                state = int.from_bytes(fh.read(4), "little")
         except OSError:  # (gone meanwhile, or not ours to read)
             continue
-        if state != _INITIALISED:
-            broken.append(path)
     return broken
+
+
+def held_broken_ports(fd_dir: Path = Path("/proc/self/fd")) -> list[Path]:
+    """Broken port files this process has open (``fd_dir``: its open files): a process that
+    has waited on one for a while is stuck there for good."""
+    held = []
+    try:
+        links = list(fd_dir.iterdir())
+    except OSError:
+        return []
+    for link in links:
+        try:
+            target = Path(os.readlink(link))
+            if _PORT_NAME.fullmatch(target.name) and _is_broken(target):
+                held.append(target)
+        except OSError:
+            continue
+    return held
 
 
 def remove_broken_ports(shm_dir: Path | None = None, now: float | None = None) -> list[str]:

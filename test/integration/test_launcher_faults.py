@@ -248,3 +248,41 @@ def test_a_restarted_robot_rejoins_and_the_team_reconverges(tmp_path):
     m = summary["metrics"]
     assert m["H"] <= 0.5 * m["H_start"], team_diagnosis(summary, out)
     assert all(r["collisions"] == 0 for r in robots.values())
+
+
+def test_a_child_stuck_on_a_broken_shared_memory_port_is_started_again(tmp_path):
+    """A port file that a killed process left unsized makes the next participant that needs it
+    wait for ever inside its first node (Fast-DDS issue 3878): the launcher sees a child
+    holding such a file open, kills it, removes the file and starts the child again."""
+    from pathlib import Path
+
+    from coverage_ros.cli.team.processes import ProcessSet, executable, ros_args
+
+    domain = domain_id(24)
+    # participant 0's user unicast port in the domain (Fast DDS: 7400 + 250 domain + 11), dated
+    # in the future so that the child's own clean-up of old broken files leaves it
+    port = Path(f"/dev/shm/fastrtps_port{7400 + 250 * domain + 11}")
+    port.unlink(missing_ok=True)
+    port.touch()
+    later = time.time() + 3600.0
+    os.utime(port, (later, later))
+    procs = ProcessSet(ros_env(domain), tmp_path)
+    said: list[str] = []
+    try:
+        procs.start("world", executable("world_node") + ros_args(world="office"))
+        restarted, deadline = [], time.monotonic() + 40.0
+        while not restarted and time.monotonic() < deadline:
+            time.sleep(1.0)
+            restarted = procs.restart_stuck(said.append)
+        log = tmp_path / "world.log"
+        assert restarted == ["world"], log.read_text()
+        assert len(said) == 1 and port.name in said[0], said
+        deadline = time.monotonic() + 40.0
+        while "world 'office'" not in log.read_text() and time.monotonic() < deadline:
+            time.sleep(0.5)
+        assert "world 'office'" in log.read_text()  # (the new process got past its start)
+        assert procs.children["world"].alive and procs.stuck_on_broken_ports() == {}
+    finally:
+        procs.stop()
+        if port.exists() and port.stat().st_size == 0:
+            port.unlink()

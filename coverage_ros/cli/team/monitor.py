@@ -52,6 +52,9 @@ TRACK_STEP = 0.05  # [m] a robot's path in summary.png gets a point every this f
 #: [s] wall time without /clock advancing after which the run is given up (the world node is
 #: stuck).
 CLOCK_STALL = 60.0
+#: [s] wall time between looks for children stuck on a broken Fast DDS shared-memory port
+#: while the team starts (:meth:`ProcessSet.restart_stuck`).
+STUCK_CHECK_PERIOD = 10.0
 
 
 class TeamMonitor(Node):
@@ -68,6 +71,7 @@ class TeamMonitor(Node):
         self.base_domain = self.domain = plan.domain  # a region of interest restricts it
         self.log = RunLog()
         self.clock_guard, self.clock_error, self._clock_checked = ClockGuard(), "", 0.0
+        self._stuck_checked = time.monotonic()  # [s] last look for children stuck on a broken port
         self.states_seen: set[int] = set()
         self.proc_stats: ProcessStats | None = None  # made in run(), once the children exist
         self._decile = -1
@@ -283,6 +287,9 @@ class TeamMonitor(Node):
                 self.count_publishers("/clock"))
         if self.clock_error:
             raise RuntimeError(f"{self.clock_error}; stopping the team")
+        if starting and now - self._stuck_checked >= STUCK_CHECK_PERIOD:
+            self._stuck_checked = now
+            self.procs.restart_stuck(self.say)
         world = self.procs.children.get("world")
         if world is not None and not world.alive:
             raise RuntimeError(f"world_node exited ({world.popen.returncode}):\n"

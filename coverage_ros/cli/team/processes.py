@@ -24,6 +24,8 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from coverage_ros.nodes.shm_ports import held_broken_ports
+
 PACKAGE = "coverage_ros"
 PR_SET_PDEATHSIG = 1  # linux/prctl.h
 
@@ -98,6 +100,8 @@ class Child:
     name: str
     popen: subprocess.Popen
     log: Path
+    cmd: list[str]
+    extra_env: dict[str, str] | None = None
 
     @property
     def alive(self) -> bool:
@@ -123,9 +127,44 @@ class ProcessSet:
             popen = subprocess.Popen(cmd, env=env, stdout=fh, stderr=subprocess.STDOUT,
                                      stdin=subprocess.DEVNULL, start_new_session=True,
                                      preexec_fn=_child_setup(os.getpid()))
-        child = Child(name, popen, log)
+        child = Child(name, popen, log, list(cmd), extra_env)
         self.children[name] = child
         return child
+
+    def stuck_on_broken_ports(self) -> dict[str, list[Path]]:
+        """Children (by name) that hold a broken Fast DDS shared-memory port open: they wait
+        on it for ever (:mod:`coverage_ros.nodes.shm_ports`)."""
+        stuck = {}
+        for name, child in self.children.items():
+            if child.alive:
+                held = held_broken_ports(Path(f"/proc/{child.popen.pid}/fd"))
+                if held:
+                    stuck[name] = held
+        return stuck
+
+    def restart_stuck(self, say, recheck: float = 1.0) -> list[str]:
+        """Children stuck on a broken port now and ``recheck`` seconds later (a port being made
+        this moment is marked by then) are killed, the files removed and the children started
+        again, each with one line through ``say``; their names."""
+        first = self.stuck_on_broken_ports()
+        if not first:
+            return []
+        time.sleep(recheck)
+        stuck = {n: p for n, p in self.stuck_on_broken_ports().items() if n in first}
+        for name, paths in stuck.items():
+            child = self.children[name]
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(child.popen.pid, signal.SIGKILL)
+            with contextlib.suppress(subprocess.TimeoutExpired):
+                child.popen.wait(timeout=5.0)
+            for path in paths:
+                with contextlib.suppress(OSError):
+                    path.unlink()
+            say(f"coverage-team: {name} waited on a broken Fast DDS shared-memory file "
+                f"({', '.join(p.name for p in paths)}) that a killed process left: removed it "
+                f"and started {name} again")
+            self.start(name, child.cmd, append=True, extra_env=child.extra_env)
+        return list(stuck)
 
     def signal(self, name: str, sig: int) -> None:
         child = self.children.get(name)

@@ -42,3 +42,33 @@ def test_a_child_whose_launcher_died_before_it_asked_for_the_signal_ends_at_once
     proc = subprocess.Popen(["sleep", "0.5"], preexec_fn=_child_setup(parent=os.getpid()))
     assert proc.wait(timeout=10) == 0
     assert time.monotonic() - t0 >= 0.5
+
+
+def test_a_child_holding_a_broken_port_open_is_killed_and_started_again(tmp_path):
+    """(Without DDS: the child opens an unsized port file and sleeps, as one stuck in Fast DDS
+    does; started again, it finds the file gone and ends.)"""
+    from pathlib import Path
+
+    from coverage_ros.cli.team.processes import ProcessSet
+
+    port = tmp_path / "fastrtps_port7007"
+    port.touch()
+    logs = tmp_path / "logs"
+    logs.mkdir()
+    procs = ProcessSet(dict(os.environ), logs)
+    hold = f"import time; f = open({str(port)!r}, 'rb'); time.sleep(60)"
+    first = procs.start("robot_3", [sys.executable, "-c", hold])
+    try:
+        deadline = time.monotonic() + 20.0
+        while not procs.stuck_on_broken_ports() and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert procs.stuck_on_broken_ports() == {"robot_3": [Path(port)]}
+        said: list[str] = []
+        assert procs.restart_stuck(said.append, recheck=0.1) == ["robot_3"]
+        assert first.popen.poll() is not None and not port.exists()
+        assert len(said) == 1 and "robot_3" in said[0] and "fastrtps_port7007" in said[0]
+        again = procs.children["robot_3"]
+        assert again.popen.pid != first.popen.pid and again.popen.wait(timeout=20) == 1
+        assert procs.restart_stuck(said.append, recheck=0.1) == []
+    finally:
+        procs.stop()

@@ -4,10 +4,12 @@ Fast DDS (rmw_fastrtps) gives each DDS participant on a machine shared-memory "p
 ``/dev/shm/fastrtps_port<N>`` that it creates, sizes and then marks initialised. A process
 killed between the creation and the mark leaves a file that every later participant needing
 port N opens and then waits on for ever, inside ``rclpy.init`` or the first node's creation:
-the process hangs without a word (Fast-DDS issue 3878). :func:`remove_broken_ports`, called by
-every executable of this package before it starts ROS, removes such files: one still unsized or
-unmarked :data:`STALE_AGE` seconds after its last change is broken (a live creator takes
-microseconds). Participants re-create a removed port as they need it.
+the process hangs without a word (eProsima/Fast-DDS#3878). :func:`remove_broken_ports`,
+called by every executable of this package before it starts ROS, removes such files: one still
+unsized or unmarked :data:`STALE_AGE` seconds after its last change is broken (a live creator
+takes microseconds). Participants re-create a removed port as they need it. A process already
+waiting cannot be helped from inside (the wait holds the GIL): the team launcher starts such a
+child again (:func:`held_broken_ports`, ``ProcessSet.restart_stuck``).
 """
 
 from __future__ import annotations

@@ -194,11 +194,11 @@ def _monotone_step(cur: Any, team: Team, evaluate: Callable[[np.ndarray], Any],
         X = cur.positions + free[:, None] * step
         if (free & (length >= tolerance)).any() and not free.all() and \
                 all(team.domain.is_free_point(q) for q in X):
-            trial = evaluate(X)
+            settled = evaluate(X)
             budget -= 1
-            if trial.cost <= cur.cost * (1.0 + RISE) + RISE:
-                return trial
-    share = np.ones(len(step))  # (else rounding, or a step across a wall: halve)
+            if settled.cost <= cur.cost * (1.0 + RISE) + RISE:
+                return settled
+    share = np.ones(len(step))  # (else rounding: halve from the whole step's costs)
     while True:
         rose = (trial.costs > cur.costs) & (share > 0)
         if rose.any() and not team.overshoots:

@@ -3,7 +3,7 @@
 Every child runs in its own process group (so a Ctrl-C in the terminal reaches only the
 launcher, which then stops the children in order), asks the kernel to SIGTERM it if the
 launcher dies (Linux ``PR_SET_PDEATHSIG``; a child whose launcher died before it asked ends at
-once), runs at the launcher's priority and writes its output to a log file. Processes are
+once), and writes its output to a log file. Processes are
 stopped by PID/process group only: SIGINT (a clean rclpy shutdown), then SIGTERM, then SIGKILL.
 """
 
@@ -32,7 +32,7 @@ PR_SET_PDEATHSIG = 1  # linux/prctl.h
 
 def _child_setup(parent: int) -> Callable[[], None]:
     """What a child does between fork and exec (after ``setsid``): ask for SIGTERM when
-    ``parent`` (the launcher's PID) dies, and keep the launcher's priority."""
+    ``parent`` (the launcher's PID) dies."""
 
     def setup() -> None:
         with contextlib.suppress(Exception):
@@ -40,13 +40,6 @@ def _child_setup(parent: int) -> Callable[[], None]:
             libc.prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
         if os.getppid() != parent:  # the launcher died before the request: no signal comes
             os._exit(0)
-        # A new session is a new scheduler autogroup (Linux), whose nice value starts at 0
-        # whatever the process's: without this a `nice coverage-team` would not be nice.
-        with contextlib.suppress(OSError):
-            niceness = os.nice(0)
-            if niceness > 0:
-                with open("/proc/self/autogroup", "w") as fh:
-                    fh.write(str(niceness))
 
     return setup
 

@@ -10,26 +10,6 @@ import time
 
 from coverage_ros.cli.team.processes import _child_setup
 
-CHILD = """
-import os, sys
-from pathlib import Path
-from coverage_ros.cli.team.processes import ProcessSet
-procs = ProcessSet(dict(os.environ), Path(sys.argv[1]))
-child = procs.start("probe", ["sh", "-c", "cat /proc/self/autogroup; ps -o ni= -p $$"])
-child.popen.wait(timeout=30)
-"""
-
-
-def test_a_child_keeps_the_launchers_priority_in_its_own_session(tmp_path):
-    """A child is in a session (so an autogroup) of its own, at the launcher's nice value: a
-    `nice coverage-team` stays nice."""
-    out = subprocess.run(["nice", "-n", "7", sys.executable, "-c", CHILD, str(tmp_path)],
-                         capture_output=True, text=True, timeout=60)
-    assert out.returncode == 0, out.stderr
-    autogroup, niceness = (tmp_path / "probe.log").read_text().split("\n")[:2]
-    assert int(niceness) == 7
-    assert autogroup.endswith("nice 7"), autogroup
-
 
 def test_a_child_whose_launcher_died_before_it_asked_for_the_signal_ends_at_once():
     """The kernel only signals a child whose parent dies after its PR_SET_PDEATHSIG request; a

@@ -259,7 +259,7 @@ def test_a_restarted_robot_rejoins_and_the_team_reconverges(tmp_path):
 
 def test_a_child_stuck_on_a_broken_shared_memory_port_is_started_again(tmp_path):
     """A port file that a killed process left unsized makes the next participant that needs it
-    wait for ever inside its first node (Fast-DDS issue 3878): the launcher sees a child
+    wait for ever inside its first node (eProsima/Fast-DDS#3878): the launcher sees a child
     holding such a file open, kills it, removes the file and starts the child again."""
     from pathlib import Path
 

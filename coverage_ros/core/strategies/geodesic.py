@@ -58,6 +58,10 @@ class GeodesicParams:
     #: Lloyd steps of the re-spreading neighbours in the joint bound (enough for a neighbour
     #: to shift by a room: fewer see only the moves that pay at once)
     escape_joint_steps: int = 10
+    #: rings of cells around the pair that re-spread in the joint bound, tried one after the
+    #: other up to this many (1: the cells touching either; 2: also those touching these - a
+    #: robot in a corner whose one neighbour cannot take its cell alone)
+    escape_joint_rings: int = 2
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
@@ -70,7 +74,7 @@ class GeodesicParams:
                     math.isfinite(v) and v >= 0):
                 raise ConfigError.at(name, "must be a finite number >= 0", v)
         for name in ("escape_cooldown", "escape_wait", "escape_transit", "escape_steps",
-                     "escape_joint_steps"):
+                     "escape_joint_steps", "escape_joint_rings"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < 1:
                 raise ConfigError.at(name, "must be an integer >= 1", v)
@@ -79,7 +83,8 @@ class GeodesicParams:
         return HandoverSettings(gain=float(self.escape_gain), settle=float(self.escape_settle),
                                 cooldown=self.escape_cooldown, wait=self.escape_wait,
                                 transit=self.escape_transit, steps=self.escape_steps,
-                                joint_steps=self.escape_joint_steps)
+                                joint_steps=self.escape_joint_steps,
+                                joint_rings=self.escape_joint_rings)
 
 
 @dataclass(frozen=True)

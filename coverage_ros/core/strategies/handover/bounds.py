@@ -215,14 +215,19 @@ def known_cells(domain: CoverageDomain, generators: np.ndarray, method: str = "a
 
 
 def joint_change(domain: CoverageDomain, known: Known, weight: float, target: int,
-                 point: np.ndarray, steps: int, method: str = "auto") -> Removal:
+                 point: np.ndarray, steps: int, method: str = "auto",
+                 rings: int = 1) -> Removal:
     """How much lower H gets at least if generator 0 of ``known`` (the own) moved to
     ``point`` [m] in the cell of generator ``target``, the neighbours re-spreading, than if it
     stayed: negative for a move that pays.
 
     U is the union of the own cell, the target's and every cell that touches either (8
-    grid neighbours); every generator with a cell in U but the own, and one at ``point``,
-    takes ``steps`` Lloyd steps in U, every other generator staying where it is. Nodes
+    grid neighbours); with ``rings`` k > 1, grown k - 1 times more by the cells touching it
+    (a robot shut in a corner whose one neighbour cannot take its cell alone: the shift runs
+    through the team), and then a bound only where every other mover ends in its own cell or
+    the own one (:func:`_shifts_within`, else inf). Every generator with a cell in U but the
+    own, and one at ``point``, takes ``steps`` Lloyd steps in U, every other generator
+    staying where it is. Nodes
     outside U keep their owners, which do not move, so the least cost of U seen bounds H
     from above for the movers at the positions reached. The same steps without the move
     (the own generator among the movers, none at ``point``) give what staying reaches; the
@@ -231,8 +236,12 @@ def joint_change(domain: CoverageDomain, known: Known, weight: float, target: in
     which is the own generator moved) and where they stand."""
     W = domain.shape[1]
     labels = known.labels.reshape(-1, W)
-    core = binary_dilation(np.isin(labels, [0, target]), structure=np.ones((3, 3), bool))
-    group = sorted({int(k) for k in np.unique(labels[core]) if k >= 0} | {0, target})
+    members = {0, target}
+    for _ in range(max(1, rings)):
+        core = binary_dilation(np.isin(labels, sorted(members)),
+                               structure=np.ones((3, 3), bool))
+        members |= {int(k) for k in np.unique(labels[core]) if k >= 0}
+    group = sorted(members)
     U = np.flatnonzero(np.isin(known.labels, group))
     movers = [k for k in group if k != 0]
     fixed = known.generators[[k for k in range(len(known.generators)) if k not in group]]
@@ -248,7 +257,26 @@ def joint_change(domain: CoverageDomain, known: Known, weight: float, target: in
     start = np.vstack([known.generators[movers], np.asarray(point, dtype=np.float64)[None]])
     moved, at = _lloyd_in(domain, U, start, fixed, weight, steps, limit, method, known.rows,
                           whole=True)
+    if rings > 1 and not _shifts_within(domain, known.labels, movers, at[:-1]):
+        return Removal(math.inf, (), np.zeros((0, 2)))
     return Removal(moved - stay, (*movers, -1), at)
+
+
+def _shifts_within(domain: CoverageDomain, labels: np.ndarray, movers: Sequence[int],
+                   positions: np.ndarray) -> bool:
+    """Whether every one of ``movers`` (indices of generators) at ``positions (m, 2)`` [m]
+    (node centres) lies in its own cell of ``labels`` or in generator 0's: a shift Lloyd's
+    descent makes once generator 0 has left, unlike a chain of robots moving into each
+    other's cells, which a wider ring's configuration may name but no robot's own steps
+    reach (the team would move, re-spread into the same cells and claim again)."""
+    if len(movers) == 0:
+        return True
+    H, W = domain.shape
+    grid = np.floor(domain.to_grid(np.asarray(positions, dtype=np.float64).reshape(-1, 2)))
+    nodes = np.clip(grid[:, 1], 0, H - 1).astype(np.int64) * W \
+        + np.clip(grid[:, 0], 0, W - 1).astype(np.int64)
+    there = labels[nodes]
+    return bool(np.all((there == np.asarray(movers)) | (there == 0)))
 
 
 def split_offer(domain: CoverageDomain, nodes: np.ndarray, g_own: np.ndarray, cost: float,

@@ -23,11 +23,13 @@ exceeds ``escape_gain`` times the pair's cost ``H_i + H_j``. When no offer passe
 stood still at its last update (Lloyd's end), the same test runs on the joint bound instead
 (:func:`.bounds.joint_change`: i at j's offered point, every robot whose cell touches i's or
 j's re-spreading, against the same steps without the move), which sees moves that pay only once
-the neighbours of both cells shift along. Robot j grants the claim of the highest priority
-(saving, then lower id) among those on it unless it claims itself. Granted, i drives to j's
-offered point (mode ``relocate``), keeping its claim, so that j lets nobody else in and i's
-neighbours do not leave meanwhile; there it drops the claim and waits ``escape_cooldown``
-updates before it may claim again (hysteresis). A claim not granted within ``escape_wait``
+the neighbours of both cells shift along; if none passes that either, on the joint bound of
+wider rings of cells (up to ``escape_joint_rings``: the cells touching those too), which sees
+a robot shut in a corner whose one neighbour cannot take its cell alone. Robot j grants the
+claim of the highest priority (saving, then lower id) among those on it unless it claims
+itself. Granted, i drives to j's offered point (mode ``relocate``), keeping its claim, so
+that j lets nobody else in and i's neighbours do not leave meanwhile; there it drops the
+claim and waits ``escape_cooldown`` updates before it may claim again (hysteresis). A claim not granted within ``escape_wait``
 updates, or whose target grants another, is dropped the same way.
 
 Each move is backed by a configuration next to it with H lower by at least ``escape_gain`` of
@@ -82,6 +84,7 @@ class HandoverSettings:
     transit: int  # [updates] a relocating robot gives up after this many
     steps: int  # Lloyd steps of the split and of the removal
     joint_steps: int = 10  # Lloyd steps of the joint bound
+    joint_rings: int = 2  # rings of cells around the pair the joint bound widens to, at most
 
 
 @dataclass(frozen=True)
@@ -113,7 +116,7 @@ class Handover:
     _offer: tuple[np.ndarray, SplitOffer | None] | None = field(default=None, repr=False)
     _removal: tuple[np.ndarray, dict[int, float], RowCache, Tessellations] | None = field(
         default=None, repr=False)
-    _joint: tuple[np.ndarray, Known, dict[tuple[int, float, float], float]] | None = field(
+    _joint: tuple[np.ndarray, Known, dict[tuple[int, float, float, int], float]] | None = field(
         default=None, repr=False)
 
     def step(self, position: np.ndarray, weight: float, cell: CellResult,
@@ -218,11 +221,14 @@ class Handover:
                    for n in offers}
         best, saving = self._best(offers, cell.cost, {
             n.robot_id: _f(n, "offer_gain") - removal[n.robot_id] for n in offers})
-        if best is None and stopped:
-            # no pair's bound suffices: the bound with both cells' neighbours re-spreading
+        rings = 1
+        while best is None and stopped and rings <= self.settings.joint_rings:
+            # no pair's bound suffices: the bound with both cells' neighbours re-spreading,
+            # then theirs too
             best, saving = self._best(offers, cell.cost, {
-                n.robot_id: -self._cached_joint(key, position, weight, neighbours, n)
+                n.robot_id: -self._cached_joint(key, position, weight, neighbours, n, rings)
                 for n in offers})
+            rings += 1
         if best is None:
             return
         self.claim, self.claim_gain, self.claim_age = best.robot_id, saving, 0
@@ -253,9 +259,10 @@ class Handover:
         return self._offer[1]
 
     def _cached_joint(self, key: np.ndarray, position: np.ndarray, weight: float,
-                      neighbours: Sequence[Neighbour], target: Neighbour) -> float:
+                      neighbours: Sequence[Neighbour], target: Neighbour, rings: int) -> float:
         """The bound of :func:`.bounds.joint_change` for a move into ``target``'s cell at its
-        offered point, computed again only when some generator moved by a cell."""
+        offered point with ``rings`` of cells re-spreading, computed again only when some
+        generator moved by a cell."""
         if any(abs(n.state.weight - weight) >= WEIGHT_MATCH for n in neighbours):
             return math.inf  # the bound assumes equal power weights
         if self._joint is None or not _same(self._joint[0], key, self.domain.resolution):
@@ -263,11 +270,12 @@ class Handover:
             self._joint = (key, known_cells(self.domain, gens, self.method), {})
         _, known, values = self._joint
         point = np.array([_f(target, "offer_x"), _f(target, "offer_y")])
-        memo = (target.robot_id, float(point[0]), float(point[1]))
+        memo = (target.robot_id, float(point[0]), float(point[1]), rings)
         if memo not in values:
             t = 1 + [n.robot_id for n in neighbours].index(target.robot_id)
             values[memo] = joint_change(self.domain, known, weight, t, point,
-                                        self.settings.joint_steps, self.method).increase
+                                        self.settings.joint_steps, self.method,
+                                        rings).increase
         return values[memo]
 
     def _cached_removal(self, key: np.ndarray, position: np.ndarray, weight: float,

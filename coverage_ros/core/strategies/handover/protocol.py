@@ -203,7 +203,7 @@ class Handover:
         """Unless a robot it hears claims: the neighbour whose offer beats the own removal
         most, if by enough; if none does and the robot stands still (``stopped``: Lloyd's end,
         where staying is what the joint bound compares with), the offer whose joint bound
-        saves most."""
+        saves most, with one ring of cells re-spreading, else with the next ring too."""
         if any(_f(n, "claim", NONE) >= 0 for n in neighbours):
             return  # one move at a time (module docstring)
         offers = [n for n in neighbours if _f(n, "offer_gain") > 0 and _f(n, "claim", NONE) < 0

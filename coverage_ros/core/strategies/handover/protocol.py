@@ -13,24 +13,24 @@ Every robot publishes, with its state (``SharedState.extra``):
   bound's saving;
 * ``grant``: the one claimant it lets in (-1: none).
 
-Robot i claims neighbour j (any robot it hears: the offer is j's, the removal i's own, so the
-bound needs no common border) when i and every robot it hears are settled and none of them
-claims (one move at a time: a robot on its way leaves its cell to the others, who spread into
-it until it arrives, so a bound priced meanwhile would price a passing state; of claims made at
-once, all but the one of the highest priority - saving, then lower id - are dropped before a
-grant), j neither claims nor grants another, and ``offer_gain(j) - removal_increase(i)``
-exceeds ``escape_gain`` times the pair's cost ``H_i + H_j``. When no offer passes so and i
-stood still at its last update (Lloyd's end), the same test runs on the joint bound instead
-(:func:`.bounds.joint_change`: i at j's offered point, every robot whose cell touches i's or
-j's re-spreading, against the same steps without the move), which sees moves that pay only once
-the neighbours of both cells shift along; if none passes that either, on the joint bound of
-wider rings of cells (up to ``escape_joint_rings``: the cells touching those too), which sees
-a robot shut in a corner whose one neighbour cannot take its cell alone. Robot j grants the
-claim of the highest priority (saving, then lower id) among those on it unless it claims
-itself. Granted, i drives to j's offered point (mode ``relocate``), keeping its claim, so
-that j lets nobody else in and i's neighbours do not leave meanwhile; there it drops the
-claim and waits ``escape_cooldown`` updates before it may claim again (hysteresis). A claim not granted within ``escape_wait``
-updates, or whose target grants another, is dropped the same way.
+Robot i claims neighbour j (any robot it hears: the offer is j's, the removal i's own, so the bound
+needs no common border) when i and every robot it hears are settled and none of them claims (one
+move at a time: a robot on its way leaves its cell to the others, who spread into it until it
+arrives, so a bound priced meanwhile would price a passing state; of claims made at once, all but
+the one of the highest priority - saving, then lower id - are dropped before a grant), j neither
+claims nor grants another, and ``offer_gain(j) - removal_increase(i)`` exceeds ``escape_gain``
+times the pair's cost ``H_i + H_j``. When no offer passes so and i stood still at its last update
+(Lloyd's end), the same test runs on the joint bound instead (:func:`.bounds.joint_change`: i at
+j's offered point, every robot whose cell touches i's or j's re-spreading, against the same steps
+without the move), which sees moves that pay only once the neighbours of both cells shift along; if
+none passes that either and ``escape_joint_rings`` allows, on the joint bound of wider rings of
+cells (the cells touching those too), which sees a robot shut in a corner whose one neighbour
+cannot take its cell alone. Robot j grants the claim of the highest priority (saving, then lower
+id) among those on it unless it claims itself. Granted, i drives to j's offered point (mode
+``relocate``), keeping its claim, so that j lets nobody else in and i's neighbours do not leave
+meanwhile; there it drops the claim and waits ``escape_cooldown`` updates before it may claim again
+(hysteresis). A claim not granted within ``escape_wait`` updates, or whose target grants another,
+is dropped the same way.
 
 Each move is backed by a configuration next to it with H lower by at least ``escape_gain`` of
 a pair's cost (:mod:`.bounds`), and the cooldown keeps a robot from moving back and forth.
@@ -84,7 +84,7 @@ class HandoverSettings:
     transit: int  # [updates] a relocating robot gives up after this many
     steps: int  # Lloyd steps of the split and of the removal
     joint_steps: int = 10  # Lloyd steps of the joint bound
-    joint_rings: int = 2  # rings of cells around the pair the joint bound widens to, at most
+    joint_rings: int = 1  # rings of cells around the pair the joint bound widens to, at most
 
 
 @dataclass(frozen=True)

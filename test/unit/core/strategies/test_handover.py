@@ -103,11 +103,12 @@ def cluster(seed: int) -> np.ndarray:
     return team_starts(world, [world.robot_spec(i) for i in range(ROBOTS)], None, seed)
 
 
+@pytest.mark.parametrize("rings", [1, 2])
 @pytest.mark.parametrize("seed", [0, 1, 2])
-def test_escape_ends_near_the_best_where_plain_lloyd_is_shut_in(seed):
+def test_escape_ends_near_the_best_where_plain_lloyd_is_shut_in(seed, rings):
     best = best_of_restarts()
     plain = run(cluster(seed), escape=False)
-    escaped = run(cluster(seed), escape=True)
+    escaped = run(cluster(seed), escape=True, escape_joint_rings=rings)
     H_plain, m_plain = cost(plain.positions[-1])
     H_escape, _ = cost(escaped.positions[-1])
     # plain Lloyd converges with a robot in a small room: its cell a fraction of the largest

@@ -221,19 +221,18 @@ def joint_change(domain: CoverageDomain, known: Known, weight: float, target: in
     ``point`` [m] in the cell of generator ``target``, the neighbours re-spreading, than if it
     stayed: negative for a move that pays.
 
-    U is the union of the own cell, the target's and every cell that touches either (8
-    grid neighbours); with ``rings`` k > 1, grown k - 1 times more by the cells touching it
-    (a robot shut in a corner whose one neighbour cannot take its cell alone: the shift runs
-    through the team), and then a bound only where every other mover ends in its own cell or
-    the own one (:func:`_shifts_within`, else inf). Every generator with a cell in U but the
-    own, and one at ``point``, takes ``steps`` Lloyd steps in U, every other generator
-    staying where it is. Nodes
-    outside U keep their owners, which do not move, so the least cost of U seen bounds H
-    from above for the movers at the positions reached. The same steps without the move
-    (the own generator among the movers, none at ``point``) give what staying reaches; the
-    change is the one bound minus the other (inf if a node of U is out of reach), returned
-    with the movers (indices into ``known.generators``; the last, -1, the one at ``point``,
-    which is the own generator moved) and where they stand."""
+    U is the union of the own cell, the target's and every cell that touches either (8 grid
+    neighbours); with ``rings`` k > 1, grown k - 1 times more by the cells touching it (a robot
+    shut in a corner whose one neighbour cannot take its cell alone: the shift runs through the
+    team), and then a bound only where every other mover ends in its own cell or the own one
+    (:func:`_shifts_within`, else inf). Every generator with a cell in U but the own, and one
+    at ``point``, takes ``steps`` Lloyd steps in U, every other generator staying where it is.
+    Nodes outside U keep their owners, which do not move, so the least cost of U seen bounds H
+    from above for the movers at the positions reached. The same steps without the move (the
+    own generator among the movers, none at ``point``) give what staying reaches; the change is
+    the one bound minus the other (inf if a node of U is out of reach), returned with the
+    movers (indices into ``known.generators``; the last, -1, the one at ``point``, which is the
+    own generator moved) and where they stand."""
     W = domain.shape[1]
     labels = known.labels.reshape(-1, W)
     members = {0, target}

@@ -60,9 +60,9 @@ class GeodesicParams:
     escape_joint_steps: int = 10
     #: rings of cells around the pair that re-spread in the joint bound, tried one after the
     #: other up to this many (1: the cells touching either; 2: also those touching these - a
-    #: robot in a corner whose one neighbour cannot take its cell alone; offline it helps, but
-    #: live a move it backed can end higher, so 1 by default)
-    escape_joint_rings: int = 1
+    #: robot in a corner whose one neighbour cannot take its cell alone; a wider ring's move
+    #: counts only if the team's own descent from it ends lower)
+    escape_joint_rings: int = 2
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:

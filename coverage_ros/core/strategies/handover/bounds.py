@@ -24,7 +24,8 @@ where Lloyd ends).
 Where no pair's bound suffices - leaving V_i costs more than splitting V_j saves while the
 other neighbours stay - :func:`joint_change` (robot i, from every generator it hears) lets
 every generator whose cell touches V_i or V_j take the Lloyd steps together with s, and
-compares with the same steps without the move.
+compares with the same steps without the move; with wider rings, a move that pays so is
+checked by the team's own generalized Lloyd descent from it (:func:`descent_change`).
 Distances are the tessellation's own (:func:`~coverage_ros.core.geodesic.tessellation.
 source_row` sources on the whole-domain graph), searched only as far as the cell needs.
 """
@@ -42,11 +43,17 @@ from scipy.sparse.csgraph import dijkstra
 from coverage_ros.core.geodesic.domain import CoverageDomain
 from coverage_ros.core.geodesic.local_search import local_graph_for
 from coverage_ros.core.geodesic.tessellation import resolve_method, source_row
+from coverage_ros.core.offline.geodesic_team import team_cells
 
 #: Searches reach this many longest graph edges beyond the bound they need.
 SLACK_EDGES = 4.0
 #: Growth of a removal search radius that left nodes of the cell unreached (then unlimited).
 GROWTH = 2.0
+#: Steps of the team's own descent that check a wider ring's move (:func:`descent_change`);
+#: from a move across a 30 x 50 m warehouse the team settles within about 15.
+DESCENT_STEPS = 30
+#: Halvings of a descent step that would raise H before the descent counts as stalled.
+DESCENT_HALVINGS = 4
 
 
 @dataclass(frozen=True)
@@ -232,7 +239,9 @@ def joint_change(domain: CoverageDomain, known: Known, weight: float, target: in
     own generator among the movers, none at ``point``) give what staying reaches; the change is
     the one bound minus the other (inf if a node of U is out of reach), returned with the
     movers (indices into ``known.generators``; the last, -1, the one at ``point``, which is the
-    own generator moved) and where they stand."""
+    own generator moved) and where they stand. A wider ring's move that pays so is priced
+    again by the team's own descent from it (:func:`descent_change`), which is returned
+    instead."""
     W = domain.shape[1]
     labels = known.labels.reshape(-1, W)
     members = {0, target}
@@ -258,7 +267,62 @@ def joint_change(domain: CoverageDomain, known: Known, weight: float, target: in
                           whole=True)
     if rings > 1 and not _shifts_within(domain, known.labels, movers, at[:-1]):
         return Removal(math.inf, (), np.zeros((0, 2)))
+    if rings > 1 and moved < stay:
+        return descent_change(domain, known, weight, movers, point, method)
     return Removal(moved - stay, (*movers, -1), at)
+
+
+def descent_change(domain: CoverageDomain, known: Known, weight: float,
+                   movers: Sequence[int], point: np.ndarray, method: str = "auto",
+                   steps: int = DESCENT_STEPS) -> Removal:
+    """How much lower H gets at least if generator 0 of ``known`` moved to ``point`` [m] and
+    ``movers`` (indices into ``known.generators``) then followed the team's own generalized
+    Lloyd descent for ``steps`` steps (:func:`_descent`), every other generator staying, than
+    if they all descended from where they stand: negative for a move that pays, returned with
+    the movers (the last, -1, the own generator moved) and where they stand then.
+
+    A wider ring's bound names a configuration that lower, but reached by Euclidean centroid
+    steps that may jump a robot through a doorway into another room; the robots' own steps
+    follow the geodesic gradient and may settle elsewhere (a robot left its room for the
+    vacated one in the bound, and stayed in it when the team descended from the move).
+    This is where they go. With H non-increasing along both descents, H at the returned
+    configuration is at most H now plus the change."""
+    group = [0, *movers]
+    _, stay = _descent(domain, known.generators, group, weight, steps, method)
+    start = known.generators.copy()
+    start[0] = np.asarray(point, dtype=np.float64)
+    at, moved = _descent(domain, start, group, weight, steps, method)
+    return Removal(moved - stay, (*movers, -1), np.vstack([at[list(movers)], at[0][None]]))
+
+
+def _descent(domain: CoverageDomain, generators: np.ndarray, group: Sequence[int],
+             weight: float, steps: int, method: str) -> tuple[np.ndarray, float]:
+    """Where ``group`` (indices of ``generators (m, 2)`` [m]) ends after ``steps`` steps of
+    generalized Lloyd (every robot's reachable goal, :func:`~coverage_ros.core.offline.
+    geodesic_team.team_cells`), the others staying, and H there. A step that would raise H is
+    halved (a generalized Lloyd step may overshoot) up to :data:`DESCENT_HALVINGS` times, else
+    the descent stops; it stops too once no robot's step is longer than half a grid cell."""
+    P = np.array(generators, dtype=np.float64).reshape(-1, 2)
+    R = np.full(len(P), float(weight))
+    g = np.asarray(group, dtype=np.int64)
+    cells = team_cells(domain, P, R, method)
+    H = float(cells.costs.sum())
+    for _ in range(steps):
+        step = cells.goals[g] - P[g]
+        if float(np.hypot(*step.T).max(initial=0.0)) < 0.5 * domain.resolution:
+            break
+        for _ in range(DESCENT_HALVINGS + 1):
+            Q = P.copy()
+            Q[g] = P[g] + step
+            if all(domain.is_free_point(q) for q in Q[g]):
+                trial = team_cells(domain, Q, R, method)
+                if float(trial.costs.sum()) <= H:
+                    break
+            step = 0.5 * step
+        else:
+            break  # no step along the descent lowers H: a stall, where the robots stop too
+        P, cells, H = Q, trial, float(trial.costs.sum())
+    return P, H
 
 
 def _shifts_within(domain: CoverageDomain, labels: np.ndarray, movers: Sequence[int],

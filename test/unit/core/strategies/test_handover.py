@@ -268,6 +268,61 @@ def test_a_robot_in_a_corner_escapes_by_the_wider_ring():
     assert set(two.movers) == set(range(1, len(P))) | {-1}  # the whole team shifts
 
 
+#: [m] a team of 8 on the hostel floor plan (scripts/bench_closets, live, start seed 1) after
+#: robot 3 moved into the middle room above the corridor: robot 6 sits in the room below it,
+#: robot 1 in the corridor's west end serves the north-west room.
+HOSTEL_SETTLED = np.array([
+    [10.0, 4.83], [1.29, 4.03], [14.04, 6.67], [7.97, 7.1], [4.05, 2.68], [4.59, 7.05],
+    [6.97, 1.92], [13.76, 2.0]])
+
+
+def test_a_wider_rings_move_counts_where_the_teams_own_descent_goes():
+    """Robot 6 moving into robot 1's cell (the north-west room): the wider ring's bound finds
+    a configuration lower than staying by Euclidean centroid steps (robot 3 through two
+    doorways into the room 6 left), but the robots' own generalized Lloyd steps from the move
+    keep 3 in its room and end higher: the move is priced at that (refused), and the team
+    that makes it offline (plain Lloyd, every robot's own update) ends as high."""
+    from coverage_ros.bench.closet_maps import hostel_plan
+    from coverage_ros.core.strategies.handover.bounds import _lloyd_in, descent_change
+
+    world = parse_world(hostel_plan())
+    domain = world_domain(world, world.robot_spec(0).radius)
+    P, (i, j) = HOSTEL_SETTLED, (6, 1)
+    gens = [Generator(p) for p in P]
+    H0 = fast_tessellate(domain, gens).cost
+    cell_j = geodesic_cell(domain, gens[j], gens[:j] + gens[j + 1:])
+    offer = split_offer(domain, cell_j.nodes, cell_j.distances, cell_j.cost, 0.0,
+                        cell_j.cell_radius, 3)
+    ids = [k for k in range(len(P)) if k != i]
+    known = known_cells(domain, np.vstack([P[i][None], P[ids]]))
+    # the bound's own steps: every robot re-spreads, one at the offered point
+    U = np.flatnonzero(known.labels >= 0)
+    start = np.vstack([known.generators[1:], offer.point[None]])
+    stay = _lloyd_in(domain, U, known.generators, np.zeros((0, 2)), 0.0, 10, math.inf,
+                     "auto", known.rows)[0]
+    moved, at = _lloyd_in(domain, U, start, np.zeros((0, 2)), 0.0, 10, math.inf, "auto",
+                          known.rows)
+    assert moved < stay  # a lower configuration exists ...
+    k3 = ids.index(3)
+    assert at[k3][1] < 4.0 < P[3][1]  # ... with robot 3 in a room below the corridor
+    two = joint_change(domain, known, 0.0, 1 + ids.index(j), offer.point, 10, rings=2)
+    descent = descent_change(domain, known, 0.0, list(range(1, len(P))), offer.point)
+    assert two.increase == descent.increase > 0  # ... which the team's descent misses
+    moved_P = P.copy()
+    for k, p in zip(descent.movers, descent.positions, strict=True):
+        moved_P[i if k == -1 else ids[k - 1]] = p
+    assert fast_tessellate(domain, [Generator(p) for p in moved_P]).cost - H0 \
+        <= descent.increase + 1e-9 * H0
+    start_P = P.copy()
+    start_P[i] = offer.point
+    contexts = [StrategyContext(domain=domain, robot_id=k, convergence_tolerance=TOLERANCE)
+                for k in range(len(P))]
+    plain = run_offline(domain, strategy_choice("geodesic", {"escape": False}), start_P,
+                        contexts, OfflineConfig(max_iterations=300))
+    H_plain = fast_tessellate(domain, [Generator(p) for p in plain.positions[-1]]).cost
+    assert H_plain > H0 + 0.5 * descent.increase  # the robots' own updates end high too
+
+
 def test_one_claimant_per_cell_and_claims_follow_grants():
     """Robots standing still at plain Lloyd's end: claims and grants round by round; each
     cell lets in at most one robot, a robot relocates only on its target's grant."""

@@ -25,7 +25,8 @@ j's offered point, every robot whose cell touches i's or j's re-spreading, again
 without the move), which sees moves that pay only once the neighbours of both cells shift along; if
 none passes that either and ``escape_joint_rings`` allows, on the joint bound of wider rings of
 cells (the cells touching those too), which sees a robot shut in a corner whose one neighbour
-cannot take its cell alone. Robot j grants the claim of the highest priority (saving, then lower
+cannot take its cell alone; such a move is priced by where the team's own generalized Lloyd
+descent from it ends (:func:`.bounds.descent_change`). Robot j grants the claim of the highest priority (saving, then lower
 id) among those on it unless it claims itself. Granted, i drives to j's offered point (mode
 ``relocate``), keeping its claim, so that j lets nobody else in and i's neighbours do not leave
 meanwhile; there it drops the claim and waits ``escape_cooldown`` updates before it may claim again

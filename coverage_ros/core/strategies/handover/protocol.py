@@ -26,12 +26,12 @@ without the move), which sees moves that pay only once the neighbours of both ce
 none passes that either and ``escape_joint_rings`` allows, on the joint bound of wider rings of
 cells (the cells touching those too), which sees a robot shut in a corner whose one neighbour
 cannot take its cell alone; such a move is priced by where the team's own generalized Lloyd
-descent from it ends (:func:`.bounds.descent_change`). Robot j grants the claim of the highest priority (saving, then lower
-id) among those on it unless it claims itself. Granted, i drives to j's offered point (mode
-``relocate``), keeping its claim, so that j lets nobody else in and i's neighbours do not leave
-meanwhile; there it drops the claim and waits ``escape_cooldown`` updates before it may claim again
-(hysteresis). A claim not granted within ``escape_wait`` updates, or whose target grants another,
-is dropped the same way.
+descent from it ends (:func:`.bounds.descent_change`). Robot j grants the claim of the highest
+priority (saving, then lower id) among those on it unless it claims itself. Granted, i drives
+to j's offered point (mode ``relocate``), keeping its claim, so that j lets nobody else in and
+i's neighbours do not leave meanwhile; there it drops the claim and waits ``escape_cooldown``
+updates before it may claim again (hysteresis). A claim not granted within ``escape_wait``
+updates, or whose target grants another, is dropped the same way.
 
 Each move is backed by a configuration next to it with H lower by at least ``escape_gain`` of
 a pair's cost (:mod:`.bounds`), and the cooldown keeps a robot from moving back and forth.

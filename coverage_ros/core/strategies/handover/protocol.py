@@ -164,7 +164,10 @@ class Handover:
         # standing still away from the Lloyd goal, not yet for long enough to count as settled:
         # not done either (it may claim once it is)
         waiting = 0 < self._still < STILL_UPDATES and step >= s.settle
-        busy = self.claim >= 0 or grant != NONE or waiting
+        # in its cooldown (after a move or a dropped claim) it may claim again once it ends:
+        # not done either (all claims made at once but one are dropped, so at Lloyd's end
+        # most of a team may be cooling down together)
+        busy = self.claim >= 0 or grant != NONE or waiting or self.cooldown > 0
         return HandoverStep(self.target.copy() if self.relocating else None, extra, busy)
 
     def _transit(self, position: np.ndarray, by_id: dict[int, Neighbour],

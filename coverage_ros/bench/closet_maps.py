@@ -5,6 +5,7 @@ team's positions."""
 from __future__ import annotations
 
 import dataclasses
+import re
 
 import numpy as np
 
@@ -22,6 +23,16 @@ MAPS = {"tb3_sandbox": SHARED_MAPS / "tb3_sandbox.yaml", "depot": SHARED_MAPS / 
 HOSTEL_BELOW = ((3.0, 1.0), (2.0, 0.6), (4.0, 2.6), (2.5, 0.8), (4.5, 0.4))
 HOSTEL_ABOVE = ((2.0, 0.5), (5.0, 3.8), (2.0, 1.0), (3.0, 0.3), (4.0, 1.5))
 HOSTEL_DOOR = 0.9  # [m] door width
+#: drawn plans (:func:`drawn_plan`): ``plan-<seed>``, a floor plan of random rooms per seed
+DRAWN = re.compile(r"plan-(\d+)")
+DRAWN_WIDTH = (14.0, 22.0)  # [m] building length along the corridor
+DRAWN_CORRIDOR = (1.2, 2.0)  # [m] corridor width
+DRAWN_DEPTH = (3.0, 5.0)  # [m] depth of the rooms on either side
+DRAWN_ROOM = (1.5, 5.0)  # [m] room widths
+#: rooms at least this wide [m] may have a closet across their back (with this chance), its
+#: depth [m] drawn from DRAWN_CLOSET_DEPTH and its own door
+DRAWN_CLOSET_FROM, DRAWN_CLOSET_CHANCE, DRAWN_CLOSET_DEPTH = 3.5, 0.4, (1.2, 1.8)
+DRAWN_CLOSET_DOOR = 0.8  # [m]
 RESOLUTION = 0.1  # [m] benchmark raster: a restart on warehouse (30 x 50 m) in seconds
 TARGET = 1.05  # H_final / H_best at most
 
@@ -50,6 +61,72 @@ def hostel_plan() -> dict:
                 wall((x, y), (x, y_far))
     return {"name": "hostel", "resolution": RESOLUTION, "bounds": [0.0, 0.0, 16.0, 9.0],
             "obstacles": walls}
+
+
+def drawn_plan(seed: int) -> dict:
+    """Floor plan ``plan-<seed>`` as a world file's mapping, drawn from ``seed`` alone: a
+    corridor along the building with rooms on both sides (widths, door places and depths at
+    random), some rooms with a closet across their back behind a door of its own (rooms within
+    rooms: dead ends two doors deep); on half the seeds the corridor runs along y. A plan no
+    part of the stack was tuned on, as many as wanted."""
+    rng = np.random.default_rng(seed)
+    length = float(rng.uniform(*DRAWN_WIDTH))
+    corridor = rng.uniform(*DRAWN_CORRIDOR)
+    below, above = rng.uniform(*DRAWN_DEPTH, 2)
+    y0, y1 = below, below + corridor
+    height = float(y1 + above)
+    walls: list[tuple[tuple[float, float], tuple[float, float]]] = []
+    for y, y_far in ((y0, 0.0), (y1, height)):
+        x = 0.0
+        for width in _room_widths(rng, length):
+            door = rng.uniform(0.2, width - HOSTEL_DOOR - 0.2)
+            walls += [((x, y), (x + door, y)), ((x + door + HOSTEL_DOOR, y), (x + width, y))]
+            if width >= DRAWN_CLOSET_FROM and rng.random() < DRAWN_CLOSET_CHANCE:
+                depth = rng.uniform(*DRAWN_CLOSET_DEPTH)
+                yc = y_far + depth if y_far < y else y_far - depth
+                at = rng.uniform(0.2, width - DRAWN_CLOSET_DOOR - 0.2)
+                walls += [((x, yc), (x + at, yc)),
+                          ((x + at + DRAWN_CLOSET_DOOR, yc), (x + width, yc))]
+            x += width
+            if x < length - 1e-9:
+                walls.append(((x, y), (x, y_far)))
+    bounds = [0.0, 0.0, round(length, 3), round(height, 3)]
+    if rng.random() < 0.5:  # (the corridor along y)
+        walls = [((a[1], a[0]), (b[1], b[0])) for a, b in walls]
+        bounds = [0.0, 0.0, bounds[3], bounds[2]]
+    return {"name": f"plan-{seed}", "resolution": RESOLUTION, "bounds": bounds,
+            "obstacles": [{"type": "wall", "from": [round(v, 3) for v in a],
+                           "to": [round(v, 3) for v in b], "thickness": 0.1}
+                          for a, b in walls]}
+
+
+def _room_widths(rng: np.random.Generator, length: float) -> list[float]:
+    """[m] widths of rooms side by side over ``length``, each within DRAWN_ROOM (the last
+    takes what is left, or joins the one before when that is too narrow)."""
+    widths: list[float] = []
+    left = length
+    while left > DRAWN_ROOM[1]:
+        widths.append(min(rng.uniform(*DRAWN_ROOM), left - DRAWN_ROOM[0]))
+        left -= widths[-1]
+    if left >= DRAWN_ROOM[0] or not widths:
+        widths.append(left)
+    else:
+        widths[-1] += left
+    return widths
+
+
+def floor_plan(name: str) -> dict | None:
+    """The world mapping of a plan drawn here (``hostel``, ``plan-<seed>``); None for the
+    maps read from files (:data:`MAPS`)."""
+    if name == "hostel":
+        return hostel_plan()
+    drawn = DRAWN.fullmatch(name)
+    return drawn_plan(int(drawn.group(1))) if drawn else None
+
+
+def known_map(name: str) -> bool:
+    """Whether ``name`` is a benchmark map: one of :data:`MAPS` or a drawn ``plan-<seed>``."""
+    return name in MAPS or DRAWN.fullmatch(name) is not None
 
 
 def coarse_world(world: WorldSpec, resolution: float) -> WorldSpec:

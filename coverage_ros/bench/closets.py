@@ -12,8 +12,10 @@ target is ratio <= 1.05.
 Maps: the shared map_server maps (tb3_sandbox, depot, warehouse), the shipped floor plans
 ``office`` and ``ward`` (dead-end rooms off a corridor), and ``hostel``
 (:func:`~coverage_ros.bench.closet_maps.hostel`, drawn for the benchmark as a check on a plan
-the escape was not tuned on); :mod:`coverage_ros.bench.closet_maps` has them. Every map is
-rasterized at
+the escape was not tuned on), and any number of plans drawn at random from a seed,
+``plan-<seed>`` (:func:`~coverage_ros.bench.closet_maps.drawn_plan`: rooms of random widths on
+both sides of a corridor, some with a closet inside); :mod:`coverage_ros.bench.closet_maps` has
+them. Every map is rasterized at
 ``--resolution`` (coarser cells where the map's own are finer: an occupied or unknown fine cell
 makes its coarse cell so), which keeps a restart of the largest map within seconds.
 
@@ -25,7 +27,7 @@ With ``--live`` the cases are the launcher's team instead, run in lock-step on t
 rasters and scored the same way (:mod:`coverage_ros.bench.closets_live`); the README's table
 gets a column for them.
 
-    scripts/bench_closets --label before [--maps ward,office] [--seeds 3] [--restarts 8]
+    scripts/bench_closets --label before [--maps ward,office,plan-7] [--seeds 3] [--restarts 8]
     scripts/bench_closets --label live --live [--duration S] [--maps ward]
 """
 
@@ -46,7 +48,8 @@ from coverage_ros.bench.closet_maps import (
     RESOLUTION,
     TARGET,
     coarse_world,
-    hostel,
+    floor_plan,
+    known_map,
     score,
 )
 from coverage_ros.bench.environment import REPO
@@ -55,7 +58,7 @@ from coverage_ros.core.geodesic.domain import CoverageDomain
 from coverage_ros.core.geodesic.world_domain import world_domain
 from coverage_ros.core.offline.runner import OfflineConfig, run_offline
 from coverage_ros.core.strategies import StrategyContext, strategy_choice
-from coverage_ros.core.world import WorldSpec, load_world
+from coverage_ros.core.world import WorldSpec, load_world, parse_world
 from coverage_ros.core.world.placement import largest_free_region, team_starts
 from coverage_ros.errors import ConfigError
 from coverage_ros.worlds import resolve_world_path
@@ -116,7 +119,8 @@ def plain_params() -> dict:
 
 
 def bench_map(name: str, args, stored: dict, say) -> dict:
-    base = hostel() if name == "hostel" else load_world(
+    plan = floor_plan(name)
+    base = parse_world(plan) if plan is not None else load_world(
         resolve_world_path(str(MAPS[name]), "--maps"))
     world = coarse_world(base, args.resolution)
     specs = [world.robot_spec(i) for i in range(args.robots)]
@@ -154,7 +158,8 @@ def bench_map(name: str, args, stored: dict, say) -> dict:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="bench_closets", description=__doc__.split("\n")[0])
     ap.add_argument("--label", required=True, help="name of this run in the results file")
-    ap.add_argument("--maps", default=",".join(MAPS), help=f"some of {','.join(MAPS)}")
+    ap.add_argument("--maps", default=",".join(MAPS),
+                    help=f"some of {','.join(MAPS)} and drawn plans plan-<seed>")
     ap.add_argument("--seeds", type=int, default=3, help="start seeds per map (0, 1, ...)")
     ap.add_argument("--restarts", type=int, default=8, help="random restarts per map (N)")
     ap.add_argument("--restart-seed", type=int, default=1000)
@@ -178,9 +183,10 @@ def main(argv: list[str] | None = None) -> int:
 
     args.params = yaml_mapping(args.strategy_params, "--strategy-params")
     maps = [m for m in args.maps.split(",") if m]
-    unknown = sorted(set(maps) - set(MAPS))
+    unknown = sorted(m for m in set(maps) if not known_map(m))
     if unknown:
-        raise ConfigError.at("--maps", "unknown maps", unknown, f"some of {sorted(MAPS)}")
+        raise ConfigError.at("--maps", "unknown maps", unknown,
+                             f"some of {sorted(MAPS)} or plan-<seed> (a drawn plan)")
 
     def say(msg: str) -> None:
         print(msg, file=sys.stderr, flush=True)
@@ -304,7 +310,7 @@ def summary_table(data: dict, labels: tuple[str, ...] = ("before", "after"),
         heads.append(f"{live}: the launcher's team, lock-step (sim time)")
     lines = [f"| map | best known H (N restarts) | {' | '.join(heads)} |",
              "|---|---|" + "---|" * len(heads)]
-    for name in MAPS:
+    for name in map_names(data):
         runs = [data["runs"].get(label, {}).get("maps", {}).get(name) for label in labels]
         if name not in data.get("best", {}) or not all(runs):
             continue
@@ -318,6 +324,13 @@ def summary_table(data: dict, labels: tuple[str, ...] = ("before", "after"),
         lines.append(f"| {name} | {best['H']:.5g} ({best['restarts']}) | "
                      f"{' | '.join(cells)} |")
     return "\n".join(lines)
+
+
+def map_names(data: dict) -> list[str]:
+    """The maps of the results file in table order: :data:`MAPS`, then the drawn plans by
+    seed."""
+    drawn = [m for m in data.get("best", {}) if m not in MAPS and known_map(m)]
+    return [*MAPS, *sorted(drawn, key=lambda m: int(m.split("-")[1]))]
 
 
 def update_readme(data: dict, path: Path) -> bool:

@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from coverage_ros.bench.closet_maps import MAPS, TARGET, coarse_world, hostel_plan, score
+from coverage_ros.bench.closet_maps import MAPS, TARGET, coarse_world, floor_plan, score
 from coverage_ros.core.geodesic.world_domain import world_domain
 from coverage_ros.core.world import WorldSpec, load_world, parse_world
 from coverage_ros.core.world.map_server import write_map_yaml
@@ -46,8 +46,9 @@ def world_file(name: str, resolution: float, folder: Path) -> tuple[Path, WorldS
     """Map ``name`` at the benchmark's raster as a file the launcher loads, and its spec as
     the offline cases see it."""
     folder.mkdir(parents=True, exist_ok=True)
-    if name == "hostel":
-        plan = hostel_plan()
+    drawn = floor_plan(name)
+    if drawn is not None:
+        plan = drawn
     else:
         path = Path(resolve_world_path(str(MAPS[name]), "--maps"))
         plan = yaml.safe_load(path.read_text())

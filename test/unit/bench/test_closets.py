@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from collections import Counter
 
 import numpy as np
 
@@ -11,19 +12,24 @@ from coverage_ros.bench.closet_maps import (
     HOSTEL_BELOW,
     RESOLUTION,
     coarse_world,
+    drawn_plan,
+    floor_plan,
     hostel,
+    hostel_plan,
+    known_map,
 )
 from coverage_ros.bench.closets import (
     README,
     README_BEGIN,
     README_END,
     RESULTS,
+    map_names,
     summary_table,
     update_readme,
 )
 from coverage_ros.bench.closets_live import within_at, world_file
 from coverage_ros.bench.environment import SHARED_MAPS
-from coverage_ros.core.world import load_world
+from coverage_ros.core.world import load_world, parse_world
 from coverage_ros.core.world.placement import largest_free_region
 
 
@@ -69,6 +75,43 @@ def test_every_hostel_room_opens_onto_the_corridor():
     for centre in centres:
         row, col = world.grid.world_to_cell(np.array(centre))
         assert region[row, col], centre
+
+
+def test_drawn_plans_are_one_region_a_robot_can_drive_with_rooms_behind_doors():
+    """Every drawn plan: the seed alone gives it; all its free space a robot keeps clear of
+    the walls in is one region (every room and closet reachable through its door); and it has
+    dead ends - rooms off the corridor, and closets inside rooms on some plans."""
+    from scipy import ndimage
+
+    from coverage_ros.core.world.placement import CLUSTER_WALL_MARGIN
+
+    closets = 0
+    for seed in range(12):
+        plan = drawn_plan(seed)
+        assert plan == drawn_plan(seed) == floor_plan(f"plan-{seed}")
+        world = parse_world(plan)
+        free = world.grid.inflated_free_mask(world.robot_spec(0).radius + CLUSTER_WALL_MARGIN)
+        _, regions = ndimage.label(free, structure=np.ones((3, 3)))
+        assert regions == 1, seed
+        # walls across the corridor part rooms; walls along it are the corridor's two sides
+        # (door gaps between pieces) and the fronts of closets
+        x0, y0, x1, y1 = plan["bounds"]
+        along = 1 if x1 - x0 > y1 - y0 else 0  # (the axis across the corridor)
+        walls = [(o["from"], o["to"]) for o in plan["obstacles"]]
+        assert sum(1 for a, b in walls if a[along] != b[along]) >= 4, seed
+        lines = Counter(a[along] for a, b in walls if a[along] == b[along])
+        sides = {v for v, _ in lines.most_common(2)}
+        closets += len(set(lines) - sides)
+    assert closets > 0
+
+
+def test_floor_plans_and_map_names():
+    assert floor_plan("hostel") == hostel_plan()
+    assert floor_plan("ward") is None and floor_plan("plan-x") is None
+    assert known_map("ward") and known_map("plan-12") and not known_map("plan-") \
+        and not known_map("nowhere")
+    data = {"best": {"plan-10": {}, "ward": {}, "plan-2": {}}}
+    assert map_names(data)[-2:] == ["plan-2", "plan-10"]
 
 
 def _spans(rooms):

@@ -2,7 +2,8 @@
 the machinery is in :mod:`coverage_ros.core.geodesic`. With ``escape`` (the default), a settled
 robot whose cell is worth less than a split of a neighbour's moves there by handover
 (:mod:`coverage_ros.core.strategies.handover`): Lloyd's local optima with a robot shut in a
-dead-end room are left when a pairwise bound says H drops."""
+dead-end room are left when a bound on the cost of the cells around the move, or the team's own
+descent from it, says H drops."""
 
 from __future__ import annotations
 
@@ -63,6 +64,10 @@ class GeodesicParams:
     #: robot in a corner whose one neighbour cannot take its cell alone; a wider ring's move
     #: counts only if the team's own descent from it ends lower)
     escape_joint_rings: int = 2
+    #: when no bound passes at Lloyd's end: this many offers (the largest first) priced by
+    #: where the team's own generalized Lloyd descent goes from the move, every robot the
+    #: robot hears descending (0: none)
+    escape_descent_offers: int = 3
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
@@ -79,13 +84,17 @@ class GeodesicParams:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < 1:
                 raise ConfigError.at(name, "must be an integer >= 1", v)
+        v = self.escape_descent_offers
+        if isinstance(v, bool) or not isinstance(v, int) or v < 0:
+            raise ConfigError.at("escape_descent_offers", "must be an integer >= 0", v)
 
     def handover(self) -> HandoverSettings:
         return HandoverSettings(gain=float(self.escape_gain), settle=float(self.escape_settle),
                                 cooldown=self.escape_cooldown, wait=self.escape_wait,
                                 transit=self.escape_transit, steps=self.escape_steps,
                                 joint_steps=self.escape_joint_steps,
-                                joint_rings=self.escape_joint_rings)
+                                joint_rings=self.escape_joint_rings,
+                                descent_offers=self.escape_descent_offers)
 
 
 @dataclass(frozen=True)

@@ -211,6 +211,8 @@ class Known:
     rows: RowCache  # the generators' source edges, reused by the bounds on it
     stay: dict[tuple[int, ...], float] = field(default_factory=dict)  # U's cost reached
     # without a move, per group of movers (units of H)
+    descended: dict[tuple[int, ...], float] = field(default_factory=dict)  # H the team's
+    # own descent reaches without a move, per group of movers (:func:`descent_change`)
 
 
 def known_cells(domain: CoverageDomain, generators: np.ndarray, method: str = "auto") -> Known:
@@ -288,7 +290,10 @@ def descent_change(domain: CoverageDomain, known: Known, weight: float,
     This is where they go. With H non-increasing along both descents, H at the returned
     configuration is at most H now plus the change."""
     group = [0, *movers]
-    _, stay = _descent(domain, known.generators, group, weight, steps, method)
+    if tuple(group) not in known.descended:
+        known.descended[tuple(group)] = _descent(domain, known.generators, group, weight,
+                                                 steps, method)[1]
+    stay = known.descended[tuple(group)]
     start = known.generators.copy()
     start[0] = np.asarray(point, dtype=np.float64)
     at, moved = _descent(domain, start, group, weight, steps, method)

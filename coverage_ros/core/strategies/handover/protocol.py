@@ -26,12 +26,15 @@ without the move), which sees moves that pay only once the neighbours of both ce
 none passes that either and ``escape_joint_rings`` allows, on the joint bound of wider rings of
 cells (the cells touching those too), which sees a robot shut in a corner whose one neighbour
 cannot take its cell alone; such a move is priced by where the team's own generalized Lloyd
-descent from it ends (:func:`.bounds.descent_change`). Robot j grants the claim of the highest
-priority (saving, then lower id) among those on it unless it claims itself. Granted, i drives
-to j's offered point (mode ``relocate``), keeping its claim, so that j lets nobody else in and
-i's neighbours do not leave meanwhile; there it drops the claim and waits ``escape_cooldown``
-updates before it may claim again (hysteresis). A claim not granted within ``escape_wait``
-updates, or whose target grants another, is dropped the same way.
+descent from it ends (:func:`.bounds.descent_change`). If still none passes, the largest
+``escape_descent_offers`` offers are priced by that descent alone, every robot i hears
+descending: a move that pays only once robots far from both cells shift along (rooms off a
+long corridor). Robot j grants the claim of the highest priority (saving, then lower id) among
+those on it unless it claims itself. Granted, i drives to j's offered point (mode
+``relocate``), keeping its claim, so that j lets nobody else in and i's neighbours do not leave
+meanwhile; there it drops the claim and waits ``escape_cooldown`` updates before it may claim
+again (hysteresis), busy meanwhile (not converged: it may still move). A claim not granted
+within ``escape_wait`` updates, or whose target grants another, is dropped the same way.
 
 Each move is backed by a configuration next to it with H lower by at least ``escape_gain`` of
 a pair's cost (:mod:`.bounds`), and the cooldown keeps a robot from moving back and forth.
@@ -56,6 +59,7 @@ from coverage_ros.core.strategies.handover.bounds import (
     RowCache,
     SplitOffer,
     Tessellations,
+    descent_change,
     joint_change,
     known_cells,
     removal_increase,
@@ -86,6 +90,8 @@ class HandoverSettings:
     steps: int  # Lloyd steps of the split and of the removal
     joint_steps: int = 10  # Lloyd steps of the joint bound
     joint_rings: int = 1  # rings of cells around the pair the joint bound widens to, at most
+    #: offers (the largest first) priced by the team's own descent when no bound passes
+    descent_offers: int = 3
 
 
 @dataclass(frozen=True)
@@ -233,6 +239,13 @@ class Handover:
                 n.robot_id: -self._cached_joint(key, position, weight, neighbours, n, rings)
                 for n in offers})
             rings += 1
+        if best is None and stopped and self.settings.descent_offers > 0:
+            # no bound sees it: where the whole team's own descent goes from the largest offers
+            largest = sorted(offers, key=lambda n: (-_f(n, "offer_gain"), n.robot_id))[
+                :self.settings.descent_offers]
+            best, saving = self._best(largest, cell.cost, {
+                n.robot_id: -self._cached_joint(key, position, weight, neighbours, n, 0)
+                for n in largest})
         if best is None:
             return
         self.claim, self.claim_gain, self.claim_age = best.robot_id, saving, 0
@@ -275,7 +288,11 @@ class Handover:
         _, known, values = self._joint
         point = np.array([_f(target, "offer_x"), _f(target, "offer_y")])
         memo = (target.robot_id, float(point[0]), float(point[1]), rings)
-        if memo not in values:
+        if memo not in values and rings == 0:  # (every generator it knows descends)
+            values[memo] = descent_change(self.domain, known, weight,
+                                          list(range(1, len(known.generators))), point,
+                                          self.method).increase
+        elif memo not in values:
             t = 1 + [n.robot_id for n in neighbours].index(target.robot_id)
             values[memo] = joint_change(self.domain, known, weight, t, point,
                                         self.settings.joint_steps, self.method,

@@ -323,6 +323,67 @@ def test_a_wider_rings_move_counts_where_the_teams_own_descent_goes():
     assert H_plain > H0 + 0.5 * descent.increase  # the robots' own updates end high too
 
 
+#: [m] a team of 8 on a drawn floor plan (scripts/bench_closets plan-2, start seed 0) where the
+#: escape's bounds stopped: robot 7 covers the middle of the corridor and three rooms.
+PLAN2_SETTLED = np.array([
+    [1.538, 6.998], [10.653, 2.318], [3.87, 6.561], [5.835, 2.199], [1.745, 2.274],
+    [13.398, 6.0], [13.854, 2.256], [8.488, 5.382]])
+
+
+def _plan2():
+    from coverage_ros.bench.closet_maps import RESOLUTION, coarse_world, drawn_plan
+
+    world = coarse_world(parse_world(drawn_plan(2)), RESOLUTION)
+    return world_domain(world, world.robot_spec(0).radius)
+
+
+def test_a_move_no_bound_sees_is_priced_by_the_teams_own_descent():
+    """Robot 2 moving to robot 7's offered point: every bound says H rises (the pair's, the
+    joint one with one and with two rings re-spreading), but where the team's own generalized
+    Lloyd descent goes from the move, every robot descending, H ends lower by more than the
+    escape's threshold, and the configuration it names keeps that promise; a team at these
+    positions claims only with offers priced so."""
+    from coverage_ros.core.strategies.handover.bounds import descent_change
+
+    domain = _plan2()
+    P, (i, j) = PLAN2_SETTLED, (2, 7)
+    gens = [Generator(p) for p in P]
+    H0 = fast_tessellate(domain, gens).cost
+    cells = [geodesic_cell(domain, g, gens[:k] + gens[k + 1:]) for k, g in enumerate(gens)]
+    offer = split_offer(domain, cells[j].nodes, cells[j].distances, cells[j].cost, 0.0,
+                        cells[j].cell_radius, 3)
+    ids = [k for k in range(len(P)) if k != i]
+    known = known_cells(domain, np.vstack([P[i][None], P[ids]]))
+    threshold = GeodesicParams().escape_gain * (cells[i].cost + offer.base)
+    for rings in (1, 2):
+        assert joint_change(domain, known, 0.0, 1 + ids.index(j), offer.point, 10,
+                            rings=rings).increase > 0, rings
+    descent = descent_change(domain, known, 0.0, list(range(1, len(P))), offer.point)
+    assert descent.increase < -threshold
+    moved = P.copy()
+    for k, p in zip(descent.movers, descent.positions, strict=True):
+        moved[i if k == -1 else ids[k - 1]] = p
+    assert fast_tessellate(domain, [Generator(p) for p in moved]).cost - H0 \
+        <= descent.increase + 1e-9 * H0
+
+    def claims(offers: int) -> list[int]:
+        team = [make_strategy(strategy_choice("geodesic", {"escape_descent_offers": offers}),
+                              StrategyContext(domain=domain, robot_id=k,
+                                              convergence_tolerance=TOLERANCE))
+                for k in range(len(P))]
+        published = [s.shared_state(Observation(k, np.array([*P[k], 0.0]), 0.0))
+                     for k, s in enumerate(team)]
+        made = []
+        for _ in range(STILL_UPDATES + 3):
+            decisions = _round(team, P, published)
+            made += [k for k, d in enumerate(decisions) if d.shared.extra["claim"] >= 0]
+            published = [d.shared for d in decisions]
+        return made
+
+    assert claims(0) == []
+    assert claims(1)
+
+
 def test_one_claimant_per_cell_and_claims_follow_grants():
     """Robots standing still at plain Lloyd's end: claims and grants round by round; each
     cell lets in at most one robot, a robot relocates only on its target's grant."""
@@ -463,7 +524,8 @@ def test_update_takes_only_the_observation_and_the_neighbours():
     ("escape", "yes"), ("escape_gain", -0.1), ("escape_gain", math.inf),
     ("escape_settle", -1.0), ("escape_cooldown", 0), ("escape_wait", 0),
     ("escape_transit", 0), ("escape_steps", 0), ("escape_steps", 1.5),
-    ("escape_joint_steps", 0), ("escape_joint_rings", 0), ("escape_joint_rings", 1.5)])
+    ("escape_joint_steps", 0), ("escape_joint_rings", 0), ("escape_joint_rings", 1.5),
+    ("escape_descent_offers", -1), ("escape_descent_offers", True)])
 def test_settings_are_checked_by_name(name, value):
     with pytest.raises(ConfigError, match=name):
         GeodesicParams(**{name: value})

@@ -27,14 +27,15 @@ none passes that either and ``escape_joint_rings`` allows, on the joint bound of
 cells (the cells touching those too), which sees a robot shut in a corner whose one neighbour
 cannot take its cell alone; such a move is priced by where the team's own generalized Lloyd
 descent from it ends (:func:`.bounds.descent_change`). If still none passes, the largest
-``escape_descent_offers`` offers are priced by that descent alone, every robot i hears
-descending: a move that pays only once robots far from both cells shift along (rooms off a
-long corridor). Robot j grants the claim of the highest priority (saving, then lower id) among
-those on it unless it claims itself. Granted, i drives to j's offered point (mode
-``relocate``), keeping its claim, so that j lets nobody else in and i's neighbours do not leave
-meanwhile; there it drops the claim and waits ``escape_cooldown`` updates before it may claim
-again (hysteresis), busy meanwhile (not converged: it may still move). A claim not granted
-within ``escape_wait`` updates, or whose target grants another, is dropped the same way.
+``escape_descent_offers`` offers (none by default) are priced by that descent alone, every
+robot i hears descending: a move that pays only once robots far from both cells shift along
+(rooms off a long corridor). Robot j grants the claim of the highest priority (saving, then
+lower id) among those on it unless it claims itself. Granted, i drives to j's offered point
+(mode ``relocate``), keeping its claim, so that j lets nobody else in and i's neighbours do
+not leave meanwhile; there it drops the claim and waits ``escape_cooldown`` updates before it
+may claim again (hysteresis), busy meanwhile (not converged: it may still move). A claim not
+granted within ``escape_wait`` updates, or whose target grants another, is dropped the same
+way.
 
 Each move is backed by a configuration next to it with H lower by at least ``escape_gain`` of
 a pair's cost (:mod:`.bounds`), and the cooldown keeps a robot from moving back and forth.
@@ -91,7 +92,7 @@ class HandoverSettings:
     joint_steps: int = 10  # Lloyd steps of the joint bound
     joint_rings: int = 1  # rings of cells around the pair the joint bound widens to, at most
     #: offers (the largest first) priced by the team's own descent when no bound passes
-    descent_offers: int = 3
+    descent_offers: int = 0
 
 
 @dataclass(frozen=True)

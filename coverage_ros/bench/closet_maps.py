@@ -90,13 +90,13 @@ def drawn_plan(seed: int) -> dict:
             x += width
             if x < length - 1e-9:
                 walls.append(((x, y), (x, y_far)))
-    bounds = [0.0, 0.0, round(length, 3), round(height, 3)]
+    bounds = [0.0, 0.0, round(length, 3), round(height, 3)]  # (plain floats: a world file)
     if rng.random() < 0.5:  # (the corridor along y)
         walls = [((a[1], a[0]), (b[1], b[0])) for a, b in walls]
         bounds = [0.0, 0.0, bounds[3], bounds[2]]
     return {"name": f"plan-{seed}", "resolution": RESOLUTION, "bounds": bounds,
-            "obstacles": [{"type": "wall", "from": [round(v, 3) for v in a],
-                           "to": [round(v, 3) for v in b], "thickness": 0.1}
+            "obstacles": [{"type": "wall", "from": [round(float(v), 3) for v in a],
+                           "to": [round(float(v), 3) for v in b], "thickness": 0.1}
                           for a, b in walls]}
 
 

@@ -305,9 +305,17 @@ def summary_table(data: dict, labels: tuple[str, ...] = ("before", "after"),
     under ``live`` (the launcher's team, ``--live``) when the results have such a run ('-'
     for a map it did not run)."""
     live_run = data["runs"].get(live)
-    heads = [f"{labels[0]}: H / best, each start", *labels[1:]]
+
+    def at(label: str) -> str:  # (the code a column measured: its maps' commits, if recorded)
+        run = data["runs"].get(label, {})
+        commits = sorted({m.get("provenance", run.get("provenance", {})).get("commit")
+                          for m in run.get("maps", {}).values()} - {None})
+        return f", code {', '.join(commits)}" if commits else ""
+
+    heads = [f"{labels[0]}: H / best, each start{at(labels[0])}",
+             *(f"{label}{at(label)}" for label in labels[1:])]
     if live_run is not None:
-        heads.append(f"{live}: the launcher's team, lock-step (sim time)")
+        heads.append(f"{live}: the launcher's team, lock-step (sim time){at(live)}")
     lines = [f"| map | best known H (N restarts) | {' | '.join(heads)} |",
              "|---|---|" + "---|" * len(heads)]
     for name in map_names(data):

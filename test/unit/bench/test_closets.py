@@ -6,6 +6,7 @@ import json
 from collections import Counter
 
 import numpy as np
+import yaml
 
 from coverage_ros.bench.closet_maps import (
     HOSTEL_ABOVE,
@@ -90,6 +91,7 @@ def test_drawn_plans_are_one_region_a_robot_can_drive_with_rooms_behind_doors():
         plan = drawn_plan(seed)
         assert plan == drawn_plan(seed) == floor_plan(f"plan-{seed}")
         world = parse_world(plan)
+        assert yaml.safe_load(yaml.safe_dump(plan)) == plan  # (a world file the launcher reads)
         free = world.grid.inflated_free_mask(world.robot_spec(0).radius + CLUSTER_WALL_MARGIN)
         _, regions = ndimage.label(free, structure=np.ones((3, 3)))
         assert regions == 1, seed

@@ -26,6 +26,9 @@ import numpy as np
 from coverage_ros.bench.environment import REPO
 
 WARMUP = 0.25  # share of a process's life before its RSS counts
+#: [samples] a shorter life is no measure of growth: on a slow host a robot's imports alone take
+#: 15 s (its RSS climbs from 16 to 150 MB), past the warm-up share of a half-minute life
+MIN_SAMPLES = 30
 RECOVERY = 120.0  # [s] sim time for H to come back after a restart
 SAMPLE_PERIOD = 5.0  # [s] wall
 
@@ -44,7 +47,7 @@ def _process_name(cmdline: list[str]) -> str | None:
 
 def growth(samples: list[tuple[float, float]]) -> float | None:
     """Relative RSS growth of one process from ``[(wall, rss), ...]`` (None: too short)."""
-    if len(samples) < 20:
+    if len(samples) < MIN_SAMPLES:
         return None
     rss = np.array([r for _, r in samples])
     n = len(rss)

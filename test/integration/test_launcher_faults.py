@@ -50,7 +50,9 @@ def _children(pid: int) -> list[psutil.Process]:
         return []
 
 
-@pytest.mark.parametrize("when", [2.0, 12.0])  # during start-up, in the middle of the run
+# during start-up, in the middle of the run (the team's own start-up takes over 12 s on a slow
+# host with the unit tests beside it)
+@pytest.mark.parametrize("when", [2.0, 30.0])
 def test_an_interrupt_at_any_moment_leaves_nothing_behind(tmp_path, when):
     out = tmp_path / "team"
     team = subprocess.Popen(team_cmd("--world", "l_shape", "--robots", "4", "--duration", "120",

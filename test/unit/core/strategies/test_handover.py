@@ -194,13 +194,20 @@ def test_joint_bound_is_above_the_true_change_of_H(seed, rings):
                                  rings=rings)
             if not math.isfinite(joint.increase):
                 continue
-            moved = P.copy()
-            for k, p in zip(joint.movers, joint.positions, strict=True):
-                moved[i if k == -1 else ids[k - 1]] = p
+            moved = _moved(P, i, ids, joint)
             assert cost(moved)[0] - H0 <= joint.increase + 1e-9 * H0
             checked += 1
             paying += joint.increase < 0
     assert checked >= len(P) and paying >= 1
+
+
+def _moved(P, i, ids, change):
+    """The team at ``P`` with the movers of a bound's ``change`` where it puts them: robot
+    ``i`` is generator 0 (mover -1: it, moved), ``ids`` the others in generator order."""
+    moved = P.copy()
+    for k, p in zip(change.movers, change.positions, strict=True):
+        moved[i if k == -1 else ids[k - 1]] = p
+    return moved
 
 
 def _round(strategies, positions, published):
@@ -260,9 +267,7 @@ def test_a_robot_in_a_corner_escapes_by_the_wider_ring():
     assert one.increase > 0
     margin = GeodesicParams().escape_gain * (cells[i].cost + cells[j].cost)
     assert two.increase < -margin
-    moved = P.copy()
-    for k, p in zip(two.movers, two.positions, strict=True):
-        moved[i if k == -1 else ids[k - 1]] = p
+    moved = _moved(P, i, ids, two)
     assert fast_tessellate(domain, [Generator(p) for p in moved]).cost - H0 \
         <= two.increase + 1e-9 * H0
     assert set(two.movers) == set(range(1, len(P))) | {-1}  # the whole team shifts
@@ -308,9 +313,7 @@ def test_a_wider_rings_move_counts_where_the_teams_own_descent_goes():
     two = joint_change(domain, known, 0.0, 1 + ids.index(j), offer.point, 10, rings=2)
     descent = descent_change(domain, known, 0.0, list(range(1, len(P))), offer.point)
     assert two.increase == descent.increase > 0  # ... which the team's descent misses
-    moved_P = P.copy()
-    for k, p in zip(descent.movers, descent.positions, strict=True):
-        moved_P[i if k == -1 else ids[k - 1]] = p
+    moved_P = _moved(P, i, ids, descent)
     assert fast_tessellate(domain, [Generator(p) for p in moved_P]).cost - H0 \
         <= descent.increase + 1e-9 * H0
     start_P = P.copy()
@@ -360,9 +363,7 @@ def test_a_move_no_bound_sees_is_priced_by_the_teams_own_descent():
                             rings=rings).increase > 0, rings
     descent = descent_change(domain, known, 0.0, list(range(1, len(P))), offer.point)
     assert descent.increase < -threshold
-    moved = P.copy()
-    for k, p in zip(descent.movers, descent.positions, strict=True):
-        moved[i if k == -1 else ids[k - 1]] = p
+    moved = _moved(P, i, ids, descent)
     assert fast_tessellate(domain, [Generator(p) for p in moved]).cost - H0 \
         <= descent.increase + 1e-9 * H0
 

@@ -57,12 +57,19 @@ class HeadlessViewer:
     def __exit__(self, *exc) -> None:
         self.driver.quit()
 
-    def wait_started(self, timeout: float = 90.0) -> None:
-        """Until the wasm app runs (its handle exists), or raise with the page's last words."""
+    def wait_started(self, timeout: float = 240.0) -> None:
+        """Until the wasm app runs (its handle exists), or raise with the page's last words.
+        While the page compiles the viewer's wasm its thread may not answer a script for a
+        minute on a busy machine: such a poll times out and the wait goes on to the deadline."""
+        from selenium.common.exceptions import TimeoutException
+
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
-            if self.driver.execute_script("return typeof window._handle !== 'undefined'"):
-                return
+            try:
+                if self.driver.execute_script("return typeof window._handle !== 'undefined'"):
+                    return
+            except TimeoutException:
+                continue
             time.sleep(0.5)
         raise AssertionError(f"the web viewer did not start within {timeout:g} s: "
                              f"{self.driver.find_element('id', 'center_text').text!r}")

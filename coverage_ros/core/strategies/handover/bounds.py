@@ -276,7 +276,7 @@ def joint_change(domain: CoverageDomain, known: Known, weight: float, target: in
 
 def descent_change(domain: CoverageDomain, known: Known, weight: float,
                    movers: Sequence[int], point: np.ndarray, method: str = "auto",
-                   steps: int = DESCENT_STEPS) -> Removal:
+                   steps: int = DESCENT_STEPS, enough: float = math.inf) -> Removal:
     """How much lower H gets at least if generator 0 of ``known`` moved to ``point`` [m] and
     ``movers`` (indices into ``known.generators``) then followed the team's own generalized
     Lloyd descent for ``steps`` steps (:func:`_descent`), every other generator staying, than
@@ -288,7 +288,12 @@ def descent_change(domain: CoverageDomain, known: Known, weight: float,
     follow the geodesic gradient and may settle elsewhere (a robot left its room for the
     vacated one in the bound, and stayed in it when the team descended from the move).
     This is where they go. With H non-increasing along both descents, H at the returned
-    configuration is at most H now plus the change."""
+    configuration is at most H now plus the change.
+
+    With a finite ``enough`` (units of H) the descent from the move stops once its change is
+    below ``-enough``: a move that pays that much (further steps only lower H), known in a
+    fraction of the steps. (A descent that does not pay runs on: it may creep for steps, then
+    drop as a robot passes a doorway.)"""
     group = [0, *movers]
     if tuple(group) not in known.descended:
         known.descended[tuple(group)] = _descent(domain, known.generators, group, weight,
@@ -296,23 +301,27 @@ def descent_change(domain: CoverageDomain, known: Known, weight: float,
     stay = known.descended[tuple(group)]
     start = known.generators.copy()
     start[0] = np.asarray(point, dtype=np.float64)
-    at, moved = _descent(domain, start, group, weight, steps, method)
+    at, moved = _descent(domain, start, group, weight, steps, method, stay - enough)
     return Removal(moved - stay, (*movers, -1), np.vstack([at[list(movers)], at[0][None]]))
 
 
 def _descent(domain: CoverageDomain, generators: np.ndarray, group: Sequence[int],
-             weight: float, steps: int, method: str) -> tuple[np.ndarray, float]:
+             weight: float, steps: int, method: str, target: float = -math.inf
+             ) -> tuple[np.ndarray, float]:
     """Where ``group`` (indices of ``generators (m, 2)`` [m]) ends after ``steps`` steps of
     generalized Lloyd (every robot's reachable goal, :func:`~coverage_ros.core.offline.
     geodesic_team.team_cells`), the others staying, and H there. A step that would raise H is
     halved (a generalized Lloyd step may overshoot) up to :data:`DESCENT_HALVINGS` times, else
-    the descent stops; it stops too once no robot's step is longer than half a grid cell."""
+    the descent stops; it stops too once no robot's step is longer than half a grid cell, or
+    once H is below ``target``."""
     P = np.array(generators, dtype=np.float64).reshape(-1, 2)
     R = np.full(len(P), float(weight))
     g = np.asarray(group, dtype=np.int64)
     cells = team_cells(domain, P, R, method)
     H = float(cells.costs.sum())
     for _ in range(steps):
+        if H < target:
+            break
         step = cells.goals[g] - P[g]
         if float(np.hypot(*step.T).max(initial=0.0)) < 0.5 * domain.resolution:
             break

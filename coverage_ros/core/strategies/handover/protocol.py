@@ -27,10 +27,13 @@ none passes that either and ``escape_joint_rings`` allows, on the joint bound of
 cells (the cells touching those too), which sees a robot shut in a corner whose one neighbour
 cannot take its cell alone; such a move is priced by where the team's own generalized Lloyd
 descent from it ends (:func:`.bounds.descent_change`). If still none passes, the largest
-``escape_descent_offers`` offers (none by default) are priced by that descent alone, every
-robot i hears descending: a move that pays only once robots far from both cells shift along
-(rooms off a long corridor). Robot j grants the claim of the highest priority (saving, then
-lower id) among those on it unless it claims itself. Granted, i drives to j's offered point
+``escape_descent_offers`` offers are priced by that descent alone, every robot i hears
+descending: a move that pays only once robots far from both cells shift along (rooms off a
+long corridor). The robots price so one per update of a settled configuration, the one whose
+cell costs least first (its leaving costs least), each descent stopping once it knows whether
+the move pays; the first move found is claimed and the others need not price. Robot j grants
+the claim of the highest priority (saving, then lower id) among those on it unless it claims
+itself. Granted, i drives to j's offered point
 (mode ``relocate``), keeping its claim, so that j lets nobody else in and i's neighbours do
 not leave meanwhile; there it drops the claim and waits ``escape_cooldown`` updates before it
 may claim again (hysteresis), busy meanwhile (not converged: it may still move). A claim not
@@ -39,6 +42,8 @@ way.
 
 Each move is backed by a configuration next to it with H lower by at least ``escape_gain`` of
 a pair's cost (:mod:`.bounds`), and the cooldown keeps a robot from moving back and forth.
+The team's own steps need not reach that configuration: where it comes back to one a robot
+relocated from (within :data:`RETURN_CELLS`), that robot claims no more from it.
 What a robot uses is its own cell, the generators and published values of the robots it
 hears (its bordering neighbours' cells, and for the joint bound the target's and those that
 touch either, are tessellated from them), nothing else; the protocol is deterministic.
@@ -77,6 +82,11 @@ ARRIVAL_TOLERANCES = 3.0
 #: ... or this many grid cells, whichever is more (a goal is a cell centre).
 ARRIVAL_CELLS = 2.0
 NONE = -1.0  # published for "no robot" in claim and grant
+#: A configuration within this many grid cells of one a robot relocated from (every robot it
+#: hears, and itself) is one the team came back to: it does not claim from it again.
+RETURN_CELLS = 2.0
+#: [configurations] relocated from, remembered per robot (the latest)
+DEPARTURES = 8
 
 
 @dataclass(frozen=True)
@@ -126,6 +136,12 @@ class Handover:
         default=None, repr=False)
     _joint: tuple[np.ndarray, Known, dict[tuple[int, float, float, int], float]] | None = field(
         default=None, repr=False)
+    #: updates that reached the descent's pricing in one configuration (its key), and whether
+    #: this update waits for its turn there
+    _turns: tuple[np.ndarray, int] | None = field(default=None, repr=False)
+    _awaits_turn: bool = False
+    _claimed_from: np.ndarray | None = field(default=None, repr=False)  # the key of the claim
+    _departures: list[np.ndarray] = field(default_factory=list, repr=False)  # keys left
 
     def step(self, position: np.ndarray, weight: float, cell: CellResult,
              neighbours: Sequence[Neighbour], bordering: Sequence[int],
@@ -134,6 +150,7 @@ class Handover:
         the neighbours whose cells border it."""
         s = self.settings
         by_id = {n.robot_id: n for n in neighbours}
+        self._awaits_turn = False
         if self.relocating:
             return self._transit(position, by_id, convergence_tolerance)
         if self.cooldown > 0:
@@ -174,7 +191,9 @@ class Handover:
         # in its cooldown (after a move or a dropped claim) it may claim again once it ends:
         # not done either (all claims made at once but one are dropped, so at Lloyd's end
         # most of a team may be cooling down together)
-        busy = self.claim >= 0 or grant != NONE or waiting or self.cooldown > 0
+        # waiting for its turn to price offers by the descent: not done either
+        busy = self.claim >= 0 or grant != NONE or waiting or self.cooldown > 0 \
+            or self._awaits_turn
         return HandoverStep(self.target.copy() if self.relocating else None, extra, busy)
 
     def _transit(self, position: np.ndarray, by_id: dict[int, Neighbour],
@@ -205,6 +224,8 @@ class Handover:
                         for n in by_id.values())
         if j is not None and grant == self.robot_id:
             self.relocating, self.claim_age = True, 0
+            if self._claimed_from is not None:
+                self._departures = [*self._departures, self._claimed_from][-DEPARTURES:]
         elif j is None or grant != NONE or outranked or self.claim_age > self.settings.wait:
             self._drop()
 
@@ -217,6 +238,8 @@ class Handover:
         saves most, with one ring of cells re-spreading, else with the next ring too."""
         if any(_f(n, "claim", NONE) >= 0 for n in neighbours):
             return  # one move at a time (module docstring)
+        if any(_same(k, key, RETURN_CELLS * self.domain.resolution) for k in self._departures):
+            return  # the team came back here after a move from here: no move again
         offers = [n for n in neighbours if _f(n, "offer_gain") > 0 and _f(n, "claim", NONE) < 0
                   and _f(n, "grant", NONE) == NONE
                   and abs(n.state.weight - weight) < WEIGHT_MATCH
@@ -241,16 +264,27 @@ class Handover:
                 for n in offers})
             rings += 1
         if best is None and stopped and self.settings.descent_offers > 0:
-            # no bound sees it: where the whole team's own descent goes from the largest offers
+            # no bound sees it: where the whole team's own descent goes from the largest
+            # offers, priced by one robot per update, the one whose cell costs least first
+            if self._turns is None or not _same(self._turns[0], key, self.domain.resolution):
+                self._turns = (key, 0)
+            turn = self._turns[1]
+            self._turns = (key, turn + 1)
+            if turn < _rank(self.robot_id, cell.cost, neighbours):
+                self._awaits_turn = True
+                return
             largest = sorted(offers, key=lambda n: (-_f(n, "offer_gain"), n.robot_id))[
                 :self.settings.descent_offers]
             best, saving = self._best(largest, cell.cost, {
-                n.robot_id: -self._cached_joint(key, position, weight, neighbours, n, 0)
+                n.robot_id: -self._cached_descent(
+                    key, position, weight, neighbours, n,
+                    self.settings.gain * (cell.cost + _f(n, "offer_base")))
                 for n in largest})
         if best is None:
             return
         self.claim, self.claim_gain, self.claim_age = best.robot_id, saving, 0
         self.target = np.array([_f(best, "offer_x"), _f(best, "offer_y")])
+        self._claimed_from = key
 
     def _best(self, offers: Sequence[Neighbour], cost: float, savings: dict[int, float]
               ) -> tuple[Neighbour | None, float]:
@@ -276,28 +310,46 @@ class Handover:
             self._offer = (key, offer)
         return self._offer[1]
 
-    def _cached_joint(self, key: np.ndarray, position: np.ndarray, weight: float,
-                      neighbours: Sequence[Neighbour], target: Neighbour, rings: int) -> float:
-        """The bound of :func:`.bounds.joint_change` for a move into ``target``'s cell at its
-        offered point with ``rings`` of cells re-spreading, computed again only when some
-        generator moved by a cell."""
-        if any(abs(n.state.weight - weight) >= WEIGHT_MATCH for n in neighbours):
-            return math.inf  # the bound assumes equal power weights
+    def _known(self, key: np.ndarray, position: np.ndarray, neighbours: Sequence[Neighbour]
+               ) -> tuple[Known, dict[tuple[int, float, float, int], float]]:
+        """The cells of every generator it hears and the joint and descent prices found on
+        them, computed again only when some generator moved by a cell."""
         if self._joint is None or not _same(self._joint[0], key, self.domain.resolution):
             gens = np.vstack([position[None], [n.position for n in neighbours]])
             self._joint = (key, known_cells(self.domain, gens, self.method), {})
-        _, known, values = self._joint
+        return self._joint[1], self._joint[2]
+
+    def _cached_joint(self, key: np.ndarray, position: np.ndarray, weight: float,
+                      neighbours: Sequence[Neighbour], target: Neighbour, rings: int) -> float:
+        """The bound of :func:`.bounds.joint_change` for a move into ``target``'s cell at its
+        offered point with ``rings`` (>= 1) of cells re-spreading."""
+        if any(abs(n.state.weight - weight) >= WEIGHT_MATCH for n in neighbours):
+            return math.inf  # the bound assumes equal power weights
+        known, values = self._known(key, position, neighbours)
         point = np.array([_f(target, "offer_x"), _f(target, "offer_y")])
         memo = (target.robot_id, float(point[0]), float(point[1]), rings)
-        if memo not in values and rings == 0:  # (every generator it knows descends)
-            values[memo] = descent_change(self.domain, known, weight,
-                                          list(range(1, len(known.generators))), point,
-                                          self.method).increase
-        elif memo not in values:
+        if memo not in values:
             t = 1 + [n.robot_id for n in neighbours].index(target.robot_id)
             values[memo] = joint_change(self.domain, known, weight, t, point,
                                         self.settings.joint_steps, self.method,
                                         rings).increase
+        return values[memo]
+
+    def _cached_descent(self, key: np.ndarray, position: np.ndarray, weight: float,
+                        neighbours: Sequence[Neighbour], target: Neighbour,
+                        enough: float) -> float:
+        """The change of :func:`.bounds.descent_change` for a move into ``target``'s cell at
+        its offered point, every generator it hears descending; a descent stops once it has
+        lowered H by more than ``enough`` or cannot."""
+        if any(abs(n.state.weight - weight) >= WEIGHT_MATCH for n in neighbours):
+            return math.inf  # the descent prices equal power weights
+        known, values = self._known(key, position, neighbours)
+        point = np.array([_f(target, "offer_x"), _f(target, "offer_y")])
+        memo = (target.robot_id, float(point[0]), float(point[1]), 0)  # (rings 0: descent)
+        if memo not in values:
+            values[memo] = descent_change(self.domain, known, weight,
+                                          list(range(1, len(known.generators))), point,
+                                          self.method, enough=enough).increase
         return values[memo]
 
     def _cached_removal(self, key: np.ndarray, position: np.ndarray, weight: float,
@@ -328,6 +380,16 @@ def _f(n: Neighbour, key: str, default: float = 0.0) -> float:
     """A neighbour's published value ``key`` (``default`` when it published none)."""
     v = n.state.extra.get(key, default)
     return float(v) if v is not None else default
+
+
+def _rank(robot_id: int, cost: float, neighbours: Sequence[Neighbour]) -> int:
+    """How many of the robots it hears published a cell cost with their offers below the own
+    (then a lower id): the update of a settled configuration at which it prices offers by
+    the descent. The robot whose leaving costs least goes first and the others follow one per
+    update, so that a team with a move that pays finds it in one robot's pricing, not in all
+    robots' at once, and one with none has every robot price once."""
+    return sum((_f(n, "offer_base"), n.robot_id) < (cost, robot_id) for n in neighbours
+               if _f(n, "offer_gain") > 0)
 
 
 def _idle() -> dict[str, float]:

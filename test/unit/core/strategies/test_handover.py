@@ -344,8 +344,9 @@ def test_a_move_no_bound_sees_is_priced_by_the_teams_own_descent():
     """Robot 2 moving to robot 7's offered point: every bound says H rises (the pair's, the
     joint one with one and with two rings re-spreading), but where the team's own generalized
     Lloyd descent goes from the move, every robot descending, H ends lower by more than the
-    escape's threshold, and the configuration it names keeps that promise; a team at these
-    positions claims only with offers priced so."""
+    escape's threshold, and the configuration it names keeps that promise; stopped early once
+    it knows, the descent says the same; a team at these positions claims only with offers
+    priced so, by the robot whose cell costs least."""
     from coverage_ros.core.strategies.handover.bounds import descent_change
 
     domain = _plan2()
@@ -366,6 +367,23 @@ def test_a_move_no_bound_sees_is_priced_by_the_teams_own_descent():
     moved = _moved(P, i, ids, descent)
     assert fast_tessellate(domain, [Generator(p) for p in moved]).cost - H0 \
         <= descent.increase + 1e-9 * H0
+    # told what is enough, the descent stops early and says the same of every move robot 1
+    # (the least cell) could make, and where it stops keeps its promise
+    for i in (1,):
+        ids = [k for k in range(len(P)) if k != i]
+        known = known_cells(domain, np.vstack([P[i][None], P[ids]]))
+        for j in ids:
+            offer = split_offer(domain, cells[j].nodes, cells[j].distances, cells[j].cost, 0.0,
+                                cells[j].cell_radius, 3)
+            enough = GeodesicParams().escape_gain * (cells[i].cost + offer.base)
+            full = descent_change(domain, known, 0.0, list(range(1, len(P))), offer.point)
+            short = descent_change(domain, known, 0.0, list(range(1, len(P))), offer.point,
+                                   enough=enough)
+            assert (short.increase < -enough) == (full.increase < -enough), (i, j)
+            assert short.increase >= full.increase - 1e-9 * H0, (i, j)
+            moved = _moved(P, i, ids, short)
+            assert fast_tessellate(domain, [Generator(p) for p in moved]).cost - H0 \
+                <= short.increase + 1e-9 * H0, (i, j)
 
     def claims(offers: int) -> list[int]:
         team = [make_strategy(strategy_choice("geodesic", {"escape_descent_offers": offers}),
@@ -382,7 +400,49 @@ def test_a_move_no_bound_sees_is_priced_by_the_teams_own_descent():
         return made
 
     assert claims(0) == []
-    assert claims(1)
+    # priced by the robot of the least cell only (robot 1: 10 against 23-287)
+    assert set(claims(1)) == {1}
+
+
+def test_a_robot_claims_no_more_where_the_team_came_back_after_its_move():
+    """At the plan-2 positions robot 1 claims robot 7's cell (priced by the descent) and
+    relocates; if the team comes back to where it left from (its steps need not reach the
+    configuration the descent named), robot 1 does not claim from there again, where a robot
+    that did not move from there claims."""
+    domain, P = _plan2(), PLAN2_SETTLED
+
+    def robot(k):
+        return make_strategy(strategy_choice("geodesic", {"escape_descent_offers": 1}),
+                             StrategyContext(domain=domain, robot_id=k,
+                                             convergence_tolerance=TOLERANCE))
+
+    team = [robot(k) for k in range(len(P))]
+    published = [s.shared_state(Observation(k, np.array([*P[k], 0.0]), 0.0))
+                 for k, s in enumerate(team)]
+    heard = target = None
+    for _ in range(STILL_UPDATES + 12):
+        decisions = _round(team, P, published)
+        if heard is None and decisions[1].shared.extra["claim"] >= 0:
+            heard = published  # what robot 1 heard when it claimed: all settled, offers out
+        published = [d.shared for d in decisions]
+        if decisions[1].mode == "relocate":
+            target = team[1].handover.target.copy()
+            break
+    assert heard is not None and target is not None, "robot 1 never relocated"
+    arrived = P.copy()
+    arrived[1] = target
+    published = [d.shared for d in _round(team, arrived, published)]
+    assert team[1].handover.cooldown > 0  # arrived: its claim dropped
+
+    def claims(strategy) -> list[float]:  # robot 1's claims, back at P, hearing the same
+        nbrs = [Neighbour(j, dataclasses.replace(heard[j], position=P[j]))
+                for j in range(len(P)) if j != 1]
+        rounds = GeodesicParams().escape_cooldown + STILL_UPDATES + 2
+        return [strategy.update(Observation(1, np.array([*P[1], 0.0]), 0.0), nbrs)
+                .shared.extra["claim"] for _ in range(rounds)]
+
+    assert max(claims(team[1])) < 0
+    assert max(claims(robot(1))) == 7
 
 
 def test_one_claimant_per_cell_and_claims_follow_grants():

@@ -66,8 +66,8 @@ class GeodesicParams:
     escape_joint_rings: int = 2
     #: when no bound passes at Lloyd's end: this many offers (the largest first) priced by
     #: where the team's own generalized Lloyd descent goes from the move, every robot the
-    #: robot hears descending (0: none)
-    escape_descent_offers: int = 0
+    #: robot hears descending, one robot per update, the least cell first (0: none)
+    escape_descent_offers: int = 3
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:

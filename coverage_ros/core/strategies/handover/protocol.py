@@ -30,15 +30,14 @@ descent from it ends (:func:`.bounds.descent_change`). If still none passes, the
 ``escape_descent_offers`` offers are priced by that descent alone, every robot i hears
 descending: a move that pays only once robots far from both cells shift along (rooms off a
 long corridor). The robots price so one per update of a settled configuration, the one whose
-cell costs least first (its leaving costs least), each descent stopping once it knows whether
-the move pays; the first move found is claimed and the others need not price. Robot j grants
-the claim of the highest priority (saving, then lower id) among those on it unless it claims
-itself. Granted, i drives to j's offered point
-(mode ``relocate``), keeping its claim, so that j lets nobody else in and i's neighbours do
-not leave meanwhile; there it drops the claim and waits ``escape_cooldown`` updates before it
-may claim again (hysteresis), busy meanwhile (not converged: it may still move). A claim not
-granted within ``escape_wait`` updates, or whose target grants another, is dropped the same
-way.
+cell costs least first (its leaving costs least), each descent stopping as soon as the move
+pays; the first move found is claimed and the others need not price. Robot j grants the claim
+of the highest priority (saving, then lower id) among those on it unless it claims itself.
+Granted, i drives to j's offered point (mode ``relocate``), keeping its claim, so that j lets
+nobody else in and i's neighbours do not leave meanwhile; there it drops the claim and waits
+``escape_cooldown`` updates before it may claim again (hysteresis), busy meanwhile (not
+converged: it may still move). A claim not granted within ``escape_wait`` updates, or whose
+target grants another, is dropped the same way.
 
 Each move is backed by a configuration next to it with H lower by at least ``escape_gain`` of
 a pair's cost (:mod:`.bounds`), and the cooldown keeps a robot from moving back and forth.
@@ -339,8 +338,8 @@ class Handover:
                         neighbours: Sequence[Neighbour], target: Neighbour,
                         enough: float) -> float:
         """The change of :func:`.bounds.descent_change` for a move into ``target``'s cell at
-        its offered point, every generator it hears descending; a descent stops once it has
-        lowered H by more than ``enough`` or cannot."""
+        its offered point, every generator it hears descending; the descent stops as soon as
+        it has lowered H by more than ``enough``."""
         if any(abs(n.state.weight - weight) >= WEIGHT_MATCH for n in neighbours):
             return math.inf  # the descent prices equal power weights
         known, values = self._known(key, position, neighbours)

@@ -166,12 +166,15 @@ def surface_cluster(kind: str, k: int, seed: int) -> np.ndarray:
 def surface_run(kind: str, k: int, seed: int):
     """The team's offline run from a start cluster (the robots' own updates, Jacobi steps)."""
     from coverage_ros.core.offline.runner import OfflineConfig, run_offline
-    from coverage_ros.core.strategies import StrategyContext
+    from coverage_ros.core.strategies import StrategyContext, strategy_choice
 
     domain = surface(kind)
     ctx = [StrategyContext(domain=domain, robot_id=i, convergence_tolerance=SURFACE_TOLERANCE)
            for i in range(k)]
-    return run_offline(domain, "geodesic", surface_cluster(kind, k, seed), contexts=ctx,
+    # the paper's generalized Lloyd, along which H never rises: without the moves priced by
+    # the team's descent, whose relocation across the torus raises H while the robot drives
+    choice = strategy_choice("geodesic", {"escape_descent_offers": 0}, "surface_run")
+    return run_offline(domain, choice, surface_cluster(kind, k, seed), contexts=ctx,
                        config=OfflineConfig(max_iterations=SURFACE_MAX_ITERATIONS))
 
 

@@ -81,8 +81,8 @@ ARRIVAL_TOLERANCES = 3.0
 #: ... or this many grid cells, whichever is more (a goal is a cell centre).
 ARRIVAL_CELLS = 2.0
 NONE = -1.0  # published for "no robot" in claim and grant
-#: A configuration within this many grid cells of one a robot relocated from (every robot it
-#: hears, and itself) is one the team came back to: it does not claim from it again.
+#: A configuration within this many grid cells of one a robot relocated from is one the team
+#: came back to: it does not claim from it again.
 RETURN_CELLS = 2.0
 #: [configurations] relocated from, remembered per robot (the latest)
 DEPARTURES = 8
@@ -135,11 +135,10 @@ class Handover:
         default=None, repr=False)
     _joint: tuple[np.ndarray, Known, dict[tuple[int, float, float, int], float]] | None = field(
         default=None, repr=False)
-    #: updates that reached the descent's pricing in one configuration (its key), and whether
-    #: this update waits for its turn there
+    #: updates that reached the descent's pricing in one configuration (its key); waiting
     _turns: tuple[np.ndarray, int] | None = field(default=None, repr=False)
     _awaits_turn: bool = False
-    _claimed_from: np.ndarray | None = field(default=None, repr=False)  # the key of the claim
+    _claimed_from: np.ndarray | None = field(default=None, repr=False)  # the claim's key
     _departures: list[np.ndarray] = field(default_factory=list, repr=False)  # keys left
 
     def step(self, position: np.ndarray, weight: float, cell: CellResult,
@@ -190,9 +189,8 @@ class Handover:
         # in its cooldown (after a move or a dropped claim) it may claim again once it ends:
         # not done either (all claims made at once but one are dropped, so at Lloyd's end
         # most of a team may be cooling down together)
-        # waiting for its turn to price offers by the descent: not done either
         busy = self.claim >= 0 or grant != NONE or waiting or self.cooldown > 0 \
-            or self._awaits_turn
+            or self._awaits_turn  # (waiting for its turn to price offers by the descent)
         return HandoverStep(self.target.copy() if self.relocating else None, extra, busy)
 
     def _transit(self, position: np.ndarray, by_id: dict[int, Neighbour],
@@ -267,9 +265,8 @@ class Handover:
             # offers, priced by one robot per update, the one whose cell costs least first
             if self._turns is None or not _same(self._turns[0], key, self.domain.resolution):
                 self._turns = (key, 0)
-            turn = self._turns[1]
-            self._turns = (key, turn + 1)
-            if turn < _rank(self.robot_id, cell.cost, neighbours):
+            self._turns = (key, self._turns[1] + 1)  # (updates here, this one counted)
+            if self._turns[1] <= _rank(self.robot_id, cell.cost, neighbours):
                 self._awaits_turn = True
                 return
             largest = sorted(offers, key=lambda n: (-_f(n, "offer_gain"), n.robot_id))[
@@ -311,8 +308,7 @@ class Handover:
 
     def _known(self, key: np.ndarray, position: np.ndarray, neighbours: Sequence[Neighbour]
                ) -> tuple[Known, dict[tuple[int, float, float, int], float]]:
-        """The cells of every generator it hears and the joint and descent prices found on
-        them, computed again only when some generator moved by a cell."""
+        """The cells of all it hears and the prices found on them (again once one moved)."""
         if self._joint is None or not _same(self._joint[0], key, self.domain.resolution):
             gens = np.vstack([position[None], [n.position for n in neighbours]])
             self._joint = (key, known_cells(self.domain, gens, self.method), {})
@@ -337,9 +333,8 @@ class Handover:
     def _cached_descent(self, key: np.ndarray, position: np.ndarray, weight: float,
                         neighbours: Sequence[Neighbour], target: Neighbour,
                         enough: float) -> float:
-        """The change of :func:`.bounds.descent_change` for a move into ``target``'s cell at
-        its offered point, every generator it hears descending; the descent stops as soon as
-        it has lowered H by more than ``enough``."""
+        """:func:`.bounds.descent_change` of a move to ``target``'s offered point, every
+        generator it hears descending, stopped once H is lower by more than ``enough``."""
         if any(abs(n.state.weight - weight) >= WEIGHT_MATCH for n in neighbours):
             return math.inf  # the descent prices equal power weights
         known, values = self._known(key, position, neighbours)
@@ -382,11 +377,8 @@ def _f(n: Neighbour, key: str, default: float = 0.0) -> float:
 
 
 def _rank(robot_id: int, cost: float, neighbours: Sequence[Neighbour]) -> int:
-    """How many of the robots it hears published a cell cost with their offers below the own
-    (then a lower id): the update of a settled configuration at which it prices offers by
-    the descent. The robot whose leaving costs least goes first and the others follow one per
-    update, so that a team with a move that pays finds it in one robot's pricing, not in all
-    robots' at once, and one with none has every robot price once."""
+    """How many robots it hears published a cell cost below the own (then a lower id): its
+    turn to price offers by the descent in a settled configuration (module docstring)."""
     return sum((_f(n, "offer_base"), n.robot_id) < (cost, robot_id) for n in neighbours
                if _f(n, "offer_gain") > 0)
 

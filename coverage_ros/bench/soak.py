@@ -7,7 +7,9 @@ samples the memory (RSS) of every process of the team.
 
 Figures: ``rss_growth``, the largest relative growth of any process's RSS after its warm-up
 (the median RSS over the last tenth of its life against the median over the tenth after
-warm-up; warm-up is the first ``WARMUP`` of its life); ``log_bytes`` (all logs) and the log
+warm-up; warm-up is the first ``WARMUP`` of its life, or longer, until its RSS first reaches
+``SETTLED`` of its median over the life: a start-up that outlasts the share is not a leak, while
+a steady leak reaches that level by 45 % of the life and still shows); ``log_bytes`` (all logs) and the log
 bytes of the second half of the run against the first (bounded logs grow linearly at most);
 and ``recovered``: after each restart, whether H came back within 10 % of its value before the
 fault within ``RECOVERY`` seconds of sim time.
@@ -26,6 +28,7 @@ import numpy as np
 from coverage_ros.bench.environment import REPO
 
 WARMUP = 0.25  # share of a process's life before its RSS counts
+SETTLED = 0.9  # share of the life's median RSS that ends a start-up
 #: [samples] a shorter life is no measure of growth: on a slow host a robot's imports alone take
 #: 15 s (its RSS climbs from 16 to 150 MB), past the warm-up share of a half-minute life
 MIN_SAMPLES = 30
@@ -51,7 +54,8 @@ def growth(samples: list[tuple[float, float]]) -> float | None:
         return None
     rss = np.array([r for _, r in samples])
     n = len(rss)
-    start = int(WARMUP * n)
+    settled = int(np.argmax(rss >= SETTLED * np.median(rss)))
+    start = min(max(int(WARMUP * n), settled), n - 2 * max(n // 10, 2))
     tenth = max(n // 10, 2)
     base = float(np.median(rss[start:start + tenth]))
     last = float(np.median(rss[-tenth:]))

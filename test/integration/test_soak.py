@@ -21,6 +21,13 @@ def test_growth_is_measured_after_warm_up_and_ignores_short_lives():
     leaking = [(t, 100.0 + t) for t in range(40)]
     assert growth(leaking) == pytest.approx(137.5 / 111.5 - 1.0)
     assert growth(leaking[:10]) is None
+    # A start-up longer than the warm-up share (a robot on a slow host: imports for 13 of its
+    # 30 s) is no leak; a steady leak from the start still shows.
+    slow_start = [11.7, 40.1, 54.6, 74.7, 77.9, 88.5, 100.3, 106.0, 118.1, 123.7, 124.7, 125.2,
+                  132.0, 150.6, 149.2, 151.0, 159.7, 149.7, 149.5, 151.9, 150.0, 149.5, 149.6,
+                  150.2, 149.7, 149.7, 149.7, 157.9, 150.4, 153.8]
+    assert growth(list(enumerate(slow_start))) < 0.05
+    assert growth([(t, 10.0 + 5.0 * t) for t in range(30)]) > 0.5
 
 
 def test_a_team_whose_robots_restart_keeps_covering_with_flat_memory_and_logs(tmp_path):

@@ -33,6 +33,7 @@ DRAWN_ROOM = (1.5, 5.0)  # [m] room widths
 #: depth [m] drawn from DRAWN_CLOSET_DEPTH and its own door
 DRAWN_CLOSET_FROM, DRAWN_CLOSET_CHANCE, DRAWN_CLOSET_DEPTH = 3.5, 0.4, (1.2, 1.8)
 DRAWN_CLOSET_DOOR = 0.8  # [m]
+DRAWN_ROOM_DOOR = 0.9  # [m] a room's door onto the corridor (the hostel's)
 RESOLUTION = 0.1  # [m] benchmark raster: a restart on warehouse (30 x 50 m) in seconds
 TARGET = 1.05  # H_final / H_best at most
 
@@ -79,8 +80,9 @@ def drawn_plan(seed: int) -> dict:
     for y, y_far in ((y0, 0.0), (y1, height)):
         x = 0.0
         for width in _room_widths(rng, length):
-            door = rng.uniform(0.2, width - HOSTEL_DOOR - 0.2)
-            walls += [((x, y), (x + door, y)), ((x + door + HOSTEL_DOOR, y), (x + width, y))]
+            door = rng.uniform(0.2, width - DRAWN_ROOM_DOOR - 0.2)
+            walls += [((x, y), (x + door, y)),
+                      ((x + door + DRAWN_ROOM_DOOR, y), (x + width, y))]
             if width >= DRAWN_CLOSET_FROM and rng.random() < DRAWN_CLOSET_CHANCE:
                 depth = rng.uniform(*DRAWN_CLOSET_DEPTH)
                 yc = y_far + depth if y_far < y else y_far - depth

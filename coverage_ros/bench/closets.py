@@ -156,6 +156,14 @@ def bench_map(name: str, args, stored: dict, say) -> dict:
 
 
 def main(argv: list[str] | None = None) -> int:
+    try:
+        return _main(argv)
+    except ConfigError as exc:  # a wrong option or results file: one line, no traceback
+        print(f"bench_closets: error: {exc}", file=sys.stderr)
+        return 2
+
+
+def _main(argv: list[str] | None) -> int:
     ap = argparse.ArgumentParser(prog="bench_closets", description=__doc__.split("\n")[0])
     ap.add_argument("--label", required=True, help="name of this run in the results file")
     ap.add_argument("--maps", default=",".join(MAPS),

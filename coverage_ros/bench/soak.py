@@ -9,10 +9,10 @@ Figures: ``rss_growth``, the largest relative growth of any process's RSS after 
 (the median RSS over the last tenth of its life against the median over the tenth after
 warm-up; warm-up is the first ``WARMUP`` of its life, or longer, until its RSS first reaches
 ``SETTLED`` of its median over the life: a start-up that outlasts the share is not a leak, while
-a steady leak reaches that level by 45 % of the life and still shows); ``log_bytes`` (all logs) and the log
-bytes of the second half of the run against the first (bounded logs grow linearly at most);
-and ``recovered``: after each restart, whether H came back within 10 % of its value before the
-fault within ``RECOVERY`` seconds of sim time.
+a steady leak reaches that level by 45 % of the life and still shows); ``log_bytes`` (all
+logs) and the log bytes of the second half of the run against the first (bounded logs grow
+linearly at most); and ``recovered``: after each restart, whether H came back within 10 % of
+its value before the fault within ``RECOVERY`` seconds of sim time.
 """
 
 from __future__ import annotations

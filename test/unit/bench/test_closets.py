@@ -157,3 +157,15 @@ def test_live_worlds_are_the_offline_rasters(tmp_path):
     base = load_world(str(SHARED_MAPS / "tb3_sandbox.yaml"))
     assert np.array_equal(load_world(str(tmp_path / "tb3_sandbox.yaml")).grid.occupancy,
                           coarse_world(base, RESOLUTION).grid.occupancy)
+
+
+def test_a_wrong_option_is_refused_in_one_line_before_anything_runs(tmp_path, capsys):
+    from coverage_ros.bench.closets import main
+
+    out = tmp_path / "closets.json"
+    assert main(["--label", "x", "--maps", "office,nope", "--json", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--maps" in err[0] and "nope" in err[0], err
+    assert main(["--label", "x", "--live", "--duration", "0", "--json", str(out)]) == 2
+    assert "--duration" in capsys.readouterr().err
+    assert not out.exists()

@@ -15,7 +15,7 @@ from conftest import entry_point, shared_map
 from rosutil import NodeProcess, RosClient, domain_id
 
 from coverage_ros.bench.lockstep import cpu_hogs, differences
-from coverage_ros.cli.team.summary import WALL_CLOCK_KEYS, deterministic_part
+from coverage_ros.cli.team.summary import WALL_CLOCK_KEYS, deterministic_part, summary_table
 
 pytestmark = [pytest.mark.slow, pytest.mark.lockstep]
 
@@ -103,3 +103,23 @@ def test_robots_started_by_hand_join_and_a_dead_one_leaves_after_the_timeout():
         # [s] the 3 s of silence count from the tick robot 1 died in, sent out before the kill
         assert 2.0 <= gave_up <= 10.0
         assert world.output().count("robot 1 silent for") == 1
+
+
+def test_a_team_run_until_settled_ends_once_h_has_stood_still(tmp_path):
+    """--until-settled 20 with a 400 s --duration: three geodesic robots spread over the L
+    and the run ends once H has stayed within 1 % for 20 s of sim time, long before 400 s."""
+    out = tmp_path / "run"
+    proc = subprocess.run(team_cmd("--out", str(out), "--domain-id", str(domain_id(25)),
+                                   "--world", "l_shape", "--robots", "3", "--seed", "0",
+                                   "--duration", "400", "--until-settled", "20"),
+                          capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    summary = json.loads((out / "summary.json").read_text())
+    end = summary["sim_time"] - summary["ready_at"]
+    assert summary["settled_at"] == pytest.approx(end, abs=1e-3)
+    assert 20.0 <= end < 150.0, summary["sim_time"]
+    assert f"settled at {end:.1f} s (--until-settled)" in summary_table(summary)
+    series = summary["metrics"]["H_series"]
+    last = [h for t, h in series if t >= end - 20.0 - 1e-6]
+    assert len(last) >= 5 and max(last) <= 1.01 * min(last), series
+    assert summary["metrics"]["H"] < 0.2 * summary["metrics"]["H_start"]

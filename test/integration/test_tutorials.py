@@ -30,6 +30,8 @@ COMMANDS = [
      "coverage-plan --map office --robots 6 --json out/plan.json --png out/plan.png", 0),
     ("tutorials/known-map.md", "coverage-plan --map gaussians --robots 8 --strategy lloyd "
      "--solver accelerated --json out/lloyd.json", 0),
+    ("tutorials/known-map.md", "coverage-team --world ward --robots 8 --duration 900 "
+     "--until-settled 60 --lockstep", 6),
     ("tutorials/explore.md", "coverage-team --explore --world office --robots 4 --until-explored "
      "0.95 --duration 600 --lockstep", 8),
     ("tutorials/explore.md", "coverage-team --explore --world office --robots 4 --strategy "

@@ -192,6 +192,8 @@ def run_lockstep(monitor, observer: LockstepObserver, startup_timeout: float,
         if tick.status and t >= next_metrics - 1e-9:
             next_metrics += METRICS_PERIOD
             log.H_samples.append((t, monitor.cost()))
+            if monitor.settled_enough(t):
+                return
         if monitor.exploration is not None and tick.status and t >= next_explore - 1e-9:
             next_explore += EXPLORE_PERIOD
             _wait_evidence(monitor, observer, tick)

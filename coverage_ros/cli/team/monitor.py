@@ -31,6 +31,7 @@ from coverage_ros.cli.team.faults import KILL, Fault, FaultSchedule
 from coverage_ros.cli.team.lockstep import LockstepObserver, run_lockstep
 from coverage_ros.cli.team.plan import RunPlan
 from coverage_ros.cli.team.processes import ProcessSet, ProcessStats
+from coverage_ros.cli.team.settling import SETTLED_BAND, SettleWatch
 from coverage_ros.cli.team.summary import RunLog, team_cost
 from coverage_ros.core.world.region import Region
 from coverage_ros.nodes import conversions as conv
@@ -79,7 +80,10 @@ class TeamMonitor(Node):
         self.create_subscription(WorldStatus, "/world/robots", self._on_status, 10)
         self.remove_pub = self.create_publisher(Int32, "/world/remove", 10)
         self.faults = FaultSchedule(list(plan.faults), procs, relaunch, self._remove, say)
-        # Only to see every robot come up (dropped once the team is ready).
+        # To see every robot come up (dropped once the team is ready, unless --until-settled
+        # follows whether robots move between cells).
+        self.settle = (None if self.config.until_settled is None
+                       else SettleWatch(self.config.until_settled))
         self.state_subs = [self.create_subscription(
             RobotState, f"/robot_{i}/coverage_state", partial(self._state_seen, i),
             10, event_callbacks=quiet_subscription()) for i in range(self.n)]
@@ -106,6 +110,8 @@ class TeamMonitor(Node):
     # ------------------------------------------------------------------ inputs
     def _state_seen(self, rid: int, msg: RobotState) -> None:
         self.states_seen.add(rid)
+        if self.settle is not None:
+            self.settle.note(rid, msg, conv.from_time_msg(msg.header.stamp))
 
     def _set_region(self, region: Region) -> None:
         base = self.base_domain
@@ -242,6 +248,8 @@ class TeamMonitor(Node):
                 took = time.monotonic() - now
                 metrics_wait = min(METRICS_LONGEST * METRICS_PERIOD,
                                    max(METRICS_PERIOD, took / METRICS_SHARE))
+                if self.settled_enough(log.sim_time):
+                    break
             if self.exploration is not None and now - last_explored >= EXPLORE_PERIOD:
                 last_explored = now
                 if self.explored_enough(self.exploration.sample(log.sim_time - ready),
@@ -263,6 +271,16 @@ class TeamMonitor(Node):
                  f"{self.log.sim_time - (self.log.ready_at or 0.0):.1f} s: stopping")
         return True
 
+    def settled_enough(self, t: float) -> bool:
+        """With --until-settled: whether the team has settled at sim time ``t`` [s]."""
+        if self.settle is None or not self.settle.settled(self.log.H_samples, t, self.alive()):
+            return False
+        self.log.settled_at = t - (self.log.ready_at or 0.0)
+        self.say(f"\n  settled: H within {100 * SETTLED_BAND:g} % and no robot moving between "
+                 f"cells for {self.settle.window:g} s at sim time "
+                 f"{self.log.settled_at:.1f} s: stopping")
+        return True
+
     def team_ready(self, t0: float) -> None:
         """Every robot is up (``t0``: wall time the launcher began waiting)."""
         log = self.log
@@ -271,7 +289,7 @@ class TeamMonitor(Node):
         # evaluation (which takes a while on big maps and would leave sim_start stale).
         log.wall_start = time.monotonic()
         log.sim_start = log.sim_time
-        for sub in self.state_subs:
+        for sub in self.state_subs if self.settle is None else ():
             self.destroy_subscription(sub)
         self.say(f"  team ready at sim time {log.ready_at:.1f} s after "
                  f"{log.wall_start - t0:.1f} s wall")

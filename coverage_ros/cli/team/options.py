@@ -53,6 +53,9 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--until-explored", type=float, default=None, metavar="F",
                     help="with --explore: end the run once the team has explored this share "
                     "of the reachable free area")
+    ap.add_argument("--until-settled", type=float, default=None, metavar="S",
+                    help="[s] end the run before --duration once the team has settled: H "
+                    "within 1 %% and no robot moving between cells for S seconds of sim time")
     ap.add_argument("--duration", type=float, default=60.0, help="[s] simulated time to run")
     ap.add_argument("--seed", type=int, default=0, help="start cluster and simulator seed")
     ap.add_argument("--starts", help="start poses 'x,y,yaw;...' (default: the world's start "
@@ -142,6 +145,7 @@ class RunConfig:
     explore: bool = False
     map_free: bool = False
     until_explored: float | None = None
+    until_settled: float | None = None  # [s] sim time
     duration: float = 60.0  # [s] sim time
     seed: int = 0
     starts: str | None = None
@@ -229,6 +233,11 @@ def config_from_args(args: argparse.Namespace) -> RunConfig:
     if args.until_explored is not None and not (args.explore and 0 < args.until_explored <= 1):
         raise ConfigError.at("--until-explored", "needs --explore and a fraction in (0, 1]",
                              args.until_explored)
+    if args.until_settled is not None:
+        if args.explore:
+            raise ConfigError.at("--until-settled", "does not apply to --explore",
+                                 args.until_settled, "--until-explored F")
+        _finite("--until-settled", args.until_settled, 0.0, True, "s")
     region = Region(tuple(parse_region_text(t) for t in args.region))
     if args.explore and not region.everywhere:
         raise ConfigError.at("--region", "does not apply to --explore (the density is the "
@@ -251,6 +260,7 @@ def config_from_args(args: argparse.Namespace) -> RunConfig:
         world=args.world, strategy=args.strategy, strategy_params=args.strategy_params,
         choice=choice, robots=args.robots, team_file=args.team, humans=tuple(args.human),
         explore=args.explore, map_free=args.map_free, until_explored=args.until_explored,
+        until_settled=args.until_settled,
         duration=duration, seed=args.seed, starts=args.starts, lockstep=args.lockstep, rtf=rtf,
         out=args.out, record=args.record, viewer=args.viewer, serve_web=args.serve_web,
         domain_id=args.domain_id, control_rate=control_rate, update_load=args.update_load,

@@ -77,6 +77,7 @@ class RunLog:
     region: list[np.ndarray] = field(default_factory=list)  # polygons at the end
     region_set_at: float | None = None  # sim time
     exploration: dict | None = None
+    settled_at: float | None = None  # [s since ready] the run ended settled (--until-settled)
     processes: dict | None = None
 
     @property
@@ -167,6 +168,7 @@ class TeamSummary:
     region_set_at: float | None
     processes: dict | None = None
     exploration: dict | None = None
+    settled_at: float | None = None  # [s since ready] the run ended settled (--until-settled)
 
     def as_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {
@@ -179,6 +181,8 @@ class TeamSummary:
             out["processes"] = self.processes
         if self.exploration is not None:
             out["exploration"] = self.exploration
+        if self.settled_at is not None:
+            out["settled_at"] = self.settled_at
         return out
 
 
@@ -225,7 +229,8 @@ def summarize(log: RunLog, team: Sequence[TeamMember], world: WorldSpec,
         [p.round(4).tolist() for p in log.region],
         None if log.region_set_at is None or log.ready_at is None
         else round(max(log.region_set_at - log.ready_at, 0.0), 3),
-        log.processes, log.exploration)
+        log.processes, log.exploration,
+        None if log.settled_at is None else round(log.settled_at, 3))
 
 
 def picture(path: Path, log: RunLog, team: Sequence[TeamMember], world: WorldSpec,
@@ -275,6 +280,9 @@ def summary_table(summary: dict) -> str:
                        for k, v in ex["explored_at"].items())
         lines.append(f"explored {100 * ex['explored_fraction']:.1f} % (reached {at}); false "
                      f"free {100 * ex['false_free']:.2f} %")
+    if summary.get("settled_at") is not None:
+        lines.append(f"settled at {summary['settled_at']:.1f} s (--until-settled): ended "
+                     "before --duration")
     lines.append(f"real-time factor {summary['rtf']:.2f} over the run; sim time "
                  f"{summary['sim_time']:.1f} s in {summary['wall_time']:.1f} s wall with start-up "
                  "and shutdown")

@@ -19,7 +19,8 @@ from coverage_ros.bench.closet_maps import (
     hostel_plan,
     known_map,
 )
-from coverage_ros.bench.closets import (
+from coverage_ros.bench.closets_live import within_at, world_file
+from coverage_ros.bench.closets_results import (
     README,
     README_BEGIN,
     README_END,
@@ -28,7 +29,6 @@ from coverage_ros.bench.closets import (
     summary_table,
     update_readme,
 )
-from coverage_ros.bench.closets_live import within_at, world_file
 from coverage_ros.bench.environment import SHARED_MAPS
 from coverage_ros.core.world import load_world, parse_world
 from coverage_ros.core.world.placement import largest_free_region

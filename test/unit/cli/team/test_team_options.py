@@ -41,6 +41,8 @@ def own_lock_dir(tmp_path, monkeypatch):
     (["--duration", "10", "--kill", "1@50"], "--kill: comes after the run's end"),
     (["--kill", "1@5", "--kill", "1@6"], "--kill: kills a robot twice"),
     (["--strategy-params", "not: [valid"], "--strategy-params: is not valid YAML ("),
+    (["--until-settled", "0"], "--until-settled: must be > 0 [s]"),
+    (["--explore", "--until-settled", "30"], "--until-settled: does not apply to --explore"),
 ])
 def test_impossible_runs_are_refused_before_anything_starts(tmp_path, args, message):
     out = tmp_path / "team"

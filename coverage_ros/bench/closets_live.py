@@ -3,8 +3,9 @@ launcher's team, run in lock-step, against the best known configuration of
 ``scripts/bench_closets``.
 
 For every map and start seed, ``coverage-team --strategy geodesic --lockstep`` runs the world
-node and one robot process per robot for ``--duration`` seconds of simulated time (by default
-per map: :func:`~coverage_ros.bench.closets.live_duration`) from the
+node and one robot process per robot until the team has settled (``--until-settled``, 60 s by
+default) or for at most ``--duration`` seconds of simulated time (by default per map:
+:func:`~coverage_ros.bench.closets.live_duration`) from the
 launcher's start cluster (the same cluster the offline cases start from). The world is the
 benchmark's raster of the map (:func:`~coverage_ros.bench.closet_maps.coarse_world`), written as a
 world file (floor plans) or a map_server map (the shared maps) that the launcher loads as a user
@@ -71,6 +72,8 @@ def run_case(name: str, seed: int, args, folder: Path, duration: float) -> dict:
     cmd = ["--world", str(path), "--robots", str(args.robots), "--strategy", "geodesic",
            "--lockstep", "--duration", f"{duration:g}", "--seed", str(seed),
            "--out", str(out), "--quiet"]
+    if args.until_settled > 0:
+        cmd += ["--until-settled", f"{args.until_settled:g}"]
     if args.params:
         cmd += ["--strategy-params", json.dumps(args.params)]
     t0 = time.perf_counter()
@@ -85,7 +88,8 @@ def run_case(name: str, seed: int, args, folder: Path, duration: float) -> dict:
     start = np.array([r["start"][:2] for r in summary["robots"]], dtype=np.float64)
     H, masses = score(domain, final)
     return {"seed": seed, "H": H, "H_start": score(domain, start)[0],
-            "sim_time": summary["sim_time"], "rtf": summary["rtf"],
+            "sim_time": summary["sim_time"], "settled_at": summary.get("settled_at"),
+            "rtf": summary["rtf"],
             "seconds": round(time.perf_counter() - t0, 1),
             "H_series": summary["metrics"].get("H_series", []),
             "collisions": int(sum(r["collisions"] for r in summary["robots"])),
@@ -113,6 +117,8 @@ def bench_live(args, maps: list[str], data: dict, say, duration: float) -> dict[
         for name in maps:
             settings = {"robots": args.robots, "resolution": args.resolution,
                         "live": True, "duration": duration}
+            if args.until_settled > 0:
+                settings["until_settled"] = args.until_settled
             cases = []
             for seed in range(args.seeds):
                 case = run_case(name, seed, args, Path(tmp), duration)
@@ -122,7 +128,8 @@ def bench_live(args, maps: list[str], data: dict, say, duration: float) -> dict[
                 cases.append(case)
                 ratio = "-" if H_best is None else f"{case['H'] / H_best:.3f}"
                 say(f"  {name} start seed {seed}: H {case['H_start']:.4g} -> {case['H']:.4g} "
-                    f"(x{ratio} the best known) after {case['sim_time']:g} s of sim time "
+                    f"(x{ratio} the best known) after {case['sim_time']:g} s of sim time"
+                    f"{'' if case['settled_at'] is None else ', settled'} "
                     f"(rtf {case['rtf']:.2f}, {case['seconds']:g} s, within 5 % from "
                     f"{case['within_at']} s)")
             results[name] = {"settings": settings, "cases": cases}

@@ -116,10 +116,21 @@ def summary_table(data: dict, labels: tuple[str, ...] = ("before", "after"),
         cells = ["-" if m is None else " / ".join(f"{c['ratio']:.3f}" for c in m["cases"])
                  for m in runs]
         if live_run is not None and runs[-1] is not None:
-            cells[-1] += f" ({runs[-1]['settings']['duration']:g} s)"
+            cells[-1] += f" ({live_ends(runs[-1])})"
         lines.append(f"| {name} | {best['H']:.5g} ({best['restarts']}) | "
                      f"{' | '.join(cells)} |")
     return "\n".join(lines)
+
+
+def live_ends(run: dict) -> str:
+    """When a map's live runs ended: their fixed duration, or each case's end [s of sim time]
+    where they ran until settled (at most the duration)."""
+    settings = run["settings"]
+    if "until_settled" not in settings:
+        return f"{settings['duration']:g} s"
+    ends = [f"{c['settled_at']:.0f}" if c.get("settled_at") is not None
+            else f"{settings['duration']:g}" for c in run["cases"]]
+    return f"ended at {' / '.join(ends)} s, settled for {settings['until_settled']:g} s"
 
 
 def map_names(data: dict) -> list[str]:

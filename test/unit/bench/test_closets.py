@@ -137,6 +137,12 @@ def test_live_column_shows_each_start_and_maps_not_run():
     assert lines[2] == "| office | 178.9 (10) | 2.500 | 1.000 | - |"
     assert lines[3] == ("| ward | 498.6 (10) | 2.000 / 1.500 | 1.000 / 1.010 "
                         "| 1.020 / 1.104 (400 s) |")
+    # Runs until settled: each case's end, the duration for one that never settled.
+    data["runs"]["live"]["maps"]["ward"] = {
+        "settings": {"duration": 900.0, "until_settled": 60.0},
+        "cases": [{"ratio": 1.02, "settled_at": 412.5}, {"ratio": 1.104, "settled_at": None}]}
+    assert summary_table(data).splitlines()[3].endswith(
+        "| 1.020 / 1.104 (ended at 412 / 900 s, settled for 60 s) |")
 
 
 def test_within_at_is_the_start_of_the_last_stay_within_five_percent():

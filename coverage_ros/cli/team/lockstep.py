@@ -192,8 +192,10 @@ def run_lockstep(monitor, observer: LockstepObserver, startup_timeout: float,
         if tick.status and t >= next_metrics - 1e-9:
             next_metrics += METRICS_PERIOD
             log.H_samples.append((t, monitor.cost()))
-            if monitor.settled_enough(t):
-                return
+            if monitor.settle is not None:
+                _wait_states(monitor, observer, tick)
+                if monitor.settled_enough(t, upto=tick.previous * 1e-9):
+                    return
         if monitor.exploration is not None and tick.status and t >= next_explore - 1e-9:
             next_explore += EXPLORE_PERIOD
             _wait_evidence(monitor, observer, tick)
@@ -209,6 +211,24 @@ def run_lockstep(monitor, observer: LockstepObserver, startup_timeout: float,
         if now - last_progress >= progress_period:
             last_progress = now
             monitor.progress()
+
+
+def _wait_states(monitor, observer: LockstepObserver, tick: Tick) -> None:
+    """--until-settled: wait until the monitor has heard the states stamped at the tick before
+    ``tick`` from every living robot that answered it (those published before the answers),
+    so that the settle check at ``tick`` rests on the same states in every run."""
+    import rclpy
+
+    t0 = time.monotonic()
+    previous = tick.previous * 1e-9
+    while missing := [rid for rid in tick.answered if rid in monitor.alive()
+                      and monitor.settle.heard_up_to(rid) < previous]:
+        if time.monotonic() - t0 > EVIDENCE_TIMEOUT:
+            monitor.say(f"\n  tick {tick.index}: settle check without the states of robots "
+                        f"{missing}")
+            return
+        rclpy.spin_once(monitor, timeout_sec=0.02)
+        observer.beat()
 
 
 def _wait_evidence(monitor, observer: LockstepObserver, tick: Tick) -> None:

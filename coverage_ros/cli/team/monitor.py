@@ -111,7 +111,8 @@ class TeamMonitor(Node):
     def _state_seen(self, rid: int, msg: RobotState) -> None:
         self.states_seen.add(rid)
         if self.settle is not None:
-            self.settle.note(rid, msg, conv.from_time_msg(msg.header.stamp))
+            # (the tick's own conversion: a stamp compares exactly with a lock-step tick's)
+            self.settle.note(rid, msg, conv.stamp_ns(msg.header.stamp) * 1e-9)
 
     def _set_region(self, region: Region) -> None:
         base = self.base_domain
@@ -271,9 +272,11 @@ class TeamMonitor(Node):
                  f"{self.log.sim_time - (self.log.ready_at or 0.0):.1f} s: stopping")
         return True
 
-    def settled_enough(self, t: float) -> bool:
-        """With --until-settled: whether the team has settled at sim time ``t`` [s]."""
-        if self.settle is None or not self.settle.settled(self.log.H_samples, t, self.alive()):
+    def settled_enough(self, t: float, upto: float = math.inf) -> bool:
+        """With --until-settled: whether the team has settled at sim time ``t`` [s], from the
+        robots' states stamped up to ``upto`` [s]."""
+        if self.settle is None or not self.settle.settled(self.log.H_samples, t, self.alive(),
+                                                          upto):
             return False
         self.log.settled_at = t - (self.log.ready_at or 0.0)
         self.say(f"\n  settled: H within {100 * SETTLED_BAND:g} % and no robot moving between "

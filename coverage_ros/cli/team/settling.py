@@ -43,19 +43,35 @@ class SettleWatch:
     """Follows the robots' states for ``--until-settled window`` [s of sim time]."""
 
     window: float
-    #: [s] sim time each robot was last heard moving between cells (one never heard: now)
-    moved_at: dict[int, float] = field(default_factory=dict)
+    #: [s] per robot: stamps of its recent states that said it was moving between cells
+    moving: dict[int, list[float]] = field(default_factory=dict)
+    #: [s] per robot: stamps of the oldest and the newest of its states heard
+    first: dict[int, float] = field(default_factory=dict)
+    newest: dict[int, float] = field(default_factory=dict)
 
-    def note(self, rid: int, msg: RobotState, sim_time: float) -> None:
-        """Robot ``rid``'s state, heard at ``sim_time`` [s]."""
+    def note(self, rid: int, msg: RobotState, stamp: float) -> None:
+        """Robot ``rid``'s state, stamped ``stamp`` [s of sim time]."""
+        self.first[rid] = min(self.first.get(rid, math.inf), stamp)
+        self.newest[rid] = max(self.newest.get(rid, -math.inf), stamp)
         if moving_between_cells(msg):
-            self.moved_at[rid] = sim_time
-        else:
-            self.moved_at.setdefault(rid, -math.inf)  # heard, not moving yet
+            self.moving.setdefault(rid, []).append(stamp)
 
-    def settled(self, samples: list[tuple[float, float]], now: float,
-                robots: list[int]) -> bool:
-        """Whether the team of ``robots`` (the living) has settled at ``now`` [s]."""
-        if any(self.moved_at.get(i, now) > now - self.window for i in robots):
-            return False
+    def heard_up_to(self, rid: int) -> float:
+        """[s] stamp of robot ``rid``'s newest state heard (-inf: none)."""
+        return self.newest.get(rid, -math.inf)
+
+    def settled(self, samples: list[tuple[float, float]], now: float, robots: list[int],
+                upto: float = math.inf) -> bool:
+        """Whether the team of ``robots`` (the living) has settled at ``now`` [s], from the
+        states stamped up to ``upto`` [s] (lock-step: the tick before, whose states every
+        robot has published; later ones may or may not have arrived). A robot with no state
+        stamped by then counts as moving now."""
+        start = now - self.window
+        for stamps in self.moving.values():
+            stamps[:] = [s for s in stamps if s > start]  # older moves never count again
+        for rid in robots:
+            if rid not in self.first or self.first[rid] > upto:
+                return False
+            if any(s <= upto for s in self.moving.get(rid, ())):
+                return False
         return h_flat_since(samples, now, self.window)

@@ -55,3 +55,26 @@ def test_a_team_is_settled_once_nobody_has_moved_between_cells_for_the_window():
     assert not watch.settled(flat, 80.0, [0, 1])
     rising = flat[:-2] + [(90.0, 100.0), (100.0, 102.0)]
     assert not watch.settled(rising, 100.0, [0, 1])
+
+
+def test_a_lock_step_check_counts_only_the_states_stamped_up_to_the_tick_before():
+    """In lock-step the states of the tick being checked may or may not have arrived: the
+    check at ``now`` rests on those stamped up to ``upto`` alone, so it decides the same in
+    every run."""
+    flat = [(t, 100.0) for t in range(0, 101, 10)]
+    early, late = SettleWatch(window=20.0), SettleWatch(window=20.0)
+    for watch in (early, late):
+        watch.note(0, state(), 10.0)
+        watch.note(1, state(), 10.0)
+    early.note(1, state(claim=0), 60.0)  # the checked tick's own state, already here
+    for watch in (early, late):
+        assert watch.settled(flat, 60.0, [0, 1], upto=59.9)
+        assert watch.heard_up_to(0) == 10.0
+    assert early.heard_up_to(1) == 60.0 and late.heard_up_to(2) == float("-inf")
+    late.note(1, state(claim=0), 60.0)
+    for watch in (early, late):  # at the next check the claim counts in both
+        assert not watch.settled(flat, 60.1, [0, 1], upto=60.0)
+    robot_2 = SettleWatch(window=20.0)
+    robot_2.note(2, state(), 61.0)  # heard, but only after the states the check may use
+    assert not robot_2.settled(flat, 61.0, [2], upto=60.0)
+    assert robot_2.settled(flat, 90.0, [2], upto=89.0)

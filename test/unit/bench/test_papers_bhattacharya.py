@@ -113,6 +113,7 @@ def test_a_start_cluster_is_close_together_and_on_free_surface(coarse_surfaces):
         assert np.array_equal(pts, bh.surface_cluster(kind, k, 7))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_fig16_the_torus_team_converges_with_h_never_rising(coarse_surfaces, seed):
     out = bh.fig16(seed)

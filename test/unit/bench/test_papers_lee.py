@@ -51,6 +51,7 @@ def test_fig3_alpha_cvt_meets_the_paper_from_every_corner_start():
     assert min(r[lee2024.ICVT] for r in runs) >= 1.0
 
 
+@pytest.mark.slow
 def test_fig14_heterogeneous_agents_by_speed():
     """Paper: I^H = 0.0437 (iCVT + projection) and 0.0367 (alpha-CVT), 5 + 5 agents at 0.4 and
     0.8 m/s on the two targets. Our spread starts (re-drawn) leave iCVT + projection far worse
@@ -73,6 +74,7 @@ def test_fig14_heterogeneous_agents_by_speed():
     assert fast.masses[5:].mean() > 2.0 * fast.masses[:5].mean()  # fast agents: larger cells
 
 
+@pytest.mark.slow
 def test_fig14_decentralized_team_predicts_its_plans_from_a_team_that_has_levelled_off():
     """The decentralized strategy on Fig. 14's setting (the paper's alpha-CVT: I^H 0.0367).
     Its lowest-id robot predicts exchanges and swaps for the team; predicting from a team that
@@ -86,6 +88,7 @@ def test_fig14_decentralized_team_predicts_its_plans_from_a_team_that_has_levell
     assert statistics.median(ours) <= 0.0367 and max(ours) <= 2 * 0.0367
 
 
+@pytest.mark.slow
 def test_fig18_setting_decentralized_team_converges_before_it_stops():
     """Fig. 18a-c's setting offline (5 + 5 agents at 0.4 / 0.8 m/s from the corner; the
     paper's live alpha-CVT: I^H 0.0375). After a swap of a slow and a fast robot Lloyd's last

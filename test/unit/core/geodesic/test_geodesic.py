@@ -350,6 +350,7 @@ def test_goal_is_clipped_to_reachable_free_space():
 
 
 # ---------------------------------------------------------------------------- team behaviour
+@pytest.mark.slow
 @pytest.mark.parametrize("world", ["l_shape", "u_shape"])
 def test_coverage_cost_never_increases(world):
     from coverage_ros.core.offline.runner import OfflineConfig, run_offline

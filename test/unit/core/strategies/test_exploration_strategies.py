@@ -217,6 +217,7 @@ def test_an_exploring_strategy_needs_a_belief_and_explore_mode():
     assert BeliefConfig().frozen_log_odds > 0
 
 
+@pytest.mark.slow
 def test_fig19_a_person_holds_one_robot_in_a_room_of_an_unknown_office():
     """Bhattacharya et al., Fig. 19: four robots with different sensor footprints (power
     cells, R = footprint radius) explore an unknown office while a person keeps robot 0 in a

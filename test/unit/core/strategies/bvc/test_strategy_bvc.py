@@ -384,6 +384,7 @@ def _trial(k: int, **params: object) -> TrialOutcome:
                      detect_radius=2.5, arrive_radius=1.0)
 
 
+@pytest.mark.slow
 def test_thirty_random_three_peak_trials_succeed_without_collisions():
     outcomes = [_trial(k) for k in range(TRIALS)]
     row = table_row(outcomes)
@@ -472,6 +473,7 @@ def test_runs_through_run_offline_on_the_field_world():
 
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("world", ["l_shape", "tb3_sandbox"])
 def test_a_cluster_spreads_under_a_uniform_density(world):
     """With no density peak to be guided to, each robot is guided to the middle of the

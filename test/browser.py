@@ -60,15 +60,18 @@ class HeadlessViewer:
     def wait_started(self, timeout: float = 240.0) -> None:
         """Until the wasm app runs (its handle exists), or raise with the page's last words.
         While the page compiles the viewer's wasm its thread may not answer a script for a
-        minute on a busy machine: such a poll times out and the wait goes on to the deadline."""
+        minute on a busy machine, nor chromedriver the poll for two: such a poll times out
+        (selenium's script timeout, or the driver connection's read timeout) and the wait goes
+        on to the deadline."""
         from selenium.common.exceptions import TimeoutException
+        from urllib3.exceptions import ReadTimeoutError
 
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
             try:
                 if self.driver.execute_script("return typeof window._handle !== 'undefined'"):
                     return
-            except TimeoutException:
+            except (TimeoutException, ReadTimeoutError):
                 continue
             time.sleep(0.5)
         raise AssertionError(f"the web viewer did not start within {timeout:g} s: "

@@ -3,8 +3,7 @@
 test/unit/ mirrors coverage_ros/ (a test sits under the part it tests); test/integration/ holds
 the tests that start real node processes and talk to them over DDS - each of them is marked
 ``integration`` here, by its folder, never in the file. ``lockstep`` (a live team in lock-step,
-which may run beside other tests) and ``slow`` stay on the tests themselves; the ``slow`` ones
-run first.
+which may run beside other tests) and ``slow`` stay on the tests themselves.
 """
 
 from __future__ import annotations
@@ -109,27 +108,4 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
             item.add_marker(pytest.mark.integration)
     if wrong:
         raise pytest.UsageError("\n".join(wrong))
-    # The slow tests first (see pytest_xdist_make_scheduler)
-    items.sort(key=lambda item: item.get_closest_marker("slow") is None)
-
-
-#: Test modules whose tests share an expensive module fixture (a site build and a browser; a
-#: plan): each goes to one pytest-xdist worker whole.
-WHOLE_MODULES = ("test/unit/docs/test_site_in_browser.py", "test/unit/cli/test_plan_cli.py")
-
-
-@pytest.hookimpl(tryfirst=True)
-def pytest_xdist_make_scheduler(config: pytest.Config, log):
-    """Each pytest-xdist worker takes a test at a time (a module of :data:`WHOLE_MODULES` at
-    once) in the order above, so the slow tests start on every worker from the beginning; by
-    default a worker takes a quarter of its share of the list at once, and the first one got
-    every slow lock-step test."""
-    from xdist.scheduler import LoadScopeScheduling
-
-    class OneAtATime(LoadScopeScheduling):
-        def _split_scope(self, nodeid: str) -> str:
-            module = nodeid.split("::", 1)[0]
-            return module if module in WHOLE_MODULES else nodeid
-
-    return OneAtATime(config, log)
 

@@ -25,7 +25,9 @@ def team_cmd(*args: str) -> list[str]:
 
 
 def best_plan_cost(robots: int, seeds, tmp_path) -> float:
-    """The best final H coverage-plan finds on the same map from clustered starts."""
+    """The best final H coverage-plan finds on the same map from clustered starts (of 3 and 4
+    robots, seeds 0 and 2 end in the same configuration, H within 0.002 %: the team's seed
+    serves)."""
     best = float("inf")
     for seed in seeds:
         out = tmp_path / f"plan-{robots}-{seed}.json"
@@ -50,7 +52,7 @@ def test_geodesic_team_spreads_out_and_reaches_the_planned_cost(tmp_path):
     m = summary["metrics"]
     assert summary["strategy"] == "geodesic" and len(summary["robots"]) == 4
     assert m["H"] <= 0.6 * m["H_start"], team_diagnosis(summary, tmp_path / "team")
-    best = best_plan_cost(4, (2, 0), tmp_path)
+    best = best_plan_cost(4, (2,), tmp_path)
     print(f"H {m['H']:.4f}, best plan {best:.4f} ({m['H'] / best:.4f}x)")
     # The lock-step run ends at 1.002x the best plan (at 50 s, 1.047x: the closet escape's
     # hand-over comes after the team has settled).
@@ -85,7 +87,7 @@ def test_a_lost_robots_area_is_absorbed_by_the_others(tmp_path):
     assert robots[1]["lost_at"] == pytest.approx(25.0, abs=0.2)
     assert all("lost_at" not in robots[i] for i in (0, 2, 3))
     m = summary["metrics"]  # H of the three survivors at the end
-    best = best_plan_cost(3, (2, 0), tmp_path)
+    best = best_plan_cost(3, (2,), tmp_path)
     assert m["H"] <= 1.05 * best, (best, team_diagnosis(summary, tmp_path / "team"))
     assert all(robots[i]["collisions"] == 0 for i in (0, 2, 3))
 

@@ -54,7 +54,7 @@ def check_explored(summary: dict, out, world_path) -> None:
 
 def test_four_robots_explore_the_office_and_settle_into_coverage(tmp_path):
     world = WORLDS / "office.yaml"
-    summary, out = explore(tmp_path, world, "--robots", "4", "--duration", "220", "--record",
+    summary, out = explore(tmp_path, world, "--robots", "4", "--duration", "190", "--record",
                            offset=20)
     check_explored(summary, out, world)
     m = summary["metrics"]

@@ -49,6 +49,10 @@ def counting_searches() -> Iterator[SearchCount]:
     plain_mask = CoverageDomain.visible_mask
     plain_each = CoverageDomain.visible_each
     plain_tiles = CoverageDomain.sight_tiles_in
+    # What the class itself holds (the methods come from its base, LineOfSight): put back as
+    # it was, so that nothing is left shadowing the base's methods after the block.
+    own = {name: CoverageDomain.__dict__.get(name)
+           for name in ("visible_mask", "visible_each", "sight_tiles_in")}
 
     def dijkstra(graph, *args, **kwargs):
         if "indices" not in kwargs:
@@ -86,9 +90,11 @@ def counting_searches() -> Iterator[SearchCount]:
     finally:
         for module in _SEARCH_MODULES:
             module.dijkstra = scipy_dijkstra  # type: ignore[attr-defined]
-        CoverageDomain.visible_mask = plain_mask  # type: ignore[method-assign]
-        CoverageDomain.visible_each = plain_each  # type: ignore[method-assign]
-        CoverageDomain.sight_tiles_in = plain_tiles  # type: ignore[method-assign]
+        for name, method in own.items():
+            if method is None:
+                delattr(CoverageDomain, name)
+            else:
+                setattr(CoverageDomain, name, method)
 
 
 def _free_per_tile(domain: CoverageDomain) -> np.ndarray:

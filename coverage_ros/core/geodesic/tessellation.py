@@ -33,8 +33,8 @@ from coverage_ros.core.geodesic.domain import CoverageDomain, Snap, tie_bias
 from coverage_ros.core.geodesic.local_search import LocalGraph, local_graph_for
 from coverage_ros.core.geodesic.visible_first import visible_first_search
 
-__all__ = ["METHODS", "Generator", "Tessellation", "cell_cost_about", "fast_tessellate",
-           "resolve_method", "source_row", "star_shaped", "tessellate"]
+__all__ = ["METHODS", "Generator", "Tessellation", "fast_tessellate",
+           "resolve_method", "source_row", "source_row_with_reach", "star_shaped", "tessellate"]
 
 @dataclass(frozen=True)
 class Generator:
@@ -84,13 +84,23 @@ def resolve_method(domain: CoverageDomain, method: str) -> str:
 
 
 def source_row(domain: CoverageDomain, local: LocalGraph, snap: Snap, radius: float,
-                method: str) -> tuple[np.ndarray, np.ndarray]:
+               method: str) -> tuple[np.ndarray, np.ndarray]:
     """Local ids and costs of one virtual source's edges (see :func:`resolve_method`)."""
+    lids, costs, _ = source_row_with_reach(domain, local, snap, radius, method)
+    return lids, costs
+
+
+def source_row_with_reach(domain: CoverageDomain, local: LocalGraph, snap: Snap,
+                          radius: float, method: str
+                          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`source_row` and, per edge, the squared distance [cells^2] of a line-of-sight
+    edge (-1 for the snap's own edges): the row of a smaller radius keeps the edges within
+    it (:mod:`~coverage_ros.core.geodesic.source_rows`)."""
     nodes, costs, g = snap
     lid = local.local_of(nodes)
     keep = lid > 0
     if method != "visibility":
-        return lid[keep], costs[keep]
+        return lid[keep], costs[keep], np.full(int(keep.sum()), -1.0)
     r_cells = radius / domain.resolution if math.isfinite(radius) else math.inf
     band = local.rows_slice(g[1] - r_cells, g[1] + r_cells) if math.isfinite(r_cells) \
         else slice(0, local.n)
@@ -100,22 +110,8 @@ def source_row(domain: CoverageDomain, local: LocalGraph, snap: Snap, radius: fl
     reach = math.sqrt(float(d2[near].max())) if len(near) else 0.0
     vis = near[domain.visible_mask(g, c[near], reach)]
     return (np.concatenate([lid[keep], vis + band.start + 1]),
-            np.concatenate([costs[keep], np.sqrt(d2[vis]) * domain.resolution + tie_bias(g)]))
-
-
-def cell_cost_about(domain: CoverageDomain, nodes: np.ndarray, point: np.ndarray,
-                    weight: float, limit: float, method: str = "auto") -> float:
-    """Coverage cost sum (g^2 - R^2) w dA of the fixed cell ``nodes`` about another position
-    ``point`` (2,) [m]: geodesic distances g from it, with the tessellation's sources, searched
-    up to ``limit``; inf if a node of the cell lies beyond."""
-    local = local_graph_for(domain, None, np.zeros((1, 2)), np.zeros(1), math.inf)
-    row = source_row(domain, local, domain.snap(point), limit, resolve_method(domain, method))
-    csr = local.with_sources([row])
-    d = dijkstra(csr, directed=True, indices=local.n + 1, limit=limit)
-    g = d[nodes + 1]  # whole-graph local ids are node ids + 1
-    if not np.all(np.isfinite(g)):
-        return math.inf
-    return float(((g * g - weight ** 2) * domain.mass_element.ravel()[nodes]).sum())
+            np.concatenate([costs[keep], np.sqrt(d2[vis]) * domain.resolution + tie_bias(g)]),
+            np.concatenate([np.full(int(keep.sum()), -1.0), d2[vis]]))
 
 
 def star_shaped(mask: np.ndarray, pred: np.ndarray, first_source: int) -> np.ndarray:

@@ -15,7 +15,8 @@ from typing import ClassVar
 import numpy as np
 
 from coverage_ros.core.geodesic.cell import SearchCache, geodesic_cell
-from coverage_ros.core.geodesic.tessellation import METHODS, Generator, cell_cost_about
+from coverage_ros.core.geodesic.tessellation import METHODS, Generator
+from coverage_ros.core.geodesic.whole_map import cell_cost_about
 from coverage_ros.core.strategies.base import (
     Decision,
     Neighbour,

@@ -38,11 +38,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.ndimage import binary_dilation
-from scipy.sparse.csgraph import dijkstra
 
 from coverage_ros.core.geodesic.domain import CoverageDomain
-from coverage_ros.core.geodesic.local_search import local_graph_for
-from coverage_ros.core.geodesic.tessellation import resolve_method, source_row
+from coverage_ros.core.geodesic.whole_map import nearest
 from coverage_ros.core.offline.geodesic_team import team_cells
 
 #: Searches reach this many longest graph edges beyond the bound they need.
@@ -72,34 +70,6 @@ def node_points(domain: CoverageDomain, nodes: np.ndarray) -> np.ndarray:
     return domain.to_map(np.column_stack([cols + 0.5, rows + 0.5]))
 
 
-#: A source's edges, kept per (x [m], y [m], search limit) for the searches of one bound.
-RowCache = dict[tuple[float, float, float], tuple[np.ndarray, np.ndarray]]
-
-
-def nearest(domain: CoverageDomain, points: np.ndarray, limit: float,
-            method: str = "auto", rows: RowCache | None = None
-            ) -> tuple[np.ndarray, np.ndarray]:
-    """``(H * W,)`` geodesic distance (chart units) of every node from the nearest of
-    ``points (m, 2)`` [m] and that point's index, searched up to ``limit`` (inf and -1
-    beyond). ``rows`` keeps the sources' edges between calls (the generators that stay put
-    in a bound's Lloyd steps)."""
-    method = resolve_method(domain, method)
-    local = local_graph_for(domain, None, np.zeros((1, 2)), np.zeros(1), math.inf)
-    pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
-    rows = {} if rows is None else rows
-    for p in pts:
-        key = (float(p[0]), float(p[1]), float(limit))
-        if key not in rows:
-            rows[key] = source_row(domain, local, domain.snap(p), limit, method)
-    sources = [rows[(float(p[0]), float(p[1]), float(limit))] for p in pts]
-    csr = local.with_sources(sources)
-    n = local.n
-    d, _, src = dijkstra(csr, directed=True, indices=np.arange(n + 1, n + 1 + len(sources)),
-                         limit=limit, min_only=True, return_predecessors=True)
-    label = np.where(src >= 0, src - (n + 1), -1)
-    return d[1:n + 1], label[1:n + 1]  # whole-graph local ids are node ids + 1
-
-
 @dataclass(frozen=True)
 class Removal:
     """What the own generator's leaving costs at most."""
@@ -116,7 +86,7 @@ Tessellations = dict[float, tuple[np.ndarray, np.ndarray]]
 
 def removal_increase(domain: CoverageDomain, generators: np.ndarray, weight: float,
                      bordering: Sequence[int], fixed: Sequence[int], cell_radius: float,
-                     steps: int, method: str = "auto", rows: RowCache | None = None,
+                     steps: int, method: str = "auto",
                      tessellations: Tessellations | None = None) -> Removal:
     """How much H would rise at most if generator 0 of ``generators (m, 2)`` [m] (the own;
     the others: every neighbour known, all of power weight ``weight``) left its cell.
@@ -127,8 +97,8 @@ def removal_increase(domain: CoverageDomain, generators: np.ndarray, weight: flo
     (each to its part's node nearest the part's mass centroid), the least cost kept. Nodes
     outside U keep their owners, so with the movable neighbours at the returned positions H
     rises by at most the returned increase (inf without movable or fixed neighbours, or if a
-    node of U is out of their reach). ``rows`` and ``tessellations`` keep searches for the
-    next bound of the same ``generators``."""
+    node of U is out of their reach). ``tessellations`` keeps searches for the next bound of
+    the same ``generators``."""
     gens = np.asarray(generators, dtype=np.float64).reshape(-1, 2)
     movers = [k for k in bordering if k not in fixed]
     keep = list(fixed)
@@ -138,12 +108,11 @@ def removal_increase(domain: CoverageDomain, generators: np.ndarray, weight: flo
     slack = SLACK_EDGES * domain.graph.max_edge_cost
     limit = 4.0 * cell_radius + slack
     own = [0, *movers]
-    rows = {} if rows is None else rows
     known = {} if tessellations is None else tessellations
 
     def search(limit: float) -> tuple[np.ndarray, np.ndarray]:
         if limit not in known:
-            known[limit] = nearest(domain, gens, limit, method, rows)
+            known[limit] = nearest(domain, gens, limit, method)
         return known[limit]
 
     for _ in range(3):
@@ -159,29 +128,47 @@ def removal_increase(domain: CoverageDomain, generators: np.ndarray, weight: flo
     U = np.flatnonzero(near)
     before = float(((d[U] ** 2 - weight ** 2) * wdA[U]).sum())
     best, at = _lloyd_in(domain, U, gens[movers], gens[keep], weight, steps,
-                         GROWTH * limit, method, rows)
+                         GROWTH * limit, method)
     return Removal(best - before, tuple(movers), at)
 
 
 def _lloyd_in(domain: CoverageDomain, U: np.ndarray, movers: np.ndarray, fixed: np.ndarray,
-              weight: float, steps: int, limit: float, method: str, rows: RowCache,
-              whole: bool = False) -> tuple[float, np.ndarray]:
+              weight: float, steps: int, limit: float, method: str,
+              whole: bool = False, stand: dict[float, np.ndarray] | None = None
+              ) -> tuple[float, np.ndarray]:
     """The least cost of the nodes ``U`` each assigned to the nearest of ``movers (a, 2)``
     and ``fixed (b, 2)`` [m] over ``steps`` Lloyd steps of the movers (each to its part's
     node nearest the part's mass centroid), and where the movers stood then (inf if a node
     of U is out of reach within ``limit``; with ``whole``, a step that leaves a node of U
-    unreached searches again without limit)."""
+    unreached searches again without limit).
+
+    The nearest of all is the nearer of the nearest mover and the nearest fixed generator
+    (a search's distances are the least over its sources), so the fixed generators are
+    searched once (kept by limit in ``stand``, for the next steps in U with the same fixed
+    generators) and each step searches from the movers alone, which reach no farther than
+    ``limit`` around U instead of the whole map."""
     wdA = domain.mass_element.ravel()
     w, pts = wdA[U], node_points(domain, U)
     pos = np.array(movers, dtype=np.float64).reshape(-1, 2)
+    fixed = np.asarray(fixed, dtype=np.float64).reshape(-1, 2)
+    stand = {} if stand is None else stand
+
+    def near(limit: float) -> tuple[np.ndarray, np.ndarray]:
+        if limit not in stand:
+            stand[limit] = nearest(domain, fixed, limit, method)[0][U] if len(fixed) \
+                else np.full(len(U), math.inf)
+        gf = stand[limit]
+        gm, lm = nearest(domain, pos, limit, method)
+        gm, lm = gm[U], lm[U]
+        mine = gm <= gf
+        return np.where(mine, gm, gf), np.where(mine, lm, -1)
+
     best, at = math.inf, pos.copy()
     for step in range(steps + 1):
-        g, lab = nearest(domain, np.vstack([pos, fixed]), limit, method, rows)
-        g, lab = g[U], lab[U]
+        g, lab = near(limit)
         if whole and math.isfinite(limit) and not np.all(np.isfinite(g)):
             # distances within the limit are exact: only an unreached node needs the rest
-            g, lab = nearest(domain, np.vstack([pos, fixed]), math.inf, method, rows)
-            g, lab = g[U], lab[U]
+            g, lab = near(math.inf)
         if not np.all(np.isfinite(g)):
             break
         value = float(((g * g - weight ** 2) * w).sum())
@@ -208,19 +195,19 @@ class Known:
     generators: np.ndarray  # (m, 2) [m]
     distances: np.ndarray  # (H * W,) chart units to the nearest generator (inf: unreached)
     labels: np.ndarray  # (H * W,) index of that generator (-1: unreached)
-    rows: RowCache  # the generators' source edges, reused by the bounds on it
     stay: dict[tuple[int, ...], float] = field(default_factory=dict)  # U's cost reached
     # without a move, per group of movers (units of H)
     descended: dict[tuple[int, ...], float] = field(default_factory=dict)  # H the team's
     # own descent reaches without a move, per group of movers (:func:`descent_change`)
+    standing: dict[tuple[int, ...], dict[float, np.ndarray]] = field(default_factory=dict)
+    # distances over U from the generators that stay, per group of movers, by search limit
 
 
 def known_cells(domain: CoverageDomain, generators: np.ndarray, method: str = "auto") -> Known:
     """The cells of ``generators (m, 2)`` [m] (equal power weights) over the whole map."""
     gens = np.asarray(generators, dtype=np.float64).reshape(-1, 2)
-    rows: RowCache = {}
-    d, label = nearest(domain, gens, math.inf, method, rows)
-    return Known(gens, d, label, rows)
+    d, label = nearest(domain, gens, math.inf, method)
+    return Known(gens, d, label)
 
 
 def joint_change(domain: CoverageDomain, known: Known, weight: float, target: int,
@@ -258,15 +245,16 @@ def joint_change(domain: CoverageDomain, known: Known, weight: float, target: in
     # searches reach GROWTH times U's farthest node now (exact within; beyond: again, whole)
     limit = GROWTH * float(known.distances[U].max(initial=0.0)) \
         + SLACK_EDGES * domain.graph.max_edge_cost
+    stand = known.standing.setdefault(tuple(group), {})
     if tuple(group) not in known.stay:
         known.stay[tuple(group)] = _lloyd_in(domain, U, known.generators[group], fixed, weight,
-                                             steps, limit, method, known.rows, whole=True)[0]
+                                             steps, limit, method, whole=True, stand=stand)[0]
     stay = known.stay[tuple(group)]
     if not math.isfinite(stay):
         return Removal(math.inf, (), np.zeros((0, 2)))
     start = np.vstack([known.generators[movers], np.asarray(point, dtype=np.float64)[None]])
-    moved, at = _lloyd_in(domain, U, start, fixed, weight, steps, limit, method, known.rows,
-                          whole=True)
+    moved, at = _lloyd_in(domain, U, start, fixed, weight, steps, limit, method, whole=True,
+                          stand=stand)
     if rings > 1 and not _shifts_within(domain, known.labels, movers, at[:-1]):
         return Removal(math.inf, (), np.zeros((0, 2)))
     if rings > 1 and moved < stay:

@@ -61,7 +61,6 @@ from coverage_ros.core.geodesic.domain import CoverageDomain
 from coverage_ros.core.strategies.base import Neighbour
 from coverage_ros.core.strategies.handover.bounds import (
     Known,
-    RowCache,
     SplitOffer,
     Tessellations,
     descent_change,
@@ -131,7 +130,7 @@ class Handover:
     _last: np.ndarray | None = field(default=None, repr=False)  # (2,) [m] previous position
     _still: int = 0  # [updates] in a row that moved less than the convergence tolerance
     _offer: tuple[np.ndarray, SplitOffer | None] | None = field(default=None, repr=False)
-    _removal: tuple[np.ndarray, dict[int, float], RowCache, Tessellations] | None = field(
+    _removal: tuple[np.ndarray, dict[int, float], Tessellations] | None = field(
         default=None, repr=False)
     _joint: tuple[np.ndarray, Known, dict[tuple[int, float, float, int], float]] | None = field(
         default=None, repr=False)
@@ -353,9 +352,9 @@ class Handover:
         bound for all other targets), computed again only when some generator moved by a
         cell."""
         if self._removal is None or not _same(self._removal[0], key, self.domain.resolution):
-            self._removal = (key, {}, {}, {})
+            self._removal = (key, {}, {})
         fixed = target if target in bordering else -1
-        _, values, rows, tessellations = self._removal
+        _, values, tessellations = self._removal
         if fixed not in values:
             if any(abs(n.state.weight - weight) >= WEIGHT_MATCH for n in neighbours):
                 values[fixed] = math.inf  # the bound assumes equal power weights
@@ -366,7 +365,7 @@ class Handover:
                 values[fixed] = removal_increase(
                     self.domain, gens, weight, near,
                     [1 + ids.index(fixed)] if fixed >= 0 else [], cell.cell_radius,
-                    self.settings.steps, self.method, rows, tessellations).increase
+                    self.settings.steps, self.method, tessellations).increase
         return values[fixed]
 
 

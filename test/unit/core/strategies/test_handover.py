@@ -17,6 +17,7 @@ import pytest
 
 from coverage_ros.core.geodesic.cell import geodesic_cell
 from coverage_ros.core.geodesic.tessellation import Generator, fast_tessellate
+from coverage_ros.core.geodesic.whole_map import nearest
 from coverage_ros.core.geodesic.world_domain import world_domain
 from coverage_ros.core.offline.runner import OfflineConfig, run_offline
 from coverage_ros.core.strategies import (
@@ -201,6 +202,52 @@ def test_joint_bound_is_above_the_true_change_of_H(seed, rings):
     assert checked >= len(P) and paying >= 1
 
 
+def _lloyd_all_sources(domain, U, movers, fixed, steps, limit):
+    """The bound's Lloyd steps in U as written: every step one search from all generators."""
+    w = domain.mass_element.ravel()[U]
+    rows_, cols_ = np.divmod(U, domain.shape[1])
+    pts = domain.to_map(np.column_stack([cols_ + 0.5, rows_ + 0.5]))
+    pos, best, at = movers.copy(), math.inf, movers.copy()
+    for _ in range(steps + 1):
+        g, lab = nearest(domain, np.vstack([pos, fixed]), limit)
+        g, lab = g[U], lab[U]
+        if not np.all(np.isfinite(g)):
+            break
+        value = float((g * g * w).sum())
+        if value < best:
+            best, at = value, pos.copy()
+        last = pos.copy()
+        for k in range(len(pos)):
+            part = lab == k
+            if w[part].sum() > 0:
+                c = (pts[part] * w[part, None]).sum(axis=0) / w[part].sum()
+                pos[k] = pts[part][int(np.argmin(np.hypot(*(pts[part] - c).T)))]
+        if np.array_equal(pos, last):
+            break
+    return best, at
+
+
+@pytest.mark.parametrize("limit", [math.inf, 2.5])
+def test_the_bounds_lloyd_steps_search_the_movers_alone_with_the_same_result(limit):
+    """The fixed generators searched once and the movers alone at each step (the nearest of
+    all is the nearer of the two) give the cost and positions of searching from all."""
+    from coverage_ros.core.strategies.handover.bounds import _lloyd_in
+
+    _, domain = ward()
+    P = run(cluster(0), escape=False).positions[-1]
+    known = known_cells(domain, P)
+    for group in ([0, 1, 2], [3, 5], list(range(len(P)))):
+        U = np.flatnonzero(np.isin(known.labels, group))
+        movers = P[group] + np.array([0.3, -0.2])  # off their centroids: Lloyd moves them
+        movers = np.array([m if domain.is_free_point(m) else p
+                           for m, p in zip(movers, P[group], strict=True)])
+        fixed = P[[k for k in range(len(P)) if k not in group]]
+        want = _lloyd_all_sources(domain, U, movers, fixed, 6, limit)
+        got = _lloyd_in(domain, U, movers, fixed, 0.0, 6, limit, "auto")
+        assert got[0] == want[0]
+        np.testing.assert_array_equal(got[1], want[1])
+
+
 def _moved(P, i, ids, change):
     """The team at ``P`` with the movers of a bound's ``change`` where it puts them: robot
     ``i`` is generator 0 (mover -1: it, moved), ``ids`` the others in generator order."""
@@ -304,9 +351,8 @@ def test_a_wider_rings_move_counts_where_the_teams_own_descent_goes():
     U = np.flatnonzero(known.labels >= 0)
     start = np.vstack([known.generators[1:], offer.point[None]])
     stay = _lloyd_in(domain, U, known.generators, np.zeros((0, 2)), 0.0, 10, math.inf,
-                     "auto", known.rows)[0]
-    moved, at = _lloyd_in(domain, U, start, np.zeros((0, 2)), 0.0, 10, math.inf, "auto",
-                          known.rows)
+                     "auto")[0]
+    moved, at = _lloyd_in(domain, U, start, np.zeros((0, 2)), 0.0, 10, math.inf, "auto")
     assert moved < stay  # a lower configuration exists ...
     k3 = ids.index(3)
     assert at[k3][1] < 4.0 < P[3][1]  # ... with robot 3 in a room below the corridor

@@ -59,7 +59,8 @@ class SourceRows:
         key = (float(point[0]), float(point[1]))
         row = self._rows.get(key)
         if row is None or row.radius < radius:
-            if row is not None:
+            if row is not None:  # (made again: it goes last, as a new row does)
+                del self._rows[key]
                 self._size -= len(row.lids)
             lids, costs, d2 = source_row_with_reach(self.domain, self.local,
                                                     self.domain.snap(np.asarray(point)),
@@ -69,9 +70,10 @@ class SourceRows:
             self._rows[key] = row
             self._size += len(lids)
             while self._size > self.capacity and len(self._rows) > 1:
-                _, old = self._rows.popitem(last=False)
+                _, old = self._rows.popitem(last=False)  # (never the newest: it is last)
                 self._size -= len(old.lids)
-        self._rows.move_to_end(key)
+        else:
+            self._rows.move_to_end(key)
         if row.radius == radius or self.method != "visibility":
             return row.lids, row.costs
         r_cells = radius / self.domain.resolution

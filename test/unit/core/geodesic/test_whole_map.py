@@ -71,6 +71,21 @@ def test_a_row_asked_at_a_larger_radius_is_made_again_and_the_oldest_go_beyond_c
     assert rows.made == 5  # made again once dropped
 
 
+def test_a_row_made_again_at_a_larger_radius_is_the_newest():
+    domain = office()
+    p, q = free_points(domain, 2, 4)
+    rows = SourceRows(domain, "auto")
+    rows.row(p, 0.5)  # the oldest
+    rows.row(q, 0.5)
+    rows.capacity = len(rows.row(q, 0.5)[0]) + len(direct_row(domain, p, 3.0)[0])
+    lids, _ = rows.row(p, 3.0)  # made again and kept; q, now the oldest, still fits
+    np.testing.assert_array_equal(lids, direct_row(domain, p, 3.0)[0])
+    assert list(rows._rows) == [tuple(q), tuple(p)] and rows.made == 3
+    rows.capacity = len(lids)
+    rows.row(q, 1.0)  # made again: p, the oldest now, goes
+    assert list(rows._rows) == [tuple(q)] and rows.made == 4
+
+
 def test_the_domain_keeps_one_row_cache_per_method():
     domain = office()
     assert source_rows(domain) is source_rows(domain, "visibility")

@@ -95,7 +95,7 @@ def source_row_with_reach(domain: CoverageDomain, local: LocalGraph, snap: Snap,
                           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`source_row` and, per edge, the squared distance [cells^2] of a line-of-sight
     edge (-1 for the snap's own edges): the row of a smaller radius keeps the edges within
-    it (:mod:`~coverage_ros.core.geodesic.source_rows`)."""
+    it (:mod:`~coverage_ros.core.geodesic.whole_map`)."""
     nodes, costs, g = snap
     lid = local.local_of(nodes)
     keep = lid > 0

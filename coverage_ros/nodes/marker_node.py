@@ -25,6 +25,7 @@ import numpy as np
 from coverage_msgs.msg import RobotState
 from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import OccupancyGrid, Path
+from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from visualization_msgs.msg import MarkerArray
 
@@ -48,7 +49,8 @@ TOPICS = {"coverage_state": RobotState, "cell": OccupancyGrid, "goal_pose": Pose
 PARAMETERS = {
     "robot_prefix": ("robot_", "namespace prefix of the team's robots"),
     "topic": ("/coverage/markers", "visualization_msgs/MarkerArray output topic"),
-    "rate": (2.0, "[Hz] marker arrays per second (markers are replaced, never accumulated)"),
+    "rate": (2.0, "[Hz] marker arrays per second of wall time (markers are replaced, never "
+             "accumulated)"),
     "frame_id": ("map", "frame of the markers (the robots' map frame)"),
     "lifetime": (5.0, "[s] markers not refreshed this long vanish (e.g. this node stopped); "
                  "0: until replaced"),
@@ -78,8 +80,11 @@ class MarkerNode(Node):
         self._region_shown = 0  # polygons in the last array
         self._throttle = WarnThrottle(self.get_logger().warning)
         self.regions = RegionInput(self, lambda region: None, self._throttle.warn)
-        self.create_timer(DISCOVERY_PERIOD, self._discover)
-        self.create_timer(1.0 / p["rate"], self._publish)
+        # Both on the steady clock: a silent robot is judged in wall time, and markers stay
+        # fresh while the simulation is paused or its /clock does not reach this node.
+        wall = Clock(clock_type=ClockType.STEADY_TIME)
+        self.create_timer(DISCOVERY_PERIOD, self._discover, clock=wall)
+        self.create_timer(1.0 / p["rate"], self._publish, clock=wall)
 
     def _discover(self) -> None:
         found = {rid for rid, topic in state_topics(self.get_topic_names_and_types(),

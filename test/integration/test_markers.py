@@ -5,10 +5,12 @@ from __future__ import annotations
 
 import json
 import subprocess
+import sys
+import time
 
 import pytest
 from conftest import entry_point
-from rosutil import RosClient, domain_id, spin_until_exit
+from rosutil import NodeProcess, RosClient, domain_id, spin_until_exit
 
 from coverage_ros.nodes import conversions as conv
 
@@ -52,10 +54,59 @@ def test_a_team_shows_in_rviz_markers_and_a_robot_that_leaves_is_cleared(tmp_pat
                     and outlines.get(2):
                 deleted_at = k
     assert all(outlines.get(i, 0) >= 3 for i in (0, 1, 2)), outlines
-    assert deleted_at is not None, "robot 2's markers were never deleted"
+    markers_log = (out / "logs" / "markers.log").read_text()[-3000:]
+    assert deleted_at is not None, f"robot 2's markers were never deleted; markers.log:\n" \
+        f"{markers_log}\nlauncher:\n{err[-2000:]}"
     later = [m for arr in arrays[deleted_at + 1:] for m in arr.markers if m.id == 2]
     assert all(m.action == Marker.DELETE for m in later)
     modes = {m.text for arr in arrays for m in arr.markers if m.ns == "mode"}
     assert any(t.startswith("robot_0: ") and t != "robot_0: " for t in modes), modes
 
 
+
+
+def test_a_silent_robot_is_taken_off_in_wall_time_while_the_simulation_clock_stands_still():
+    """A paused simulation (one /clock message, then none) still gets marker arrays, and a robot
+    whose state stops is deleted after ``stale_after`` seconds of wall time."""
+    from coverage_msgs.msg import RobotState
+    from rosgraph_msgs.msg import Clock
+    from visualization_msgs.msg import Marker, MarkerArray
+
+    from coverage_ros.nodes.qos import TEAM_QOS
+
+    domain = domain_id(13)
+    client = RosClient(domain, "marker_watch")
+    arrays = client.subscribe("/coverage/markers", MarkerArray)
+    clock = client.publisher("/clock", Clock)
+    state = client.publisher("/robot_1/coverage_state", RobotState, TEAM_QOS)
+    cmd = [sys.executable, "-m", "coverage_ros.nodes.marker_node", "--ros-args",
+           "-p", "use_sim_time:=true", "-p", "stale_after:=2.0"]
+    stamp = conv.to_time_msg(5.0)
+
+    def shown(action: int) -> bool:
+        return any((m.ns, m.id, m.action) == ("generator", 1, action)
+                   for arr in arrays for m in arr.markers)
+
+    try:
+        with NodeProcess(cmd, domain) as node:
+            clock.publish(Clock(clock=stamp))
+            last = time.monotonic()
+
+            def speak() -> bool:
+                nonlocal last
+                assert node.alive(), node.output()
+                if time.monotonic() - last >= 0.2:
+                    state.publish(conv.coverage_state_msg(stamp, {"x": 1.0, "y": 2.0},
+                                                          robot_id=1))
+                    last = time.monotonic()
+                return shown(Marker.ADD)
+
+            client.spin_until(speak, 60.0, "robot 1's generator marker")
+            assert not shown(Marker.DELETE)
+            silent_since = time.monotonic()
+            client.spin_until(lambda: shown(Marker.DELETE), 20.0,
+                              f"robot 1's markers deleted; marker_node:\n{node.output()}")
+            assert time.monotonic() - silent_since >= 2.0 - 0.6  # (one publish period early)
+            assert "robot 1 silent or gone" in node.output()
+    finally:
+        client.close()

@@ -24,6 +24,8 @@ from pathlib import Path as FilePath
 from coverage_msgs.msg import RobotState, WorldStatus
 from geometry_msgs.msg import PolygonStamped, PoseStamped
 from nav_msgs.msg import OccupancyGrid, Odometry, Path
+from rclpy.clock import Clock as RclClock
+from rclpy.clock import ClockType
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import LaserScan, PointCloud2
@@ -112,7 +114,8 @@ class RerunBridge(Node):
                                  MAP_QOS)
         self.create_subscription(WorldStatus, "/world/robots",
                                  self._guard("/world/robots", self._on_status), TEAM_QOS)
-        self.create_timer(DISCOVERY_PERIOD, self._discover)
+        self.create_timer(DISCOVERY_PERIOD, self._discover,
+                          clock=RclClock(clock_type=ClockType.STEADY_TIME))
         self.regions = RegionInput(self, self._on_region, self._warn)
         outputs = [f"{what} {where}" for what, where in (
             ("file", cfg.record_path), ("viewer", cfg.connect_url),

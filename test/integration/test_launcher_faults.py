@@ -77,7 +77,9 @@ def test_an_interrupt_at_any_moment_leaves_nothing_behind(tmp_path, when):
     alive = [p.pid for p in seen.values() if p.is_running() and p.status() != "zombie"]
     try:
         assert not alive, f"left behind: {alive}"
-        assert gone <= 10.0, gone
+        # The stop escalates in 10 s at most (SIGINT, 4 s, SIGTERM, 3 s, SIGKILL, 3 s); the rest
+        # is the summary, written by a process that a loaded machine may keep waiting.
+        assert gone <= 20.0, gone
         assert team.returncode == 130, err
         assert "Traceback" not in err and len(err.strip().splitlines()) == 1, err
         assert "interrupted" in err

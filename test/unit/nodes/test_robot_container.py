@@ -320,11 +320,23 @@ def test_container_start_up_errors_name_the_value(args, message):
     assert err[-1].startswith("robot_container: error: ") and message in err[-1], out.stderr
 
 
-class _Publisher:
-    """A publisher whose subscriber acknowledges after ``ack_s`` (None: never - it died)."""
+class _Clock:
+    """``time.monotonic`` for :mod:`coverage_ros.nodes.runner`, advanced by the waits alone: the
+    budget's arithmetic checked exactly, however busy the machine."""
 
-    def __init__(self, ack_s: float | None) -> None:
-        self.ack_s, self.sent, self.waits = ack_s, [], []
+    def __init__(self) -> None:
+        self.now = 1000.0
+
+    def monotonic(self) -> float:
+        return self.now
+
+
+class _Publisher:
+    """A publisher whose subscriber acknowledges after ``ack_s`` (None: never - it died); its
+    wait passes on ``clock``."""
+
+    def __init__(self, ack_s: float | None, clock: _Clock) -> None:
+        self.ack_s, self.clock, self.sent, self.waits = ack_s, clock, [], []
 
     def publish(self, msg) -> None:
         self.sent.append(msg)
@@ -333,22 +345,26 @@ class _Publisher:
         wait = timeout.nanoseconds * 1e-9
         self.waits.append(wait)
         acked = self.ack_s is not None and self.ack_s <= wait
-        time.sleep(self.ack_s if acked else wait)
+        self.clock.now += self.ack_s if acked else wait
         return acked
 
 
-def test_the_robots_of_a_process_share_one_budget_for_their_last_commands():
+def test_the_robots_of_a_process_share_one_budget_for_their_last_commands(monkeypatch):
     """Each last command is sent and waited on until acknowledged; a subscriber that never
     acknowledges costs the process its budget once, not once per robot."""
+    from coverage_ros.nodes import runner
+
+    clock = _Clock()
+    monkeypatch.setattr(runner, "time", clock)
     words = LastWords(budget=0.3)
-    live = _Publisher(ack_s=0.01)
+    live = _Publisher(ack_s=0.01, clock=clock)
     assert words.publish(live, "stop 0") and live.sent == ["stop 0"]
-    start = time.monotonic()
-    dead = [_Publisher(ack_s=None) for _ in range(4)]
+    start = clock.now
+    dead = [_Publisher(ack_s=None, clock=clock) for _ in range(4)]
     assert not any(words.publish(p, f"stop {k}") for k, p in enumerate(dead, 1))
     assert all(p.sent for p in dead)
-    assert 0.2 < dead[0].waits[0] <= 0.3 and [p.waits[0] for p in dead[1:]] == [0.0] * 3
-    assert time.monotonic() - start < 0.4
+    assert dead[0].waits[0] == pytest.approx(0.29) and [p.waits[0] for p in dead[1:]] == [0.0] * 3
+    assert clock.now - start == pytest.approx(0.29)
 
 
 def test_bench_team_reads_every_robots_update_periods_from_the_logs(tmp_path):

@@ -37,9 +37,15 @@ def test_a_plan_starts_nothing_and_writes_nothing(tmp_path):
     world = " ".join(plan.world_command())
     assert "lockstep:=true" in world and "real_time_factor:=0.0" in world
     assert str((tmp_path / "run" / "team.yaml").resolve()) in world
+    assert "lockstep_timeout" not in world  # (the world's own: a silent member is dropped)
     env = plan.environment({"PATH": "/bin"}, 17)
     assert env["ROS_DOMAIN_ID"] == "17" and env["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "LOCALHOST"
     assert env["PATH"] == "/bin"
+
+
+def test_the_world_waits_for_a_restarted_robot_as_for_one_starting_up(tmp_path):
+    plan = _plan(tmp_path, "--robots", "3", "--lockstep", "--restart", "1@5")
+    assert f"lockstep_timeout:={plan.startup_timeout}" in " ".join(plan.world_command())
 
 
 def test_robots_sharing_a_process_reuse_searches_unless_told_otherwise(tmp_path):

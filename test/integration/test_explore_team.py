@@ -30,7 +30,7 @@ def explore(tmp_path, world, *args: str, offset: int) -> tuple[dict, object]:
     out = tmp_path / "team"
     proc = subprocess.run(team_cmd("--world", str(world), "--out", str(out), "--domain-id",
                                    str(domain_id(offset)), *args),
-                          capture_output=True, text=True, timeout=600)
+                          capture_output=True, text=True, timeout=1100)
     assert proc.returncode == 0, proc.stderr[-3000:]
     return json.loads((out / "summary.json").read_text()), out
 

@@ -40,7 +40,7 @@ def best_plan_cost(robots: int, seeds, tmp_path) -> float:
 def run_team(tmp_path, *args: str, offset: int) -> dict:
     out = tmp_path / "team"
     proc = subprocess.run(team_cmd("--out", str(out), "--domain-id", str(domain_id(offset)),
-                                   *args), capture_output=True, text=True, timeout=400)
+                                   *args), capture_output=True, text=True, timeout=1100)
     assert proc.returncode == 0, proc.stderr[-3000:]
     return json.loads((out / "summary.json").read_text())
 

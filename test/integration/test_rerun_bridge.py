@@ -102,14 +102,20 @@ def run(tmp_path_factory):
             pubs = {rid: {kind: client.publisher(f"/robot_{rid}/{kind}", type(msg))
                           for kind, msg in robot_messages(rid, conv.to_time_msg(0.0)).items()}
                     for rid in (0, 1)}
+            # The world's inputs, matched before use (a volatile sample sent before its
+            # subscriber is found is lost).
+            cmd = client.publisher("/robot_0/cmd_vel", Twist)
+            remove = client.publisher("/world/remove", Int32)
+            spawn = client.publisher("/world/spawn", String)
             client.spin_until(lambda: truth[0] and truth[1], 60.0, "both robots' ground truth")
 
             def subscribed() -> bool:
                 assert bridge.alive(), bridge.output()
                 return all(p.get_subscription_count() > 0
-                           for by_kind in pubs.values() for p in by_kind.values())
+                           for by_kind in pubs.values() for p in by_kind.values()) and all(
+                    p.get_subscription_count() > 0 for p in (cmd, remove, spawn))
 
-            client.spin_until(subscribed, 60.0, "the bridge to subscribe the robots' topics")
+            client.spin_until(subscribed, 60.0, "the bridge and the world to subscribe")
 
             # Robot 1 leaves only once the bridge has it on the map, and 2 s of sim time later
             # (scans every 0.2 s): a loaded machine had removed it before the world's ground
@@ -132,7 +138,6 @@ def run(tmp_path_factory):
             pubs[0]["cell"].publish(bad_cell)
             pubs[0]["cell"].publish(robot_messages(0, now)["cell"])  # and a good one again
             start = np.array(truth[0][-1])
-            cmd = client.publisher("/robot_0/cmd_vel", Twist)
             for _ in range(40):  # drive an arc for up to 4 s, until 0.15 m from the start
                 if np.hypot(*(np.array(truth[0][-1]) - start)) > 0.15:
                     break
@@ -141,8 +146,8 @@ def run(tmp_path_factory):
             moved = float(np.hypot(*(np.array(truth[0][-1]) - start)))
             for p in pubs[1].values():  # robot 1's node goes away, then the robot itself
                 client.node.destroy_publisher(p)
-            client.publisher("/world/remove", Int32).publish(Int32(data=1))
-            client.publisher("/world/spawn", String).publish(String(data="{id: 5}"))
+            remove.publish(Int32(data=1))
+            spawn.publish(String(data="{id: 5}"))
             client.spin_until(lambda: truth[5], 30.0, "robot 5's ground truth")
             client.spin_until(lambda: "robot 1 left" in bridge.output()
                               and "robot 5: first pose" in bridge.output(), 60.0,

@@ -52,8 +52,10 @@ def test_a_polygon_published_mid_run_draws_the_team_into_it(tmp_path):
     states = {i: client.subscribe(f"/robot_{i}/coverage_state", RobotState) for i in range(3)}
     pub = client.node.create_publisher(PolygonStamped, REGION_TOPIC, REGION_QOS)
     square = parse_region_text(SQUARE)
-    # In lock-step at most four times real time (the polygon goes out at 12 s of sim time).
-    proc = subprocess.Popen(team_cmd("--world", "empty", "--robots", "3", "--duration", "45",
+    # In lock-step at most four times real time: the polygon goes out once this process has
+    # read a state of 12 s of sim time from every robot - later by four times its lag on a
+    # loaded machine - and the robots have until 60 s to reach it.
+    proc = subprocess.Popen(team_cmd("--world", "empty", "--robots", "3", "--duration", "60",
                                      "--seed", "1", "--lockstep", "--rtf", "4", "--out", str(out),
                                      "--domain-id", str(domain)),
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,

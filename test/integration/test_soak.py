@@ -55,7 +55,10 @@ def test_a_team_whose_robots_restart_keeps_covering_with_flat_memory_and_logs(tm
     robots = {x["id"]: x for x in summary["robots"]}
     assert all("lost_at" not in x for x in robots.values()), robots
     for rid, at in ((0, 35.0), (1, 70.0)):
-        assert robots[rid]["restarted_at"] == [pytest.approx(at, abs=1.0)], robots[rid]
+        # (at real time the launcher looks at the clock between its scorings, which a loaded
+        # machine stretches to a second or more: 2 s of sim time at --rtf 2)
+        (restarted,) = robots[rid]["restarted_at"]
+        assert at <= restarted <= at + 5.0, robots[rid]
         log = (tmp_path / "soak" / "logs" / f"robot_{rid}.log").read_text()
         assert log.count(f"robot {rid}: strategy geodesic") == 2, log[-2000:]
         updates = [int(n) for n in re.findall(r"(\d+) coverage updates", log)]

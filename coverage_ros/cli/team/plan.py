@@ -85,15 +85,15 @@ class RunPlan:
 
     def world_command(self) -> list[str]:
         c = self.config
+        # A restarted robot's new process answers the tick its old one owed: the world waits
+        # for it as long as for a robot starting up (killed robots are removed).
+        restarts: dict[str, Any] = {"lockstep_timeout": self.startup_timeout} if c.restarts else {}
         return executable("world_node") + ros_args(
             world=str(self.world_path), team=str((self.out / "team.yaml").resolve()),
             seed=c.seed, real_time_factor=float(c.rtf), clock_rate_hz=float(c.clock_rate),
             odom_rate_hz=float(c.odom_rate), status_rate_hz=2.0, publish_map=not c.explore,
             lockstep=c.lockstep, lockstep_observers=OBSERVER,
-            lockstep_start_timeout=self.startup_timeout + 30.0,
-            # A restarted robot's new process answers the tick its old one owed: the world
-            # waits for it as long as for a robot starting up (killed robots are removed).
-            **({"lockstep_timeout": self.startup_timeout} if c.restarts else {}))
+            lockstep_start_timeout=self.startup_timeout + 30.0, **restarts)
 
     def bridge_params(self) -> dict[str, Any]:
         """rerun_bridge's parameters (the viewer's ports are added when it starts)."""

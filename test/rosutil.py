@@ -142,8 +142,9 @@ class RosClient:
             self.executor.spin_once(timeout_sec=0.05)
 
     def wait_for(self, topic: str, msg_type: Any, predicate: Callable[[Any], bool] | None = None,
-                 timeout: float = 10.0, qos: Any = 10) -> Any:
-        """The first message on ``topic`` satisfying ``predicate`` (a fresh subscription)."""
+                 timeout: float = 30.0, qos: Any = 10) -> Any:
+        """The first message on ``topic`` satisfying ``predicate`` (a fresh subscription, whose
+        discovery is part of the wait: ``timeout`` [s] is a safety net for a loaded machine)."""
         hits: list = []
 
         def on_msg(msg: Any) -> None:

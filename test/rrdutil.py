@@ -36,4 +36,4 @@ def cell_rgba(row: dict) -> np.ndarray:
 def rerun_verify(path) -> subprocess.CompletedProcess:
     """``rerun rrd verify`` (rerun-sdk's command line) on the recording at ``path``."""
     return subprocess.run([entry_point("rerun"), "rrd", "verify", str(path)],
-                          capture_output=True, text=True, timeout=60)
+                          capture_output=True, text=True, timeout=180)

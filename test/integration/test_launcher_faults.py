@@ -163,7 +163,8 @@ def test_serve_web_takes_free_ports_and_shows_the_team_in_a_browser(tmp_path):
         assert m, line
         assert int(m.group(2)) not in (9090, 9876)
         page = None
-        for _ in range(60):  # the viewer comes up with the bridge
+        answer_by = time.monotonic() + 120.0  # the viewer comes up with the bridge
+        while page is None and time.monotonic() < answer_by:
             with contextlib.suppress(OSError):
                 page = urllib.request.urlopen(m.group(1), timeout=2).read()
                 break

@@ -77,7 +77,7 @@ def test_clock_advances(world):
 def test_map_reaches_a_late_subscriber(world, room):
     _, client = world
     client.wait_for("/clock", Clock, timeout=15.0)  # the node is up and has published /map
-    msg = client.wait_for("/map", OccupancyGrid, qos=MAP_QOS, timeout=5.0)
+    msg = client.wait_for("/map", OccupancyGrid, qos=MAP_QOS, timeout=30.0)
     assert msg.header.frame_id == "map"
     grid = conv.occupancy_grid_to_grid(msg)
     expected = load_world(room).grid
@@ -115,10 +115,12 @@ def test_odom_follows_a_twist_command(world):
         cmd.publish(conv.command_to_twist(0.2, 0.0))
         return bool(odoms) and conv.odometry_to_pose(odoms[-1])[0] > x0 + 0.3
 
-    client.spin_until(driven, timeout=10.0, what="robot_1 to drive 0.3 m forward")
+    client.spin_until(driven, timeout=30.0, what="robot_1 to drive 0.3 m forward")
     _, y, yaw = conv.odometry_to_pose(odoms[-1])
     assert abs(y - y0) < 0.02 and abs(yaw) < 0.02  # straight ahead in the odom frame
-    assert odoms[-1].twist.twist.linear.x == pytest.approx(0.2, abs=0.01)
+    # (at the commanded speed: the last odometry may already show the brake of a command
+    # that came later than cmd_timeout, on a loaded machine)
+    assert max(o.twist.twist.linear.x for o in odoms[-10:]) == pytest.approx(0.2, abs=0.01)
     truth = client.wait_for("/robot_1/ground_truth", Odometry)
     tx, ty, tyaw = conv.odometry_to_pose(truth)
     assert tyaw == pytest.approx(1.0, abs=0.02)  # the start heading in the map frame
@@ -184,7 +186,7 @@ def test_ros2_run_layout_finds_and_runs_the_node():
         try:
             msg = client.wait_for("/clock", Clock, lambda m: m.clock.sec >= 1, timeout=15.0)
             assert msg.clock.sec >= 1
-            client.wait_for("/robot_2/odom", Odometry, timeout=5.0)
+            client.wait_for("/robot_2/odom", Odometry, timeout=30.0)
         finally:
             client.close()
         proc.signal(signal.SIGINT)  # clean shutdown, exit code 0

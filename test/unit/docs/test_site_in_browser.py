@@ -57,9 +57,10 @@ def browser():
 def page_state(driver, url: str) -> dict:
     """Open ``url`` and wait for its pictures; what the page shows."""
     driver.get(url)
-    deadline = time.monotonic() + 30
+    deadline = time.monotonic() + 120  # [s] a loaded machine's browser is slow
     script = "return Array.from(document.images).every(i => i.complete)"
-    while not driver.execute_script(script) and time.monotonic() < deadline:
+    while not driver.execute_script(script):
+        assert time.monotonic() < deadline, f"{url}: pictures not loaded within 120 s"
         time.sleep(0.2)
     return driver.execute_script("""
         const imgs = Array.from(document.querySelectorAll('article img'));

@@ -26,7 +26,7 @@ from rosutil import domain_id, ros_env
 def test_bad_parameters_exit_with_one_line(args, message):
     env = ros_env(domain_id(11))
     out = subprocess.run([sys.executable, "-m", "coverage_ros.nodes.robot_node", "--ros-args",
-                          *args], env=env, capture_output=True, text=True, timeout=60, cwd=REPO)
+                          *args], env=env, capture_output=True, text=True, timeout=180, cwd=REPO)
     assert out.returncode == 2
     err = out.stderr.strip().splitlines()
     assert len(err) == 1 and message in err[0], out.stderr
@@ -36,7 +36,7 @@ def test_an_unknown_executor_is_refused_with_one_line():
     env = ros_env(domain_id(11), COVERAGE_ROS_EXECUTOR="fast")
     out = subprocess.run([sys.executable, "-m", "coverage_ros.nodes.robot_node", "--ros-args",
                           "-p", "robot_id:=0"], env=env, capture_output=True, text=True,
-                         timeout=60, cwd=REPO)
+                         timeout=180, cwd=REPO)
     assert out.returncode == 2
     err = out.stderr.strip().splitlines()
     assert len(err) == 1 and "COVERAGE_ROS_EXECUTOR='fast'" in err[0], out.stderr
@@ -62,7 +62,7 @@ def test_bad_world_gives_a_one_line_error(tmp_path, case, world_yaml, expected):
     out = subprocess.run(
         [sys.executable, "-m", "coverage_ros.nodes.world_node", "--ros-args", "-p",
          f"world:={path}"], cwd=REPO, env=ros_env(domain_id(1)), capture_output=True, text=True,
-        timeout=30)
+        timeout=120)
     assert out.returncode != 0
     lines = out.stderr.strip().splitlines()
     assert len(lines) == 1, out.stderr
@@ -78,7 +78,7 @@ def test_help_prints_the_usage_and_every_parameter_without_starting(node, parame
 
     env = ros_env(domain_id(11))
     out = subprocess.run([sys.executable, "-m", f"coverage_ros.nodes.{node}", "--help"], env=env,
-                         capture_output=True, text=True, timeout=60, cwd=REPO)
+                         capture_output=True, text=True, timeout=180, cwd=REPO)
     assert out.returncode == 0, out.stderr
     assert out.stdout.startswith(f"usage: ros2 run coverage_ros {node} ")
     listed = {line.split()[0] for line in out.stdout.splitlines() if line.startswith("  ")}

@@ -34,7 +34,7 @@ def test_ros2_run_layout_has_the_console_script():
     exe = REPO / "install" / "coverage_ros" / "lib" / "coverage_ros" / "rerun_bridge"
     assert exe.exists(), "colcon's ros2 run layout has the console script"
     out = subprocess.run([entry_point("rerun_bridge")], capture_output=True,
-                         text=True, timeout=60,
+                         text=True, timeout=180,
                          env={**os.environ, "ROS_DOMAIN_ID": str(domain_id(22)),
                               "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"})
     assert out.returncode == 2

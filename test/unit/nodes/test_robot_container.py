@@ -322,7 +322,7 @@ def test_state_topics_are_the_teams_own():
 ])
 def test_container_start_up_errors_name_the_value(args, message):
     out = subprocess.run([sys.executable, "-m", "coverage_ros.nodes.robot_container", *args],
-                         env=ros_env(domain_id(11)), capture_output=True, text=True, timeout=60,
+                         env=ros_env(domain_id(11)), capture_output=True, text=True, timeout=180,
                          cwd=REPO)
     assert out.returncode == 2
     err = out.stderr.strip().splitlines()  # the last line says it (argparse: after usage)

@@ -223,7 +223,7 @@ def test_impossible_teams_are_refused_before_anything_starts(tmp_path):
             (["--team", str(TEAMS / "one_human.yaml"), "--robots", "5"], "--robots: differs")):
         proc = subprocess.run([entry_point("coverage-team"), "--world", "office",
                                "--out", str(out), *args], capture_output=True, text=True,
-                              timeout=60)
+                              timeout=180)
         assert proc.returncode == 2 and message in proc.stderr, (args, proc.stderr)
         assert not (out / "logs").exists()  # nothing was started
 

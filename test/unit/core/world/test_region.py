@@ -65,7 +65,7 @@ def test_the_density_is_kept_inside_the_union_of_the_polygons():
 def test_an_impossible_region_is_refused_before_anything_starts(tmp_path):
     proc = subprocess.run(team_cmd("--world", "empty", "--robots", "2", "--out",
                                    str(tmp_path / "t"), "--region", "20,20;21,20;21,21"),
-                          capture_output=True, text=True, timeout=60)
+                          capture_output=True, text=True, timeout=180)
     assert proc.returncode == 2
     assert proc.stderr.strip().splitlines() == [
         line for line in proc.stderr.strip().splitlines() if "--region" in line]

@@ -95,6 +95,8 @@ class MassCells:
         self.total = float(self.wdA.sum())
         self._centre = self.xy.mean(axis=0)
         self._xy_centred = self.xy - self._centre
+        # (N,) first moments of the masses, each contiguous for bincount
+        self._wx, self._wy = self.wdA * self.xy[:, 0], self.wdA * self.xy[:, 1]
         _, self._nearest = ndimage.distance_transform_edt(~feasible, return_indices=True)
         self._zero = domain.density <= 0.0  # rho = 0: outside the targets and on obstacles
 
@@ -225,11 +227,14 @@ class MassCells:
     def stats(self, labels: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
         """``(masses (k,), centroids (k, 2))`` of the labelled cells (Eq. 3a-3b); the centroid
         of an empty cell is NaN."""
-        ok = labels >= 0
-        lab, w = labels[ok], self.wdA[ok]
+        if labels.min(initial=0) >= 0:
+            lab, w, wx, wy = labels, self.wdA, self._wx, self._wy
+        else:
+            ok = labels >= 0
+            lab, w, wx, wy = labels[ok], self.wdA[ok], self._wx[ok], self._wy[ok]
         m = np.bincount(lab, weights=w, minlength=k)[:k]
-        sx = np.bincount(lab, weights=w * self.xy[ok, 0], minlength=k)[:k]
-        sy = np.bincount(lab, weights=w * self.xy[ok, 1], minlength=k)[:k]
+        sx = np.bincount(lab, weights=wx, minlength=k)[:k]
+        sy = np.bincount(lab, weights=wy, minlength=k)[:k]
         with np.errstate(invalid="ignore", divide="ignore"):
             c = np.stack([sx / m, sy / m], axis=-1)
         c[m <= 0] = np.nan

@@ -23,10 +23,10 @@ def own_lock_dir(tmp_path, monkeypatch):
     monkeypatch.setenv("COVERAGE_ROS_LOCK_DIR", str(tmp_path / "locks"))
 
 
-@pytest.mark.parametrize(("args", "message"), [
+#: Runs refused while the command line is read and the run planned (before :func:`run`).
+REFUSED_WHEN_PLANNED = [
     (["--robots", "500", "--robots-per-process", "1", "--world", "l_shape"],
      "--robots: 500 robots"),
-    (["--domain-id", "300"], "--domain-id: must be in 0..232"),
     # Robots on other hosts while discovery stays on this one (LOCALHOST): never found.
     (["--robots", "3", "--remote-robots", "2"], "--remote-robots: robots on other hosts need "
      "DDS discovery beyond this host"),
@@ -43,8 +43,34 @@ def own_lock_dir(tmp_path, monkeypatch):
     (["--strategy-params", "not: [valid"], "--strategy-params: is not valid YAML ("),
     (["--until-settled", "0"], "--until-settled: must be > 0 [s]"),
     (["--explore", "--until-settled", "30"], "--until-settled: does not apply to --explore"),
+]
+
+
+@pytest.mark.parametrize(("args", "message"), REFUSED_WHEN_PLANNED)
+def test_impossible_runs_are_refused_before_anything_starts(tmp_path, monkeypatch, capsys,
+                                                            args, message):
+    """The launcher's ``main`` in this process: exit status 2 and one line naming the option,
+    and :func:`~coverage_ros.cli.team.launch.run` - where the domain is taken and the first
+    process starts - never called."""
+    from coverage_ros.cli.team import launch
+
+    def started(plan):
+        raise AssertionError(f"the run started: {plan}")
+
+    monkeypatch.setattr(launch, "run", started)
+    out = tmp_path / "team"
+    assert launch.main(["--out", str(out), *args]) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1 and message in lines[0], lines
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(("args", "message"), [
+    (["--domain-id", "300"], "--domain-id: must be in 0..232"),  # (refused in run())
+    (["--kill", "1@5", "--kill", "1@6"], "--kill: kills a robot twice"),
 ])
-def test_impossible_runs_are_refused_before_anything_starts(tmp_path, args, message):
+def test_the_command_refuses_with_status_2_and_one_line(tmp_path, args, message):
+    """The installed ``coverage-team`` command, as a user runs it."""
     out = tmp_path / "team"
     proc = subprocess.run(team_cmd("--out", str(out), *args), capture_output=True, text=True,
                           timeout=120, env=ros_env(domain_id(26)))

@@ -143,6 +143,23 @@ def test_strategy_settings_are_typed_and_validated_once():
         StrategyChoice("geodesic", choice.params)
 
 
+def test_a_node_imports_only_the_strategies_it_runs():
+    """The registry imports a strategy when it is first asked for: the world node imports
+    none, and a registered class is the one of that name."""
+    import subprocess
+    import sys
+
+    code = ("import sys, coverage_ros.nodes.world_node as w; "
+            "from coverage_ros.core.strategies import STRATEGIES, EXPLORERS; "
+            "before = sorted(m for m in sys.modules if m.endswith('.strategy')); "
+            "names = [STRATEGIES[n].name for n in STRATEGIES] + [EXPLORERS[n].name "
+            "for n in EXPLORERS]; print(before, names)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True, timeout=180).stdout.strip()
+    assert out == ("[] ['acvt', 'bvc', 'geodesic', 'lloyd', 'tangentbug', 'geodesic', "
+                   "'frontier']"), out
+
+
 def test_every_strategy_reads_its_robot_from_the_spec():
     """A strategy sees the robot's own sensor radius and power weight, not defaults."""
     from coverage_ros.core.geodesic.domain import CoverageDomain

@@ -236,14 +236,26 @@ def _best_swap(cells: MassCells, spec: CellSpec, P: np.ndarray, reach: np.ndarra
     return best
 
 
+def own_future(cells: MassCells, spec: CellSpec, positions: np.ndarray,
+               reach: np.ndarray | None, config: RelocationConfig) -> tuple[np.ndarray, float]:
+    """``(positions (k, 2) [m], metric)`` of the CVT a team at ``positions`` reaches without a
+    move (iCVT + projection until no agent moves farther than a tenth of the predictions'
+    tolerance, :data:`JUMP_HORIZON` steps at most): what a relocation is weighed against."""
+    still = settle(cells, spec, np.asarray(positions, dtype=np.float64), reach, JUMP_HORIZON,
+                   JUMP_TOLERANCE * config.tolerance)
+    return still, team_metric(cells, spec, still, reach)[2]
+
+
 def best_relocation(cells: MassCells, spec: CellSpec, positions: np.ndarray,
-                    reach: np.ndarray | None, config: RelocationConfig) -> Relocation | None:
+                    reach: np.ndarray | None, config: RelocationConfig,
+                    future: tuple[np.ndarray, float] | None = None) -> Relocation | None:
     """Of the relocations of each of the ``movers`` lightest agents into each of the
     ``candidates`` heaviest cells - and, in a team of mixed reaches on separate targets, the
     ``exchanges`` best several-agent exchanges between targets (:mod:`.exchange`) - the one
     that lowers the predicted metric most, if by at least ``margin``; else None.
     ``positions (k, 2)`` [m] should be a settled configuration. Deterministic: robots that
-    know the same positions find the same relocation."""
+    know the same positions find the same relocation. ``future``: :func:`own_future` of
+    ``positions``, if it was found already."""
     P = np.asarray(positions, dtype=np.float64)
     if len(P) < 2:
         return None
@@ -252,9 +264,8 @@ def best_relocation(cells: MassCells, spec: CellSpec, positions: np.ndarray,
     # Weighed against the team's own future, the CVT it reaches without a move: live
     # positions jitter about it (a move that rebuilds it would look like a gain over ``now``),
     # and a team can crawl towards it for a hundred updates (see below).
-    still = settle(cells, spec, P, reach, JUMP_HORIZON, JUMP_TOLERANCE * config.tolerance)
-    labels_s, _, before = team_metric(cells, spec, still, reach)
-    energy = coverage_energy(cells, labels_s, still, reach)
+    still, before = own_future(cells, spec, P, reach, config) if future is None else future
+    energy = coverage_energy(cells, cells.labels(still, reach, spec), still, reach)
     weighed = masses if reach is None else normalized_masses(masses, reach)
     heavy = [int(h) for h in np.argsort(-weighed, kind="stable")]
     # A move into another target changes the split between targets, which sets each

@@ -64,6 +64,7 @@ from coverage_ros.core.strategies.acvt.relocation import (
     Relocation,
     best_relocation,
     movers,
+    own_future,
 )
 from coverage_ros.core.strategies.base import (
     Decision,
@@ -81,7 +82,8 @@ REACH_TIME = 1.0
 #: A robot within this many convergence tolerances of its goal counts as settled for the
 #: relocation (live robots hover 5-9 cm from goals that move with their neighbours' jitter).
 SETTLED_FACTOR = 3.0
-#: Plans (relocations of a team of mixed reaches, :mod:`.plans`) one robot may make.
+#: Plans (relocations of a team of mixed reaches, :mod:`.plans`) one robot may make, besides
+#: the way back (:meth:`AcvtStrategy._way_back`).
 MAX_PLANS = 4
 
 
@@ -126,6 +128,9 @@ class AcvtStrategy(Strategy):
         self._plan: dict[str, float] = {}  # the extras of the plan this robot publishes
         self._plans = 0  # plans made (mixed reaches: this robot predicts for its neighbourhood)
         self._carried: set[tuple[int, int]] = set()  # (planner, seq) of the plans carried out
+        # (metric, positions, robot ids) of the lowest own future (:func:`.own_future`) of a
+        # settled team this robot predicted from (mixed reaches): where the way back leads
+        self._best_future: tuple[float, np.ndarray, np.ndarray] | None = None
 
     def shared_state(self, obs: Observation) -> SharedState:
         return SharedState(position=obs.position.copy(), weight=self.context.weight,
@@ -287,7 +292,7 @@ class AcvtStrategy(Strategy):
         """The team's metric at ``P`` if this robot may predict a relocation from it now (see
         :meth:`_relocation_move`), else None."""
         cfg = self.relocation
-        spent = self._plans >= MAX_PLANS if mixed else self._relocations >= cfg.max_moves
+        spent = self._plans > MAX_PLANS if mixed else self._relocations >= cfg.max_moves
         if not cfg.enabled or self.switch.active or spent or len(P) < 2:
             return None
         if not all(st.extra.get("settled", 0.0) == 1.0 and st.extra.get("dropout", 1.0) == 0.0
@@ -303,6 +308,29 @@ class AcvtStrategy(Strategy):
         if not mixed and own not in movers(masses, reach, cfg.movers):
             return None
         return metric
+
+    def _way_back(self, metric: float, P: np.ndarray, row_ids: np.ndarray,
+                  margin: float) -> Relocation | None:
+        """Once its plans are spent, the predicting robot of a team of mixed reaches sends the
+        team to the best CVT it foresaw - the lowest :func:`.own_future` of the settled teams
+        it predicted from, this one's included - if the team, settled at ``P`` (robot ids
+        ``row_ids``), is ``margin`` or more above it (``metric``), with the same robots in
+        view. A plan's prediction can part ways with the live team (an exchange that a
+        one-update lag in the neighbours' positions settles into another CVT, or a crawl
+        towards a CVT that stops where the robots' steps fall below their tolerance); without
+        a way back the team keeps the worse end for good. The robots farther than the
+        convergence tolerance from their places there go."""
+        if self._best_future is None:
+            return None
+        best, places, ids = self._best_future
+        if best > metric - margin or not np.array_equal(np.sort(ids), np.sort(row_ids)):
+            return None
+        Q = places[np.argsort(ids)][np.argsort(np.argsort(row_ids))]  # (in this view's rows)
+        far = np.flatnonzero(np.hypot(*(Q - P).T) > self.context.convergence_tolerance)
+        if len(far) == 0:
+            return None
+        agents = tuple(int(a) for a in far)
+        return Relocation(agents, agents, Q[far], metric, best)
 
     def _relocation_move(self, P: np.ndarray, reach: np.ndarray | None, own: int,
                          neighbours: list[SharedState], row_ids: np.ndarray
@@ -329,7 +357,14 @@ class AcvtStrategy(Strategy):
         if metric is None or self._levelling:
             return None
         self._checked = P.copy()
-        move = best_relocation(self.cells, self.spec, P, reach, cfg)
+        future = own_future(self.cells, self.spec, P, reach, cfg) if mixed else None
+        if future is not None and (self._best_future is None
+                                   or future[1] < self._best_future[0]):
+            self._best_future = (future[1], future[0], row_ids.copy())
+        if future is not None and self._plans >= MAX_PLANS:
+            move = self._way_back(metric, P, row_ids, self._level.margin)
+        else:
+            move = best_relocation(self.cells, self.spec, P, reach, cfg, future)
         self._level.reset()
         if move is not None and mixed:
             self._plans += 1

@@ -383,3 +383,55 @@ def test_relocate_auto_is_on_for_separate_targets_only(domain):
     for wrong in ("sometimes", 1):
         with pytest.raises(ConfigError, match="relocate"):
             strategy_choice("acvt", {"relocate": wrong})
+
+
+def test_a_team_whose_plans_are_spent_is_sent_back_to_the_best_cvt_its_planner_foresaw(domain):
+    """Fig. 14's agents. The planner (robot 0) has made its plans; it predicted from a good
+    composition (two fast agents in the small target) and records the CVT that team reaches
+    on its own. When the team then settles in a worse one (four slow agents and a fast one in
+    the small target), its last plan sends every robot that is not there back to its place in
+    the best CVT foreseen; then it plans no more."""
+    from coverage_ros.core.strategies.acvt.relocation import own_future
+    from coverage_ros.core.strategies.acvt.strategy import MAX_PLANS
+
+    cells = MassCells(domain)
+    rng = np.random.default_rng(1)
+    small = np.array([0, 0, 0, 0, 0, 1, 1, 0, 0, 0], dtype=bool)
+    good = settle(cells, CellSpec(), np.where(small[:, None],
+                                              rng.uniform(SMALL_LO, SMALL_HI, (10, 2)),
+                                              rng.uniform(BIG_LO, BIG_HI, (10, 2))),
+                  MIXED, 200, 1e-4)
+    bad = _unequal_composition(cells)
+    config = RelocationConfig()
+    best_places, best = own_future(cells, CellSpec(), good, MIXED, config)
+    assert best < team_metric(cells, CellSpec(), bad, MIXED)[2] - 0.01
+    planner = make_strategy("acvt", StrategyContext(domain=domain, robot_id=0,
+                                                    robot=RobotSpec(v_max=float(MIXED[0]))))
+    planner.switch.stop()
+    planner._plans = MAX_PLANS
+
+    def settled_at(P):
+        _, masses, _ = team_metric(cells, CellSpec(), P, MIXED)
+        nbrs = [Neighbour(i, SharedState(P[i].copy(), mass=masses[i], extra={
+            "reach": float(MIXED[i]), "dropout": 0.0, "greedy": 0.0, "settled": 1.0,
+            "relocating": 0.0})) for i in range(1, 10)]
+        return [planner.update(Observation(0, np.array([*P[0], 0.0]), 1.0), nbrs)
+                for _ in range(DEFAULT_LEVEL_WINDOW + 1)][-1]
+
+    assert "plan_from" not in settled_at(good).shared.extra  # (at its best: no way back)
+    back = settled_at(bad)
+    extra = back.shared.extra
+    assert (extra["plan_from"], extra["plan_seq"]) == (0.0, MAX_PLANS + 1.0)
+    far = np.hypot(*(best_places - bad).T) > planner.context.convergence_tolerance
+    assert far.sum() >= 2
+    for i in range(10):
+        if far[i]:
+            assert (extra[f"plan_{i}_x"], extra[f"plan_{i}_y"]) == tuple(best_places[i])
+        else:
+            assert f"plan_{i}_x" not in extra
+    assert back.details.predicted == pytest.approx(best)
+    # Another settled team, the planner at its place: no plan after the way back.
+    later = bad + 0.05
+    later[0] = best_places[0]
+    after = settled_at(later)
+    assert after.shared.extra.get("plan_seq") == MAX_PLANS + 1.0 and after.mode != "relocate"

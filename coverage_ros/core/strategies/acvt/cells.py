@@ -95,6 +95,9 @@ class MassCells:
         self.total = float(self.wdA.sum())
         self._centre = self.xy.mean(axis=0)
         self._xy_centred = self.xy - self._centre
+        # (N, 4): (|s|^2, x, y, 1) about the centre, the rows of the partition over reaches
+        self._features = np.column_stack([(self._xy_centred ** 2).sum(axis=1),
+                                          self._xy_centred, np.ones(len(self.nodes))])
         # (N,) first moments of the masses, each contiguous for bincount
         self._wx, self._wy = self.wdA * self.xy[:, 0], self.wdA * self.xy[:, 1]
         _, self._nearest = ndimage.distance_transform_edt(~feasible, return_indices=True)
@@ -184,17 +187,18 @@ class MassCells:
                 d += sq
                 out[s:s + step] = np.argmin(d, axis=1)
         elif spec.plain:
-            # Plain distances over reaches (Eq. 17): the same arithmetic as :meth:`distance`,
-            # a chunk of cells x all agents at a time; argmin keeps the lowest index on ties,
-            # as the running minimum below does.
-            R = np.asarray(reach, dtype=np.float64)
+            # Plain distances over reaches (Eq. 17): argmin_i |s - p_i|^2 / R_i^2, expanded as
+            # |s|^2 w_i - 2 s.p_i w_i + |p_i|^2 w_i with w_i = 1 / R_i^2 (one matrix product per
+            # chunk of cells, about centred coordinates): the order of d_i(s) / R_i but for
+            # rounding at near ties. Equal columns (coincident agents of one reach) tie and
+            # argmin takes the lowest index.
+            Pc = P - self._centre
+            w = 1.0 / np.asarray(reach, dtype=np.float64) ** 2
+            A = np.stack([w, -2.0 * w * Pc[:, 0], -2.0 * w * Pc[:, 1], w * (Pc * Pc).sum(1)])
             out = np.empty(len(self.nodes), dtype=np.int64)
             step = max(1, CHUNK_ENTRIES // max(len(P), 1))
             for s in range(0, len(self.nodes), step):
-                xy = self.xy[s:s + step]
-                dx = xy[:, 0, None] - P[None, :, 0]
-                dy = xy[:, 1, None] - P[None, :, 1]
-                out[s:s + step] = np.argmin(np.sqrt(dx * dx + dy * dy) / R, axis=1)
+                out[s:s + step] = np.argmin(self._features[s:s + step] @ A, axis=1)
         else:
             best = np.full(len(self.nodes), np.inf)
             out = np.zeros(len(self.nodes), dtype=np.int64)

@@ -96,15 +96,42 @@ def nearest(domain: CoverageDomain, points: np.ndarray, limit: float,
             method: str = "auto") -> tuple[np.ndarray, np.ndarray]:
     """``(H * W,)`` geodesic distance (chart units) of every node from the nearest of
     ``points (m, 2)`` [m] and that point's index, searched up to ``limit`` (inf and -1
-    beyond)."""
+    beyond). Read-only arrays, kept in the domain for the same points and limit (the bounds
+    ask again for half of theirs: generators that stay, Lloyd steps that come back)."""
     rows = source_rows(domain, method)
     pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+    memo = _nearest_memo(domain)
+    key = (rows.method, float(limit), pts.tobytes())
+    found = memo.get(key)
+    if found is not None:
+        memo.move_to_end(key)
+        return found
     csr = rows.local.with_sources([rows.row(p, limit) for p in pts])
     n = rows.local.n
     d, _, src = dijkstra(csr, directed=True, indices=np.arange(n + 1, n + 1 + len(pts)),
                          limit=limit, min_only=True, return_predecessors=True)
     label = np.where(src >= 0, src - (n + 1), -1)
-    return d[1:n + 1], label[1:n + 1]  # whole-graph local ids are node ids + 1
+    out = (d[1:n + 1], label[1:n + 1])  # whole-graph local ids are node ids + 1
+    for a in out:
+        a.flags.writeable = False
+    memo[key] = out
+    while len(memo) > max(1, NEAREST_MEMO_BYTES // max(16 * n, 1)):
+        memo.popitem(last=False)
+    return out
+
+
+#: [bytes] searches :func:`nearest` keeps per domain (16 bytes a node each), least recently
+#: used dropped first
+NEAREST_MEMO_BYTES = 64 << 20
+
+
+def _nearest_memo(domain: CoverageDomain
+                  ) -> OrderedDict[tuple[str, float, bytes], tuple[np.ndarray, np.ndarray]]:
+    memo = domain._cache.get("nearest_memo")
+    if memo is None:
+        memo = domain._cache["nearest_memo"] = OrderedDict()
+    assert isinstance(memo, OrderedDict)
+    return memo
 
 
 def cell_cost_about(domain: CoverageDomain, nodes: np.ndarray, point: np.ndarray,

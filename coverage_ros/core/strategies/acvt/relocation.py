@@ -246,6 +246,31 @@ def own_future(cells: MassCells, spec: CellSpec, positions: np.ndarray,
     return still, team_metric(cells, spec, still, reach)[2]
 
 
+def way_back(best_future: tuple[float, np.ndarray, np.ndarray] | None, metric: float,
+             positions: np.ndarray, row_ids: np.ndarray, margin: float,
+             tolerance: float) -> Relocation | None:
+    """The last plan of a team of mixed reaches whose planner has spent its plans: back to the
+    best CVT it foresaw (``best_future``: the lowest :func:`own_future` of the settled teams it
+    predicted from, this one's included - its metric, positions and robot ids), if the team,
+    settled at ``positions`` (robot ids ``row_ids``), is ``margin`` or more above it
+    (``metric``), with the same robots in view. A plan's prediction can part ways with the
+    live team (an exchange that a one-update lag in the neighbours' positions settles into
+    another CVT, or a crawl towards a CVT that stops where the robots' steps fall below their
+    tolerance); without a way back the team keeps the worse end for good. The robots farther
+    than ``tolerance`` [m] from their places there go."""
+    if best_future is None:
+        return None
+    best, places, ids = best_future
+    if best > metric - margin or not np.array_equal(np.sort(ids), np.sort(row_ids)):
+        return None
+    Q = places[np.argsort(ids)][np.argsort(np.argsort(row_ids))]  # (in this view's rows)
+    far = np.flatnonzero(np.hypot(*(Q - positions).T) > tolerance)
+    if len(far) == 0:
+        return None
+    agents = tuple(int(a) for a in far)
+    return Relocation(agents, agents, Q[far], metric, best)
+
+
 def best_relocation(cells: MassCells, spec: CellSpec, positions: np.ndarray,
                     reach: np.ndarray | None, config: RelocationConfig,
                     future: tuple[np.ndarray, float] | None = None) -> Relocation | None:

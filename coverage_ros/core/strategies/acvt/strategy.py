@@ -65,6 +65,7 @@ from coverage_ros.core.strategies.acvt.relocation import (
     best_relocation,
     movers,
     own_future,
+    way_back,
 )
 from coverage_ros.core.strategies.base import (
     Decision,
@@ -83,7 +84,7 @@ REACH_TIME = 1.0
 #: relocation (live robots hover 5-9 cm from goals that move with their neighbours' jitter).
 SETTLED_FACTOR = 3.0
 #: Plans (relocations of a team of mixed reaches, :mod:`.plans`) one robot may make, besides
-#: the way back (:meth:`AcvtStrategy._way_back`).
+#: the way back (:func:`.relocation.way_back`).
 MAX_PLANS = 4
 
 
@@ -309,29 +310,6 @@ class AcvtStrategy(Strategy):
             return None
         return metric
 
-    def _way_back(self, metric: float, P: np.ndarray, row_ids: np.ndarray,
-                  margin: float) -> Relocation | None:
-        """Once its plans are spent, the predicting robot of a team of mixed reaches sends the
-        team to the best CVT it foresaw - the lowest :func:`.own_future` of the settled teams
-        it predicted from, this one's included - if the team, settled at ``P`` (robot ids
-        ``row_ids``), is ``margin`` or more above it (``metric``), with the same robots in
-        view. A plan's prediction can part ways with the live team (an exchange that a
-        one-update lag in the neighbours' positions settles into another CVT, or a crawl
-        towards a CVT that stops where the robots' steps fall below their tolerance); without
-        a way back the team keeps the worse end for good. The robots farther than the
-        convergence tolerance from their places there go."""
-        if self._best_future is None:
-            return None
-        best, places, ids = self._best_future
-        if best > metric - margin or not np.array_equal(np.sort(ids), np.sort(row_ids)):
-            return None
-        Q = places[np.argsort(ids)][np.argsort(np.argsort(row_ids))]  # (in this view's rows)
-        far = np.flatnonzero(np.hypot(*(Q - P).T) > self.context.convergence_tolerance)
-        if len(far) == 0:
-            return None
-        agents = tuple(int(a) for a in far)
-        return Relocation(agents, agents, Q[far], metric, best)
-
     def _relocation_move(self, P: np.ndarray, reach: np.ndarray | None, own: int,
                          neighbours: list[SharedState], row_ids: np.ndarray
                          ) -> Relocation | None:
@@ -362,7 +340,8 @@ class AcvtStrategy(Strategy):
                                    or future[1] < self._best_future[0]):
             self._best_future = (future[1], future[0], row_ids.copy())
         if future is not None and self._plans >= MAX_PLANS:
-            move = self._way_back(metric, P, row_ids, self._level.margin)
+            move = way_back(self._best_future, metric, P, row_ids, self._level.margin,
+                            self.context.convergence_tolerance)
         else:
             move = best_relocation(self.cells, self.spec, P, reach, cfg, future)
         self._level.reset()

@@ -49,7 +49,7 @@ from coverage_ros.errors import ConfigError
 
 class _Registry(Mapping[str, type[Strategy]]):
     """Strategy classes by name, each imported when first asked for: a process imports the
-    strategies it runs, not every one (a robot node starts about 0.7 s sooner)."""
+    strategies it runs, not every one (the world node imports none)."""
 
     def __init__(self, paths: dict[str, str]) -> None:
         self._paths = paths  # name -> "module:Class"

@@ -96,7 +96,8 @@ def _kind(path: Path) -> str:
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     """Every test under test/integration gets ``integration``; a test elsewhere that says it is
     one, a lock-step test outside integration, or a test file outside both folders is a
-    mistake that would put the test in the wrong phase of scripts/test."""
+    mistake that would put the test in the wrong phase of scripts/test. Files with ``slow``
+    tests run first."""
     wrong = []
     for item in items:
         kind = _kind(Path(item.path))
@@ -112,4 +113,8 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
             item.add_marker(pytest.mark.integration)
     if wrong:
         raise pytest.UsageError("\n".join(wrong))
+    # The files with slow tests first, each file's tests together (its module fixtures): on
+    # the xdist workers the run then does not end with one long test that started last.
+    slow_files = {item.path for item in items if item.get_closest_marker("slow") is not None}
+    items.sort(key=lambda item: item.path not in slow_files)
 

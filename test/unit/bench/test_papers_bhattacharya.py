@@ -158,6 +158,7 @@ def test_the_redrawn_office_has_the_papers_grid_and_a_larger_room_at_the_bottom(
     assert room.sum() > others.sum() and y1 < 0.5 * bh.OFFICE_SIZE[1]
 
 
+@pytest.mark.slow
 def test_fig19_robot_0_stays_held_in_the_larger_room(monkeypatch):
     """A few seconds of the Fig. 19 run: the keys of the table, the held robot in its room."""
     monkeypatch.setattr(bh, "EXPLORE_DURATION", 4.0)

@@ -268,6 +268,7 @@ def test_every_metric_of_the_experiments_is_what_a_run_returns(monkeypatch):
         (0.1 + R) / R)
 
 
+@pytest.mark.slow
 def test_table_one_in_small_bvc_ahead_of_oavc_ahead_of_adaptive():
     """The benchmark's first three Table I scenarios at 0.2 s steps (the benchmark: 0.1 s, 30
     scenarios): the paper's order of success rates (96.67 % > 46.67 % > 10 %), bvc and OAVC

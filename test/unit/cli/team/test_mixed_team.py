@@ -209,6 +209,7 @@ def test_bad_metrics_are_named(metric, message):
         parse_world({**BOX, "metric": metric})
 
 
+@pytest.mark.slow
 def test_impossible_teams_are_refused_before_anything_starts(tmp_path):
     import subprocess
 

@@ -376,6 +376,7 @@ def test_coverage_cost_never_increases(world):
     assert finals[0] == pytest.approx(finals[1], rel=0.01)
 
 
+@pytest.mark.slow
 def test_converges_to_lloyds_cvt_in_an_obstacle_free_square():
     """Without the closet escape the geodesic strategy is Lloyd's where every line is a geodesic;
     with it (the default) it ends at Lloyd's CVT or at a lower H."""

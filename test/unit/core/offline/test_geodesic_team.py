@@ -118,6 +118,7 @@ def test_plain_geodesic_lloyd_settles_where_full_steps_swing_across_doorways():
     assert E[-1] < 0.1 * E[0]
 
 
+@pytest.mark.slow
 def test_plain_geodesic_lloyd_ends_where_the_robots_own_updates_do():
     """Eight robots from the launcher's cluster in the ward: the team solver's monotone step
     halves only the steps of the robots whose cells' cost rose, as each robot's own monotone

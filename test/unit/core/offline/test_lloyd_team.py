@@ -166,6 +166,7 @@ def test_coverage_plan_solver_option(tmp_path, capsys):
     assert "--solver: needs --strategy lloyd or geodesic" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_geodesic_team_solver_reaches_the_decentralized_runs_cost(tmp_path):
     """coverage-plan --strategy geodesic: the whole team's step (one shared search per step)
     ends where every robot's own updates end, at the same cost."""

@@ -104,6 +104,7 @@ def cluster(seed: int) -> np.ndarray:
     return team_starts(world, [world.robot_spec(i) for i in range(ROBOTS)], None, seed)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("rings", [1, 2])
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_escape_ends_near_the_best_where_plain_lloyd_is_shut_in(seed, rings):
@@ -124,6 +125,7 @@ def test_escape_ends_near_the_best_where_plain_lloyd_is_shut_in(seed, rings):
     assert all(domain.is_free_point(p) for p in escaped.positions.reshape(-1, 2))
 
 
+@pytest.mark.slow
 def test_escape_is_deterministic():
     a = run(cluster(2), escape=True)
     b = run(cluster(2), escape=True)
@@ -171,6 +173,7 @@ def test_bound_is_above_the_true_change_of_H(seed):
     assert checked >= len(P)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("rings", [1, 2])
 @pytest.mark.parametrize("seed", [0, 2])
 def test_joint_bound_is_above_the_true_change_of_H(seed, rings):
@@ -386,6 +389,7 @@ def _plan2():
     return world_domain(world, world.robot_spec(0).radius)
 
 
+@pytest.mark.slow
 def test_a_move_no_bound_sees_is_priced_by_the_teams_own_descent():
     """Robot 2 moving to robot 7's offered point: every bound says H rises (the pair's, the
     joint one with one and with two rings re-spreading), but where the team's own generalized
@@ -450,6 +454,7 @@ def test_a_move_no_bound_sees_is_priced_by_the_teams_own_descent():
     assert set(claims(1)) == {1}
 
 
+@pytest.mark.slow
 def test_a_robot_claims_no_more_where_the_team_came_back_after_its_move():
     """At the plan-2 positions robot 1 claims robot 7's cell (priced by the descent) and
     relocates; if the team comes back to where it left from (its steps need not reach the

@@ -358,6 +358,7 @@ def test_decentralized_two_targets_matches_centralized(two_targets, two_target_r
     assert value <= 2.0 * max(acvt.metric[-1], I_GRID_FLOOR)
 
 
+@pytest.mark.slow
 def test_decentralized_bullseye_within_twice_centralized(bullseye, bullseye_runs):
     starts, acvt, icvt = bullseye_runs
     run = run_offline(bullseye, "acvt", starts, config=OfflineConfig(max_iterations=150))
@@ -368,6 +369,7 @@ def test_decentralized_bullseye_within_twice_centralized(bullseye, bullseye_runs
     assert value < icvt.metric[-1]
 
 
+@pytest.mark.slow
 def test_visibility_walls_reduce_uncovered_mass():
     """Paper Fig. 7 (two walls, 10 agents, I^L): a 10 m arena with two offset walls, agents
     starting in the lower-left corner behind the first wall."""

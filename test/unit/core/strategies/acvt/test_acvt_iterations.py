@@ -217,6 +217,7 @@ def _gradual_team(domain: CoverageDomain, starts: np.ndarray, speed: float, peri
     return pos, ends
 
 
+@pytest.mark.slow
 def test_a_team_moving_at_live_pace_keeps_its_dropout_until_the_split_is_right(room):
     """The live Lee room (Figs. 17d-f, 0.8 m/s, updates every 0.5 s): fed per update, every
     robot's dropout ended 13 s into the run with the team split 6 + 2 + 2 between the three

@@ -347,6 +347,7 @@ def test_the_decentralized_robot_relocates_when_its_settled_team_lets_it(domain,
                         nbrs).mode == "cvt"
 
 
+@pytest.mark.slow
 def test_the_decentralized_strategy_ends_balanced_from_several_starts():
     """The same for the robots' own updates (coverage-plan --strategy acvt) on our disc and
     rectangle, from two starts where the published rule ends with 5 + 5 instead of 4 + 6."""

@@ -9,6 +9,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 
 from coverage_ros.core.geodesic.domain import CoverageDomain
 from coverage_ros.core.offline.rangesim import simulate_scan
@@ -118,6 +119,7 @@ def test_shadows_of_narrow_obstacles_are_bridged_and_those_of_walls_are_not():
             assert np.allclose(got, _bridged_slowly(depth, inc, width, full))
 
 
+@pytest.mark.slow
 def test_map_free_robots_are_not_held_by_the_space_pillars_hide():
     """Four map-free bvc robots where a live run on tb3_sandbox settled (H 18.8, 1.3x the best
     plan's 14.5): behind the pillars between them lay space none of their scans had reached,

@@ -473,6 +473,7 @@ def test_runs_through_run_offline_on_the_field_world():
 
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("world", ["l_shape", "tb3_sandbox"])
 def test_a_cluster_spreads_under_a_uniform_density(world):
     """With no density peak to be guided to, each robot is guided to the middle of the

@@ -573,6 +573,7 @@ def test_two_robots_fig4_cost_bounds():
         np.hypot(*(ref - V[0])), abs=SCAN_BIAS + REF_RES + TRACKING)
 
 
+@pytest.mark.slow
 def test_u_world_five_robots_converge_and_real_cost_meets_virtual_cost():
     """Fig. 3: five robots from a corner of the U-shaped world. TangentBug takes them round
     the block; at convergence every target is free and reached, and the real cost is the

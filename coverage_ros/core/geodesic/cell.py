@@ -37,6 +37,7 @@ from coverage_ros.core.geodesic.local_search import (
     SearchCache,
     local_graph_for,
 )
+from coverage_ros.core.geodesic.power_rows import whole_power_rows
 from coverage_ros.core.geodesic.shared_search import held_search, shared_search
 from coverage_ros.core.geodesic.tangents import ancestor_table, first_ancestor_where
 from coverage_ros.core.geodesic.tessellation import (
@@ -162,7 +163,9 @@ def geodesic_cell(domain: CoverageDomain, own: Generator, others: Sequence[Gener
             break
         csr = local.with_sources([source_row(domain, local, snaps[k], radii[k], method)
                                   for k in idx])
-        found = _search(local, csr, weights[idx], radii[idx], L, power)
+        rows = whole_power_rows(domain, csr, [snaps[k] for k in idx], method) \
+            if power and not math.isfinite(L) and local.covers_all else None
+        found = _search(local, csr, weights[idx], radii[idx], L, power, rows=rows)
         if found is not None:
             break
         if local.covers_all and math.isfinite(L):
@@ -217,9 +220,11 @@ def cold_radius(domain: CoverageDomain, centers: np.ndarray, weights: np.ndarray
 
 
 def _search(local: LocalGraph, csr: csr_matrix, weights: np.ndarray, radii: np.ndarray,
-            L: float, power: bool, force: bool = False
+            L: float, power: bool, force: bool = False,
+            rows: list[tuple[np.ndarray, np.ndarray]] | None = None
             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
-    """Run the limited Dijkstra; None if the own cell reaches the search frontier.
+    """Run the limited Dijkstra; None if the own cell reaches the search frontier. ``rows``:
+    with power weights, every source's search already made (distances, predecessors).
 
     Returns ``(own, g, pred, touching)``: local ids (1..n) of the own cell, their distances, the
     own shortest-path tree's predecessors (local ids) and the generators bordering the cell.
@@ -239,7 +244,10 @@ def _search(local: LocalGraph, csr: csr_matrix, weights: np.ndarray, radii: np.n
         pred = None
         for k in range(len(weights)):
             lim = radii[k] if math.isfinite(L) else np.inf
-            if k == 0:
+            if rows is not None:
+                all_d[k] = rows[k][0]
+                pred = rows[0][1]
+            elif k == 0:
                 all_d[0], pred = dijkstra(csr, directed=True, indices=sources[0],
                                           return_predecessors=True, limit=lim)
             else:

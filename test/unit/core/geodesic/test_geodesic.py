@@ -311,6 +311,39 @@ def test_whole_domain_search_shared_by_a_team_gives_each_robot_its_own_cell(seed
     assert len(held.positions) == len(gens)
 
 
+@pytest.mark.parametrize("seed", [0, 1])
+def test_power_cells_from_searches_kept_in_the_domain_are_the_fresh_ones(seed):
+    """With power weights, whole=True keeps each generator's search in the domain
+    (:mod:`coverage_ros.core.geodesic.power_rows`): a team in one process that hears the same
+    generators, and a robot that updates again without a move, get the cell and control a
+    fresh domain gives; a generator that moved is searched again."""
+    rng = np.random.default_rng(seed)
+    base = random_domain(rng, 40, 50)
+    zeta = rng.uniform(0.1, 0.7, base.shape)
+    make = lambda: CoverageDomain.from_grid(base.geometry, 0.0, zeta=zeta)  # noqa: E731
+    domain = make()
+    gens = random_generators(domain, rng, 4, weights=True)
+    assert np.ptp([g.weight for g in gens]) > 0
+
+    def check(gens):
+        for k in range(len(gens)):
+            own, others = gens[k], gens[:k] + gens[k + 1:]
+            kept = geodesic_cell(domain, own, others, whole=True)
+            fresh = geodesic_cell(make(), own, others, whole=True)
+            assert np.array_equal(kept.nodes, fresh.nodes), k
+            np.testing.assert_array_equal(kept.distances, fresh.distances)
+            np.testing.assert_array_equal(kept.covector, fresh.covector)
+            np.testing.assert_array_equal(kept.goal, fresh.goal)
+            assert kept.neighbours == fresh.neighbours
+        return len(domain._cache["power_rows"])
+
+    assert check(gens) == len(gens)  # one search per generator served the team
+    assert check(gens) == len(gens)
+    moved = [Generator(random_generators(domain, rng, 1)[0].position, gens[0].weight),
+             *gens[1:]]
+    assert check(moved) == len(gens) + 1
+
+
 def test_larger_power_weight_gets_a_larger_cell():
     domain = empty_domain(30, 60)
     a, b = np.array([2.0, 1.5]), np.array([4.0, 1.5])

@@ -28,7 +28,7 @@ rasters and scored the same way (:mod:`coverage_ros.bench.closets_live`); the RE
 gets a column for them.
 
     scripts/bench_closets --label before [--maps ward,office,plan-7] [--seeds 3] [--restarts 8]
-    scripts/bench_closets --label live --live [--duration S] [--maps ward]
+    scripts/bench_closets --label live --live [--duration S] [--maps ward] [--jobs 3]
 """
 
 from __future__ import annotations
@@ -190,8 +190,13 @@ def _main(argv: list[str] | None) -> int:
                     help=f"[s] with --live: end a run once settled for S s of sim time "
                          f"(coverage-team --until-settled; default {LIVE_SETTLE:g}; 0: run "
                          f"the whole --duration)")
+    ap.add_argument("--jobs", type=int, default=1,
+                    help="with --live: runs at once (start seeds of a map), each team in its "
+                         "own ROS domain")
     ap.add_argument("--json", type=Path, default=RESULTS)
     args = ap.parse_args(argv)
+    if args.jobs < 1:
+        raise ConfigError.at("--jobs", "must be >= 1", args.jobs)
     if args.duration is not None and args.duration <= 0:
         raise ConfigError.at("--duration", "must be > 0", args.duration)
     if not args.until_settled >= 0:

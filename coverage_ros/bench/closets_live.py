@@ -26,6 +26,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -109,8 +110,9 @@ def within_at(series: list, H_best: float, share: float = TARGET - 1.0) -> float
 
 
 def bench_live(args, maps: list[str], data: dict, say, duration: float) -> dict[str, dict]:
-    """Every map and start seed live for ``duration`` [s] of sim time; per map its settings
-    and cases."""
+    """Every map and start seed live for ``duration`` [s] of sim time, ``args.jobs`` runs at
+    once (lock-step: a run's result does not depend on what else the machine does); per map
+    its settings and cases."""
     best = data.get("best", {})
     results = {}
     with tempfile.TemporaryDirectory(prefix="bench-closets-live-") as tmp:
@@ -120,8 +122,12 @@ def bench_live(args, maps: list[str], data: dict, say, duration: float) -> dict[
             if args.until_settled > 0:
                 settings["until_settled"] = args.until_settled
             cases = []
-            for seed in range(args.seeds):
-                case = run_case(name, seed, args, Path(tmp), duration)
+            with ThreadPoolExecutor(max_workers=args.jobs) as jobs:
+                # (each team in its own ROS domain, its world file in its own folder)
+                runs = [jobs.submit(run_case, name, seed, args, Path(tmp) / f"seed-{seed}",
+                                    duration) for seed in range(args.seeds)]
+                done = [run.result() for run in runs]
+            for seed, case in enumerate(done):
                 H_best = best.get(name, {}).get("H")
                 series = case.pop("H_series")
                 case["within_at"] = None if H_best is None else within_at(series, H_best)

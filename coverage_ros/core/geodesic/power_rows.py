@@ -61,7 +61,7 @@ def whole_power_rows(domain: CoverageDomain, csr: csr_matrix, snaps: Sequence[Sn
 def _trim(kept: Kept) -> None:
     """Drop the oldest rows (dicts keep insertion order) until the rest fit KEPT_BYTES; the
     newest always stays."""
-    total = sum(d.nbytes + p.nbytes for d, p in kept.values())
+    total = sum(d.nbytes + p.nbytes for d, p in list(kept.values()))
     while total > KEPT_BYTES and len(kept) > 1:
         d, p = kept.pop(next(iter(kept)))
         total -= d.nbytes + p.nbytes

@@ -306,15 +306,27 @@ def closest_unexplored(domain: CoverageDomain, e: np.ndarray, p: np.ndarray,
     unexplored = (e >= tau) & domain.free
     if not unexplored.any():
         return None
-    nodes, _, _ = domain.snap(p)
+    nodes, _, grid = domain.snap(p)
     if len(nodes) == 0:
         return None
     # The cells around the robot are a fraction of a cell away: their offsets do not matter.
-    best = dijkstra(domain.graph.csr, directed=True, indices=nodes,
-                    min_only=True).reshape(domain.shape)
-    best[~unexplored] = np.inf
-    k = int(np.argmin(best))
-    if not np.isfinite(best.ravel()[k]):
-        return None
+    # Searched out to a limit, doubled until an unexplored vertex lies within it: distances
+    # within the limit are exact, so its nearest is the whole search's. The first limit is
+    # twice the least a path to the nearest unexplored vertex can be (its straight line times
+    # the metric's lower bound).
+    rows, cols = np.nonzero(unexplored)
+    cells = float(np.hypot(cols + 0.5 - grid[0], rows + 0.5 - grid[1]).min())
+    edge = domain.graph.max_edge_cost
+    limit = max(2.0 * cells * domain.resolution * domain.metric_lower_bound, 4.0 * edge)
+    while True:
+        d = dijkstra(domain.graph.csr, directed=True, indices=nodes, min_only=True,
+                     limit=limit)
+        best = np.where(unexplored.ravel(), d, np.inf)
+        k = int(np.argmin(best))
+        if np.isfinite(best[k]):
+            break
+        if not float(d[np.isfinite(d)].max(initial=0.0)) >= limit - edge:
+            return None  # (no path reaches the limit: all that can be reached was)
+        limit *= 2.0
     point: np.ndarray = domain.to_map(domain.node_centers(np.array([k])))[0]
     return point

@@ -140,6 +140,46 @@ def test_a_target_that_never_gets_explored_is_given_up_and_not_chosen_again():
         strategy_choice("geodesic", {"give_up_after": 0.0}, explore=True)
 
 
+@pytest.mark.parametrize("seed", range(4))
+def test_the_closest_unexplored_vertex_is_the_whole_searchs_nearest(seed):
+    """closest_unexplored searches out to a growing limit: the vertex it picks is the one a
+    search of the whole map picks (the nearest along the metric, the first of equals), and
+    None where no unexplored vertex can be reached (a room walled off)."""
+    from scipy.sparse.csgraph import dijkstra
+
+    from coverage_ros.core.strategies.explore.strategy import closest_unexplored
+
+    rng = np.random.default_rng(seed)
+    h, w = 60, 90
+    occ = np.zeros((h, w), np.int8)
+    for _ in range(12):  # walls and shelves
+        r, c = rng.integers(0, h - 4), rng.integers(0, w - 4)
+        occ[r:r + rng.integers(1, 30), c:c + rng.integers(1, 4)] = 100
+    occ[:, 70] = 100  # a room beyond a wall: reached by nobody on the left
+    zeta = rng.uniform(0.2, 1.0, (h, w))
+    domain = CoverageDomain.from_grid(GridMap(occ, RES), 0.0, zeta=zeta)
+    free = np.argwhere(domain.free[:, :70])
+    for _ in range(5):
+        e = np.zeros((h, w))
+        k = int(rng.integers(1, 40))
+        e[rng.integers(0, h, k), rng.integers(0, w, k)] = 1.0
+        r, c = free[rng.integers(len(free))]
+        p = domain.geometry.cell_centers(np.array([[r, c]]))[0] + rng.uniform(-0.4, 0.4, 2) * RES
+        nodes = domain.snap(p)[0]
+        d = dijkstra(domain.graph.csr, directed=True, indices=nodes, min_only=True)
+        d[~((e >= 0.5) & domain.free).ravel()] = np.inf
+        got = closest_unexplored(domain, e, p, 0.5)
+        if not np.isfinite(d.min()):
+            assert got is None
+            continue
+        want = domain.to_map(domain.node_centers(np.array([int(np.argmin(d))])))[0]
+        assert got is not None and np.array_equal(got, want)
+    e = np.zeros((h, w))
+    e[30, 80] = 1.0  # only behind the wall
+    assert domain.free[30, 80]
+    assert closest_unexplored(domain, e, domain.geometry.cell_centers(free[:1])[0], 0.5) is None
+
+
 def test_frontiers_of_a_room_with_an_open_door():
     """A 2 m x 2 m room seen free with walls around, but for a 1 m door on its right: one
     frontier along the door, centred on it, without the cells next to the jambs that a robot

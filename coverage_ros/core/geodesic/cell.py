@@ -240,18 +240,17 @@ def _search(local: LocalGraph, csr: csr_matrix, weights: np.ndarray, radii: np.n
         label[src < 0] = -1
         own_dist = dist
     else:
-        all_d = np.empty((len(weights), first + len(weights)))
-        pred = None
-        for k in range(len(weights)):
-            lim = radii[k] if math.isfinite(L) else np.inf
-            if rows is not None:
-                all_d[k] = rows[k][0]
-                pred = rows[0][1]
-            elif k == 0:
-                all_d[0], pred = dijkstra(csr, directed=True, indices=sources[0],
-                                          return_predecessors=True, limit=lim)
-            else:
-                all_d[k] = dijkstra(csr, directed=True, indices=sources[k], limit=lim)
+        if rows is not None:
+            all_d, pred = np.stack([d for d, _ in rows]), rows[0][1]
+        else:
+            all_d = np.empty((len(weights), first + len(weights)))
+            for k in range(len(weights)):
+                lim = radii[k] if math.isfinite(L) else np.inf
+                if k == 0:
+                    all_d[0], pred = dijkstra(csr, directed=True, indices=sources[0],
+                                              return_predecessors=True, limit=lim)
+                else:
+                    all_d[k] = dijkstra(csr, directed=True, indices=sources[k], limit=lim)
         pw = all_d ** 2 - (weights ** 2)[:, None]
         label = np.argmin(pw, axis=0)
         label[~np.isfinite(pw.min(axis=0))] = -1

@@ -313,11 +313,12 @@ def closest_unexplored(domain: CoverageDomain, e: np.ndarray, p: np.ndarray,
     # Searched out to a limit, doubled until an unexplored vertex lies within it: distances
     # within the limit are exact, so its nearest is the whole search's. The first limit is
     # twice the least a path to the nearest unexplored vertex can be (its straight line times
-    # the metric's lower bound).
+    # the metric's lower bound; on a chart that wraps, the whole map at once).
     rows, cols = np.nonzero(unexplored)
     cells = float(np.hypot(cols + 0.5 - grid[0], rows + 0.5 - grid[1]).min())
     edge = domain.graph.max_edge_cost
-    limit = max(2.0 * cells * domain.resolution * domain.metric_lower_bound, 4.0 * edge)
+    limit = math.inf if any(domain.graph.wrap) else \
+        max(2.0 * cells * domain.resolution * domain.metric_lower_bound, 4.0 * edge)
     while True:
         d = dijkstra(domain.graph.csr, directed=True, indices=nodes, min_only=True,
                      limit=limit)
@@ -325,7 +326,7 @@ def closest_unexplored(domain: CoverageDomain, e: np.ndarray, p: np.ndarray,
         k = int(np.argmin(best))
         if np.isfinite(best[k]):
             break
-        if not float(d[np.isfinite(d)].max(initial=0.0)) >= limit - edge:
+        if not float(d[np.isfinite(d)].max(initial=0.0)) >= limit - edge:  # (inf: never)
             return None  # (no path reaches the limit: all that can be reached was)
         limit *= 2.0
     point: np.ndarray = domain.to_map(domain.node_centers(np.array([k])))[0]

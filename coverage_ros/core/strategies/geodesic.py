@@ -27,6 +27,7 @@ from coverage_ros.core.strategies.base import (
     StrategyDetails,
 )
 from coverage_ros.core.strategies.handover import Handover, HandoverSettings
+from coverage_ros.core.strategies.handover.published import destination
 from coverage_ros.errors import ConfigError
 
 #: A monotone-step cost search reaches this many longest edges beyond the cell and the step
@@ -125,7 +126,8 @@ class GeodesicStrategy(Strategy):
 
     def update(self, obs: Observation, neighbours: Sequence[Neighbour]) -> Decision:
         own = Generator(obs.position, self.context.weight)
-        others = [Generator(n.position, n.state.weight) for n in neighbours]
+        # a relocating neighbour's generator counts where it is going (handover.published)
+        others = [Generator(destination(n), n.state.weight) for n in neighbours]
         cell = geodesic_cell(self.context.domain, own, others, cache=self.cache,
                              method=self.params.method, reuse=self.context.search_reuse)
         bordering = tuple(neighbours[k].robot_id for k in cell.neighbours)

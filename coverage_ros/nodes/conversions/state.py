@@ -37,7 +37,7 @@ _TANGENTBUG = ("virtual_x", "virtual_y", "cost_real", "cost_virtual", "converged
 _ACVT = ("reach", "dropout", "iteration", "greedy", "settled", "relocating", "plan_from",
          "plan_seq")
 _HANDOVER = ("settled", "offer_gain", "offer_x", "offer_y", "offer_base", "claim",
-             "claim_gain", "grant")
+             "claim_gain", "grant", "relocating", "to_x", "to_y")
 NAN = math.nan
 
 
@@ -85,7 +85,9 @@ def coverage_state_msg(stamp: Time, values: dict[str, float], frame_id: str = MA
             settled=bool(values.get("settled", 0.0)), offer_gain=_f(values, "offer_gain"),
             offer_x=_f(values, "offer_x"), offer_y=_f(values, "offer_y"),
             offer_base=_f(values, "offer_base"), claim=int(values.get("claim", -1.0)),
-            claim_gain=_f(values, "claim_gain"), grant=int(values.get("grant", -1.0)))]
+            claim_gain=_f(values, "claim_gain"), grant=int(values.get("grant", -1.0)),
+            relocating=bool(values.get("relocating", 0.0)), to_x=_f(values, "to_x"),
+            to_y=_f(values, "to_y"))]
         used |= set(_HANDOVER)
     rest = sorted(k for k in values if k not in used)
     msg.extra_names = rest
@@ -139,7 +141,8 @@ def coverage_state_values(msg: RobotState, expected_frame: str = MAP_FRAME
     for h in msg.handover:
         out.update(settled=float(h.settled), offer_gain=h.offer_gain, offer_x=h.offer_x,
                    offer_y=h.offer_y, offer_base=h.offer_base, claim=float(h.claim),
-                   claim_gain=h.claim_gain, grant=float(h.grant))
+                   claim_gain=h.claim_gain, grant=float(h.grant),
+                   relocating=float(h.relocating), to_x=h.to_x, to_y=h.to_y)
     out.update(zip(msg.extra_names, msg.extra_values, strict=True))
     stamp = from_time_msg(msg.evidence_stamp)
     if stamp > 0:

@@ -11,7 +11,9 @@ Every robot publishes, with its state (``SharedState.extra``):
   gain 0: no offer);
 * ``claim`` (a robot id, -1: none) and ``claim_gain``: the cell it asks to move into and the
   bound's saving;
-* ``grant``: the one claimant it lets in (-1: none).
+* ``grant``: the one claimant it lets in (-1: none);
+* ``relocating``, ``to_x``, ``to_y``: on its way to a claimed cell's point, and that point (its
+  neighbours' cells count its generator there: :mod:`.published`).
 
 Robot i claims neighbour j (any robot it hears: the offer is j's, the removal i's own, so the bound
 needs no common border) when i and every robot it hears are settled and none of them claims (one
@@ -69,6 +71,7 @@ from coverage_ros.core.strategies.handover.bounds import (
     removal_increase,
     split_offer,
 )
+from coverage_ros.core.strategies.handover.published import NONE, idle, value
 
 #: [updates] standing still this long counts as settled: a robot turning towards a new goal
 #: stands still for an update or two (half a turn at 2.84 rad/s takes 1.1 s, at 2 Hz).
@@ -79,7 +82,6 @@ WEIGHT_MATCH = 1e-9
 ARRIVAL_TOLERANCES = 3.0
 #: ... or this many grid cells, whichever is more (a goal is a cell centre).
 ARRIVAL_CELLS = 2.0
-NONE = -1.0  # published for "no robot" in claim and grant
 #: A configuration within this many grid cells of one a robot relocated from is one the team
 #: came back to: it does not claim from it again.
 RETURN_CELLS = 2.0
@@ -162,23 +164,25 @@ class Handover:
         offer = None
         if settled and self.claim < 0:
             offer = self._cached_offer(key, cell, weight)
-        claimants = sorted(((_f(n, "claim_gain"), -n.robot_id) for n in neighbours
-                            if _f(n, "claim", NONE) == self.robot_id), reverse=True)
+        claimants = sorted(((value(n, "claim_gain"), -n.robot_id) for n in neighbours
+                            if value(n, "claim", NONE) == self.robot_id), reverse=True)
         mine = (self.claim_gain, -self.robot_id)
         if self.claim >= 0 and claimants and claimants[0] > mine:
             self._drop()  # a neighbour with a higher priority wants into this cell
         if self.claim >= 0:
             self._follow_claim(by_id)
         elif (settled and self.cooldown == 0 and not claimants
-              and all(_f(n, "settled") > 0 for n in neighbours)):
+              and all(value(n, "settled") > 0 for n in neighbours)):
             self._consider(key, position, weight, cell, neighbours, bordering,
                            stopped=moved < convergence_tolerance)
         grant = NONE if self.claim >= 0 or not claimants else float(-claimants[0][1])
         if self.relocating:
             self.relocations += 1
-        extra = {"settled": float(settled and self.claim < 0), "claim": float(self.claim),
-                 "claim_gain": self.claim_gain if self.claim >= 0 else 0.0, "grant": grant,
-                 "offer_gain": 0.0, "offer_x": 0.0, "offer_y": 0.0, "offer_base": 0.0}
+        extra = idle()
+        extra.update(settled=float(settled and self.claim < 0), claim=float(self.claim),
+                     claim_gain=self.claim_gain if self.claim >= 0 else 0.0, grant=grant)
+        if self.relocating:
+            extra.update(self._heading())
         if offer is not None and grant == NONE and self.claim < 0:
             extra.update(offer_gain=offer.gain, offer_x=float(offer.point[0]),
                          offer_y=float(offer.point[1]), offer_base=offer.base)
@@ -204,20 +208,25 @@ class Handover:
         near = float(np.hypot(*(target - position))) < arrive
         if near or self.claim_age > self.settings.transit or self.claim not in by_id:
             self._drop()
-            return HandoverStep(None, _idle(), busy=True)
-        extra = _idle()
-        extra.update(claim=float(self.claim), claim_gain=self.claim_gain)
+            return HandoverStep(None, idle(), busy=True)
+        extra = idle()
+        extra.update(claim=float(self.claim), claim_gain=self.claim_gain, **self._heading())
         return HandoverStep(target.copy(), extra, busy=True)
+
+    def _heading(self) -> dict[str, float]:
+        """Published while relocating: where to (:func:`.published.destination`)."""
+        assert self.target is not None  # set with the claim, kept while relocating
+        return {"relocating": 1.0, "to_x": float(self.target[0]), "to_y": float(self.target[1])}
 
     def _follow_claim(self, by_id: dict[int, Neighbour]) -> None:
         """A claim made earlier: relocate once granted, drop it when refused, stale or
         outranked by another claim made meanwhile (one move at a time)."""
         j = by_id.get(self.claim)
         self.claim_age += 1
-        grant = NONE if j is None else _f(j, "grant", NONE)
+        grant = NONE if j is None else value(j, "grant", NONE)
         mine = (self.claim_gain, -self.robot_id)
-        outranked = any(_f(n, "claim", NONE) >= 0 and (_f(n, "claim_gain"), -n.robot_id) > mine
-                        for n in by_id.values())
+        outranked = any(value(n, "claim", NONE) >= 0
+                        and (value(n, "claim_gain"), -n.robot_id) > mine for n in by_id.values())
         if j is not None and grant == self.robot_id:
             self.relocating, self.claim_age = True, 0
             if self._claimed_from is not None:
@@ -232,17 +241,17 @@ class Handover:
         most, if by enough; if none does and the robot stands still (``stopped``: Lloyd's end,
         where staying is what the joint bound compares with), the offer whose joint bound
         saves most, with one ring of cells re-spreading, else with the next ring too."""
-        if any(_f(n, "claim", NONE) >= 0 for n in neighbours):
+        if any(value(n, "claim", NONE) >= 0 for n in neighbours):
             return  # one move at a time (module docstring)
         if any(_same(k, key, RETURN_CELLS * self.domain.resolution) for k in self._departures):
             return  # the team came back here after a move from here: no move again
-        offers = [n for n in neighbours if _f(n, "offer_gain") > 0 and _f(n, "claim", NONE) < 0
-                  and _f(n, "grant", NONE) == NONE
+        offers = [n for n in neighbours if value(n, "offer_gain") > 0
+                  and value(n, "claim", NONE) < 0 and value(n, "grant", NONE) == NONE
                   and abs(n.state.weight - weight) < WEIGHT_MATCH
-                  and math.isfinite(_f(n, "offer_x", math.nan))
-                  and math.isfinite(_f(n, "offer_y", math.nan))
-                  and self.domain.is_free_point(np.array([_f(n, "offer_x"),
-                                                          _f(n, "offer_y")]))]
+                  and math.isfinite(value(n, "offer_x", math.nan))
+                  and math.isfinite(value(n, "offer_y", math.nan))
+                  and self.domain.is_free_point(np.array([value(n, "offer_x"),
+                                                          value(n, "offer_y")]))]
         if not offers:
             return
         # the removal bound per target: one held fixed when it borders the own cell
@@ -250,7 +259,7 @@ class Handover:
                                                     bordering, n.robot_id)
                    for n in offers}
         best, saving = self._best(offers, cell.cost, {
-            n.robot_id: _f(n, "offer_gain") - removal[n.robot_id] for n in offers})
+            n.robot_id: value(n, "offer_gain") - removal[n.robot_id] for n in offers})
         rings = 1
         while best is None and stopped and rings <= self.settings.joint_rings:
             # no pair's bound suffices: the bound with both cells' neighbours re-spreading,
@@ -268,17 +277,17 @@ class Handover:
             if self._turns[1] <= _rank(self.robot_id, cell.cost, neighbours):
                 self._awaits_turn = True
                 return
-            largest = sorted(offers, key=lambda n: (-_f(n, "offer_gain"), n.robot_id))[
+            largest = sorted(offers, key=lambda n: (-value(n, "offer_gain"), n.robot_id))[
                 :self.settings.descent_offers]
             best, saving = self._best(largest, cell.cost, {
                 n.robot_id: -self._cached_descent(
                     key, position, weight, neighbours, n,
-                    self.settings.gain * (cell.cost + _f(n, "offer_base")))
+                    self.settings.gain * (cell.cost + value(n, "offer_base")))
                 for n in largest})
         if best is None:
             return
         self.claim, self.claim_gain, self.claim_age = best.robot_id, saving, 0
-        self.target = np.array([_f(best, "offer_x"), _f(best, "offer_y")])
+        self.target = np.array([value(best, "offer_x"), value(best, "offer_y")])
         self._claimed_from = key
 
     def _best(self, offers: Sequence[Neighbour], cost: float, savings: dict[int, float]
@@ -287,7 +296,7 @@ class Handover:
         of the pair's cost (``cost``: the own cell's)."""
         best = max(offers, key=lambda n: (savings[n.robot_id], -n.robot_id))
         saving = savings[best.robot_id]
-        if not saving > self.settings.gain * (cost + _f(best, "offer_base")):
+        if not saving > self.settings.gain * (cost + value(best, "offer_base")):
             return None, 0.0
         return best, saving
 
@@ -320,7 +329,7 @@ class Handover:
         if any(abs(n.state.weight - weight) >= WEIGHT_MATCH for n in neighbours):
             return math.inf  # the bound assumes equal power weights
         known, values = self._known(key, position, neighbours)
-        point = np.array([_f(target, "offer_x"), _f(target, "offer_y")])
+        point = np.array([value(target, "offer_x"), value(target, "offer_y")])
         memo = (target.robot_id, float(point[0]), float(point[1]), rings)
         if memo not in values:
             t = 1 + [n.robot_id for n in neighbours].index(target.robot_id)
@@ -337,7 +346,7 @@ class Handover:
         if any(abs(n.state.weight - weight) >= WEIGHT_MATCH for n in neighbours):
             return math.inf  # the descent prices equal power weights
         known, values = self._known(key, position, neighbours)
-        point = np.array([_f(target, "offer_x"), _f(target, "offer_y")])
+        point = np.array([value(target, "offer_x"), value(target, "offer_y")])
         memo = (target.robot_id, float(point[0]), float(point[1]), 0)  # (rings 0: descent)
         if memo not in values:
             values[memo] = descent_change(self.domain, known, weight,
@@ -369,22 +378,11 @@ class Handover:
         return values[fixed]
 
 
-def _f(n: Neighbour, key: str, default: float = 0.0) -> float:
-    """A neighbour's published value ``key`` (``default`` when it published none)."""
-    v = n.state.extra.get(key, default)
-    return float(v) if v is not None else default
-
-
 def _rank(robot_id: int, cost: float, neighbours: Sequence[Neighbour]) -> int:
     """How many robots it hears published a cell cost below the own (then a lower id): its
     turn to price offers by the descent in a settled configuration (module docstring)."""
-    return sum((_f(n, "offer_base"), n.robot_id) < (cost, robot_id) for n in neighbours
-               if _f(n, "offer_gain") > 0)
-
-
-def _idle() -> dict[str, float]:
-    return {"settled": 0.0, "claim": NONE, "claim_gain": 0.0, "grant": NONE,
-            "offer_gain": 0.0, "offer_x": 0.0, "offer_y": 0.0, "offer_base": 0.0}
+    return sum((value(n, "offer_base"), n.robot_id) < (cost, robot_id) for n in neighbours
+               if value(n, "offer_gain") > 0)
 
 
 def _key(position: np.ndarray, neighbours: Sequence[Neighbour]) -> np.ndarray:

@@ -417,14 +417,17 @@ def test_a_move_no_bound_sees_is_priced_by_the_teams_own_descent():
     moved = _moved(P, i, ids, descent)
     assert fast_tessellate(domain, [Generator(p) for p in moved]).cost - H0 \
         <= descent.increase + 1e-9 * H0
-    # told what is enough, the descent stops early and says the same of every move robot 1
-    # (the least cell) could make, and where it stops keeps its promise
+    # told what is enough, the descent stops early and says the same of the moves robot 1
+    # (the least cell) prices (the largest offers), and where it stops keeps its promise
     for i in (1,):
         ids = [k for k in range(len(P)) if k != i]
         known = known_cells(domain, np.vstack([P[i][None], P[ids]]))
-        for j in ids:
-            offer = split_offer(domain, cells[j].nodes, cells[j].distances, cells[j].cost, 0.0,
-                                cells[j].cell_radius, 3)
+        offers = {j: split_offer(domain, cells[j].nodes, cells[j].distances, cells[j].cost,
+                                 0.0, cells[j].cell_radius, 3) for j in ids}
+        priced = GeodesicParams().escape_descent_offers
+        largest = sorted(ids, key=lambda j: -offers[j].gain)[:priced]
+        for j in largest:
+            offer = offers[j]
             enough = GeodesicParams().escape_gain * (cells[i].cost + offer.base)
             full = descent_change(domain, known, 0.0, list(range(1, len(P))), offer.point)
             short = descent_change(domain, known, 0.0, list(range(1, len(P))), offer.point,
@@ -519,6 +522,42 @@ def test_one_claimant_per_cell_and_claims_follow_grants():
                 assert int(published[g].extra["claim"]) == j and claims[j] < 0
         published = [d.shared for d in decisions]
     assert relocated
+
+
+def test_a_relocating_robots_neighbours_count_its_generator_where_it_goes():
+    """A robot on its way publishes its point; while it drives (here: held where it was), the
+    others' cells are those of the team with it arrived (the configuration its claim priced),
+    not cells that spread into the one it left."""
+    P = run(cluster(2), escape=False).positions[-1]
+    team = _team(P)
+    domain = ward()[1]
+    published = [s.shared_state(Observation(i, np.array([*P[i], 0.0]), 0.0))
+                 for i, s in enumerate(team)]
+    mover = None
+    for _ in range(STILL_UPDATES + 6):
+        decisions = _round(team, P, published)
+        published = [d.shared for d in decisions]
+        mover = next((i for i, d in enumerate(decisions) if d.mode == "relocate"), None)
+        if mover is not None:
+            break
+    assert mover is not None
+    goal = decisions[mover].goal
+    extra = published[mover].extra
+    assert extra["relocating"] == 1.0 and (extra["to_x"], extra["to_y"]) == tuple(goal)
+    decisions = _round(team, P, published)  # the mover still where it was
+    assert decisions[mover].mode == "relocate"
+    arrived = P.copy()
+    arrived[mover] = goal
+    for i, d in enumerate(decisions):
+        if i == mover:
+            continue
+        others = [Generator(q, 0.0) for k, q in enumerate(arrived) if k != i]
+        cell = geodesic_cell(domain, Generator(P[i], 0.0), others)
+        assert np.array_equal(np.sort(d.cell), np.sort(cell.nodes))
+    target = int(extra["claim"])  # its cell is split with the mover's point, not left whole
+    left = geodesic_cell(domain, Generator(P[target], 0.0),
+                         [Generator(q, 0.0) for k, q in enumerate(P) if k != target])
+    assert len(decisions[target].cell) < len(left.nodes)
 
 
 def test_standing_still_away_from_the_centroid_settles_only_after_a_while():

@@ -165,7 +165,7 @@ STATES = {
                                 "manual": 0.0, "paused": 0.0, "mode": 17.0, "settled": 1.0,
                                 "offer_gain": 0.5, "offer_x": 3.0, "offer_y": 4.0,
                                 "offer_base": 2.0, "claim": 4.0, "claim_gain": 0.25,
-                                "grant": -1.0},
+                                "grant": -1.0, "relocating": 1.0, "to_x": 5.5, "to_y": -0.5},
     "another package's strategy": {"x": 1.0, "y": 2.0, "weight": 0.0, "radius": 0.105,
                                    "v_max": 0.22, "my_value": 4.5},
 }

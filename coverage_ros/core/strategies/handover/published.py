@@ -1,0 +1,41 @@
+"""What a robot of the closet escape publishes (``SharedState.extra``, the ``HandoverState`` of
+its coverage state) and how its neighbours read it.
+
+A relocating robot publishes where it is going (``relocating``, ``to_x``, ``to_y``): its
+neighbours tessellate with its generator there (:func:`destination`), so that while it drives
+the team re-spreads as it would with the robot already arrived - the configuration the claim's
+bound priced - rather than into the cell it left, which would have to be given back on arrival.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from coverage_ros.core.strategies.base import Neighbour
+
+NONE = -1.0  # published for "no robot" in claim and grant
+
+
+def value(n: Neighbour, key: str, default: float = 0.0) -> float:
+    """A neighbour's published value ``key`` (``default`` when it published none)."""
+    v = n.state.extra.get(key, default)
+    return float(v) if v is not None else default
+
+
+def idle() -> dict[str, float]:
+    """What a robot publishes that neither offers, claims, grants nor relocates."""
+    return {"settled": 0.0, "claim": NONE, "claim_gain": 0.0, "grant": NONE,
+            "offer_gain": 0.0, "offer_x": 0.0, "offer_y": 0.0, "offer_base": 0.0,
+            "relocating": 0.0, "to_x": 0.0, "to_y": 0.0}
+
+
+def destination(n: Neighbour) -> np.ndarray:
+    """(2,) [m] where ``n``'s generator counts in its neighbours' cells: its relocation point
+    while it relocates (and published a finite one), else its position."""
+    if value(n, "relocating") > 0:
+        to = np.array([value(n, "to_x", math.nan), value(n, "to_y", math.nan)])
+        if np.all(np.isfinite(to)):
+            return to
+    return n.position

@@ -11,7 +11,7 @@ from rosutil import RosClient, domain_id
 HASHES = {
     "LockstepTick": "RIHS01_3a871c373118d9a3de4ead182bba819f89a98eb90ac04bfda313b4a455e0ad43",
     "LockstepReport": "RIHS01_791805ffc8c00e0966431cc90025254e4128d16fd06fd1c56c5592f02bf0b1f7",
-    "RobotState": "RIHS01_b1bf9c91b92215745c484597f28b1e81849861405bd5d83143eaf88f7bf3bf15",
+    "RobotState": "RIHS01_8f610f2bc088f016b7c686f51173e5ccebc0662f071ba8933af26c0c8025ed5f",
     "WorldStatus": "RIHS01_6616ba3753495967fd1c316f91c59d25b3c351eb915d074d3a08c020d20e938b",
 }
 

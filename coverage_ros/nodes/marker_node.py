@@ -9,8 +9,10 @@ generator, goal, plan and mode, and the region of interest (``/coverage/region``
 their namespace and id (= robot id), so each array replaces the previous one. A robot whose
 ``coverage_state`` has been silent for ``stale_after`` seconds (it publishes a few per second,
 even paused) or whose topics are gone from the graph gets its markers deleted - a killed
-process stays in the DDS graph until its lease runs out, tens of seconds later. A bad message
-is dropped with a throttled warning.
+process stays in the DDS graph until its lease runs out, tens of seconds later. In lock-step
+(``/world/tick``) a robot the world still waits for is not silent: a team held at one tick while
+one robot computes publishes no states, and a dead robot leaves the tick's members once the
+world drops it (its ``lockstep_timeout``). A bad message is dropped with a throttled warning.
 
     ros2 run coverage_ros marker_node --ros-args -p use_sim_time:=true
 """
@@ -22,7 +24,7 @@ import sys
 import time
 
 import numpy as np
-from coverage_msgs.msg import RobotState
+from coverage_msgs.msg import LockstepTick, RobotState
 from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import OccupancyGrid, Path
 from rclpy.clock import Clock, ClockType
@@ -33,7 +35,7 @@ from coverage_ros.core.strategies.base import mode_name
 from coverage_ros.errors import ConfigError
 from coverage_ros.nodes import conversions as conv
 from coverage_ros.nodes.parameters import declare_parameters
-from coverage_ros.nodes.qos import TEAM_QOS, quiet_subscription
+from coverage_ros.nodes.qos import TEAM_QOS, TICK_QOS, quiet_subscription
 from coverage_ros.nodes.region_input import RegionInput
 from coverage_ros.nodes.robot_graph import state_topics
 from coverage_ros.nodes.runner import run_node
@@ -55,7 +57,8 @@ PARAMETERS = {
     "lifetime": (5.0, "[s] markers not refreshed this long vanish (e.g. this node stopped); "
                  "0: until replaced"),
     "stale_after": (3.0, "[s] wall time: a robot whose coverage_state is silent this long is "
-                    "taken off (markers deleted) until it speaks again"),
+                    "taken off (markers deleted) until it speaks again, unless a lock-step "
+                    "world heard within this time still waits for it"),
 }
 
 
@@ -77,9 +80,13 @@ class MarkerNode(Node):
         self._idle: dict[int, int] = {}
         self._heard: dict[int, float] = {}  # robot id -> time.monotonic() of its last state
         self._shown: set[int] = set()  # robots whose markers the last array added
+        self._waited_for: frozenset[int] = frozenset()  # robot members of the last tick
+        self._tick_heard = -math.inf  # time.monotonic() of the last /world/tick
         self._region_shown = 0  # polygons in the last array
         self._throttle = WarnThrottle(self.get_logger().warning)
         self.regions = RegionInput(self, lambda region: None, self._throttle.warn)
+        self.create_subscription(LockstepTick, "/world/tick", self._on_tick, TICK_QOS,
+                                 event_callbacks=quiet_subscription())
         # Both on the steady clock: a silent robot is judged in wall time, and markers stay
         # fresh while the simulation is paused or its /clock does not reach this node.
         wall = Clock(clock_type=ClockType.STEADY_TIME)
@@ -125,6 +132,19 @@ class MarkerNode(Node):
                                     f"/{self.prefix}{rid}/{kind}: {exc}")
         return run
 
+    def _on_tick(self, msg: LockstepTick) -> None:
+        # (the world re-publishes a tick it waits on every second of wall time)
+        self._waited_for = frozenset(int(r) for r in msg.robots)
+        self._tick_heard = time.monotonic()
+
+    def _silent(self, rid: int, now: float) -> bool:
+        """Whether robot ``rid`` has been silent for ``stale_after`` [s] of wall time and no
+        lock-step world heard that long waits for it (module docstring)."""
+        if now - self._heard.get(rid, -math.inf) <= self.stale_after:
+            return False
+        return not (rid in self._heard and rid in self._waited_for
+                    and now - self._tick_heard <= self.stale_after)
+
     @staticmethod
     def _on_coverage_state(r: conv.RobotMarkers, msg: RobotState) -> None:
         v = conv.coverage_state_values(msg)
@@ -157,8 +177,7 @@ class MarkerNode(Node):
 
     def _publish(self) -> None:
         now = time.monotonic()
-        active = [r for rid, r in sorted(self.robots.items())
-                  if now - self._heard.get(rid, -math.inf) <= self.stale_after]
+        active = [r for rid, r in sorted(self.robots.items()) if not self._silent(rid, now)]
         shown = {r.robot_id for r in active}
         gone = sorted(self._shown - shown)
         for rid in gone:

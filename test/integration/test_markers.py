@@ -53,8 +53,13 @@ def test_a_team_shows_in_rviz_markers_and_a_robot_that_leaves_is_cleared(tmp_pat
             if m.id == 2 and m.action == Marker.ADD:
                 added_last = k
     assert all(outlines.get(i, 0) >= 3 for i in (0, 1, 2)), outlines
-    # Robot 2's markers go for good once it is killed. (A team that stood still for stale_after
-    # of wall time on a loaded machine may have had them deleted and added again before.)
+    # No robot's markers go while the team runs: a team held at a tick is still waited for.
+    for rid in (0, 1, 2):
+        last_add = max(k for k, arr in enumerate(arrays) for m in arr.markers
+                       if (m.id, m.action) == (rid, Marker.ADD))
+        assert not [k for k, arr in enumerate(arrays[:last_add]) for m in arr.markers
+                    if (m.ns, m.id, m.action) == ("generator", rid, Marker.DELETE)], rid
+    # Robot 2's markers go for good once it is killed.
     deletions = [(k, m.header.stamp) for k, arr in enumerate(arrays) for m in arr.markers
                  if k > added_last and (m.ns, m.id, m.action) == ("cell", 2, Marker.DELETE)]
     markers_log = (out / "logs" / "markers.log").read_text()[-3000:]
@@ -110,6 +115,80 @@ def test_a_silent_robot_is_taken_off_in_wall_time_while_the_simulation_clock_sta
                               f"robot 1's markers deleted; marker_node:\n{node.output()}")
             # (the node heard the last state after it was sent: silent at least this long)
             assert time.monotonic() - last > 2.0
+            assert "robot 1 silent or gone" in node.output()
+    finally:
+        client.close()
+
+
+def test_a_robot_a_lockstep_world_waits_for_keeps_its_markers_while_the_team_is_held():
+    """A lock-step team held at one tick (the world re-publishes it, robot 1 among its members)
+    publishes no states: robot 1 keeps its markers past ``stale_after``; once the world's ticks
+    no longer list it (dropped), they are deleted."""
+    from coverage_msgs.msg import LockstepTick, RobotState
+    from rosgraph_msgs.msg import Clock
+    from visualization_msgs.msg import Marker, MarkerArray
+
+    from coverage_ros.nodes.qos import TEAM_QOS, TICK_QOS
+
+    domain = domain_id(16)
+    client = RosClient(domain, "marker_watch")
+    arrays = client.subscribe("/coverage/markers", MarkerArray)
+    clock = client.publisher("/clock", Clock)
+    ticks = client.publisher("/world/tick", LockstepTick, TICK_QOS)
+    state = client.publisher("/robot_1/coverage_state", RobotState, TEAM_QOS)
+    cmd = [sys.executable, "-m", "coverage_ros.nodes.marker_node", "--ros-args",
+           "-p", "use_sim_time:=true", "-p", "stale_after:=1.0"]
+    stamp = conv.to_time_msg(5.0)
+    members = [1]
+    sent = {"state": -1.0, "tick": -1.0}
+
+    def deleted() -> bool:
+        return any((m.ns, m.id, m.action) == ("generator", 1, Marker.DELETE)
+                   for arr in arrays for m in arr.markers)
+
+    def every(kind: str, period: float) -> bool:
+        if time.monotonic() - sent[kind] < period:
+            return False
+        sent[kind] = time.monotonic()
+        return True
+
+    def tick() -> None:
+        if every("tick", 0.5):  # (as the world re-sends a tick it waits on)
+            ticks.publish(LockstepTick(tick=50, stamp=stamp, previous=stamp, period=0.1,
+                                       robots=members))
+
+    try:
+        with NodeProcess(cmd, domain) as node:
+            clock.publish(Clock(clock=stamp))
+
+            def speak() -> bool:
+                assert node.alive(), node.output()
+                tick()
+                if every("state", 0.2):
+                    state.publish(conv.coverage_state_msg(stamp, {"x": 1.0, "y": 2.0},
+                                                          robot_id=1))
+                return any((m.ns, m.id, m.action) == ("generator", 1, Marker.ADD)
+                           for arr in arrays for m in arr.markers)
+
+            client.spin_until(speak, 60.0, "robot 1's generator marker")
+            held = time.monotonic()
+
+            def held_four_times_stale_after() -> bool:  # (ticks only, no state)
+                tick()
+                return time.monotonic() - held > 4.0
+
+            client.spin_until(held_four_times_stale_after, 10.0, "a held tick")
+            assert not deleted(), node.output()
+            latest = arrays[-1].markers  # (still drawn, not only left undeleted)
+            assert ("generator", 1, Marker.ADD) in {(m.ns, m.id, m.action) for m in latest}
+            members.clear()  # the world dropped robot 1
+
+            def dropped_and_deleted() -> bool:
+                tick()
+                return deleted()
+
+            client.spin_until(dropped_and_deleted, 20.0,
+                              f"robot 1's markers deleted; marker_node:\n{node.output()}")
             assert "robot 1 silent or gone" in node.output()
     finally:
         client.close()

@@ -175,42 +175,70 @@ DETOUR_MARGIN = 0.06
 #: Points of the arc a detour bends around a robot in the way (from 60 degrees before it
 #: to 60 degrees past it): chords of 30 degrees stay within 4 % of the arc's radius.
 DETOUR_ANGLES = np.radians([-60.0, -30.0, 0.0, 30.0, 60.0])
+#: [m] of path from the robot within which a detour looks for the robot in the way (the
+#: safety filter holds a robot for neighbours closer than this).
+DETOUR_REACH = 1.0
 
 
 def detour(domain: CoverageDomain, path: np.ndarray | None, positions: np.ndarray,
            clearances: np.ndarray) -> np.ndarray | None:
-    """``path`` bent around the first robot its first leg runs into: neighbours at
-    ``positions (n, 2)`` [m], from which the safety filter keeps ``clearances (n,)`` [m]. The
-    leg is replaced by an arc of :data:`DETOUR_ANGLES` around the neighbour, at its clearance
-    plus :data:`DETOUR_MARGIN`, on the right of the way if the new legs are free (the side a
-    robot gives way to, :mod:`.recovery`), else on the left; ``path`` as it was when no
-    neighbour is in the way or neither side is free.
+    """``path`` bent around the first robot in its way: neighbours at ``positions (n, 2)``
+    [m], from which the safety filter keeps ``clearances (n,)`` [m]. The first leg within
+    :data:`DETOUR_REACH` of the start that runs into one gets an arc of :data:`DETOUR_ANGLES`
+    around it, at its clearance plus :data:`DETOUR_MARGIN`, on the right of the way if the new
+    legs are free (the side a robot gives way to, :mod:`.recovery`), else on the left; the path
+    takes up again at its first waypoint past the arc. ``path`` as it was when no neighbour is
+    in the way or neither side is free.
 
     The planner knows only the map: a robot standing on the straight line to another one's
     goal (a settled robot on a relocating one's way) held it until it moved (the live Lee &
-    Lee Fig. 18a-c: 45 s, giving way three times and planning the same straight line again)."""
+    Lee Fig. 18a-c: 45 s, giving way three times and planning the same straight line again).
+    Not only the first leg: a path starts at the robot and goes on from the nearest cell
+    centre, so its first leg may be a few centimetres long, the robot in the way on the next
+    (a relocating robot held for 300 s behind a settled one in a corridor)."""
     if path is None or len(path) < 2 or len(positions) == 0:
         return path
-    a, b = path[0], path[1]
-    length = float(np.hypot(*(b - a)))
-    if length < 1e-9:
-        return path
-    u = (b - a) / length
-    left = np.array([-u[1], u[0]])
     positions = np.asarray(positions, dtype=np.float64).reshape(-1, 2)
     need = np.asarray(clearances, dtype=np.float64).reshape(-1)
-    along, across = (positions - a) @ u, (positions - a) @ left
-    blocking = (along > -need) & (along < length + need) & (np.abs(across) < need)
-    if not blocking.any():
-        return path
-    j = int(np.argmin(np.where(blocking, along, np.inf)))
-    centre, radius = positions[j], float(need[j]) + DETOUR_MARGIN
+    walked = 0.0  # [m] of path before leg k
+    for k in range(len(path) - 1):
+        if walked > DETOUR_REACH:
+            break
+        a, b = path[k], path[k + 1]
+        length = float(np.hypot(*(b - a)))
+        if length < 1e-9:
+            continue
+        u = (b - a) / length
+        left = np.array([-u[1], u[0]])
+        along, across = (positions - a) @ u, (positions - a) @ left
+        blocking = (along > -need) & (along < length + need) & (np.abs(across) < need) \
+            & (walked + along <= DETOUR_REACH)
+        walked += length
+        if not blocking.any():
+            continue
+        j = int(np.argmin(np.where(blocking, along, np.inf)))
+        return _around(domain, path, k, u, left, positions[j], float(need[j]) + DETOUR_MARGIN)
+    return path
+
+
+def _around(domain: CoverageDomain, path: np.ndarray, k: int, u: np.ndarray, left: np.ndarray,
+            centre: np.ndarray, radius: float) -> np.ndarray:
+    """:func:`detour`'s bend of leg ``k`` (direction ``u``) around ``centre`` at ``radius``."""
+    a = path[k]
+    rest = path[k + 1:]
     for side in (-1.0, 1.0):  # right of the way first
         arc = centre + radius * (side * np.cos(DETOUR_ANGLES)[:, None] * left
                                  + np.sin(DETOUR_ANGLES)[:, None] * u)
         # (arc points already behind the robot are left out: it starts beside the neighbour)
         arc = arc[(arc - a) @ u > 0.0]
-        bent = np.vstack([a, arc, path[1:]])
-        if all(segment_free(domain, p, q) for p, q in pairwise(bent)):
-            return bent
+        if len(arc) == 0:
+            continue
+        # Back on the path at its first waypoint past the arc, outside the circle (the goal
+        # at the latest).
+        past = ((rest - a) @ u >= float((arc[-1] - a) @ u)) \
+            & (np.hypot(*(rest - centre).T) >= radius)
+        keep = int(np.argmax(past)) if past.any() else len(rest) - 1
+        new = np.vstack([a, arc, rest[keep]])
+        if all(segment_free(domain, p, q) for p, q in pairwise(new)):
+            return np.vstack([path[:k + 1], arc, rest[keep:]])
     return path

@@ -128,6 +128,32 @@ def test_a_detour_bends_the_first_leg_around_the_robot_in_its_way_on_the_free_si
     assert detour(corridor, straight, centre[None], need) is straight
 
 
+
+def test_a_detour_finds_the_robot_in_its_way_past_a_short_first_leg_and_goes_on_past_it():
+    """A path from a robot off the cell centres starts with a leg of a few centimetres to the
+    nearest one, here up and to the right; a settled robot a little right of the way along a
+    corridor 1.5 m wide stands clear of that leg's line but on the next leg. The path bends
+    round it and goes on forward."""
+    occ = np.zeros((60, 200), np.int8)
+    occ[:15, :] = occ[45:, :] = OCCUPIED  # free 0.75 .. 2.25 m, walls along x
+    corridor = CoverageDomain.from_grid(GridMap(occ, 0.05), RADIUS)
+    start = np.array([2.015, 1.105])
+    path = np.array([start, [2.025, 1.125], [2.125, 1.125], [2.825, 1.125], [8.0, 1.125]])
+    neighbour = start + np.array([[0.27, -0.10]])
+    need = np.array([2 * RADIUS + 0.06])
+    u = (path[1] - path[0]) / np.hypot(*(path[1] - path[0]))
+    assert abs(float((neighbour[0] - start) @ np.array([-u[1], u[0]]))) > need[0]
+    bent = detour(corridor, path, neighbour, need)
+    assert bent is not path
+    assert np.array_equal(bent[0], start) and np.array_equal(bent[-1], path[-1])
+    assert all(segment_free(corridor, a, b) for a, b in pairwise(bent))
+    pts = np.vstack([a + t * (b - a) for a, b in pairwise(bent)
+                     for t in np.linspace(0.0, 1.0, 50)])
+    assert float(np.hypot(*(pts - neighbour[0]).T).min()) > need[0]
+    assert (np.diff(bent[:, 0]) >= -1e-9).all()  # forward all the way: it does not turn back
+    # Beyond the reach of a detour, a robot on the way changes nothing (it may move off).
+    assert detour(corridor, path, np.array([[5.0, 1.125]]), need) is path
+
 class _GoalAt:
     """A strategy whose goal is always ``goal`` (its cells and states another's)."""
 

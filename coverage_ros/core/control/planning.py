@@ -206,8 +206,7 @@ def detour(domain: CoverageDomain, path: np.ndarray | None, positions: np.ndarra
             break
         a, b = path[k], path[k + 1]
         length = float(np.hypot(*(b - a)))
-        if length < domain.resolution:  # (a snap to a cell centre: no direction to go by)
-            walked += length
+        if length < 1e-9:
             continue
         u = (b - a) / length
         left = np.array([-u[1], u[0]])
@@ -218,25 +217,15 @@ def detour(domain: CoverageDomain, path: np.ndarray | None, positions: np.ndarra
         if not blocking.any():
             continue
         j = int(np.argmin(np.where(blocking, along, np.inf)))
-        return _around(domain, path, k, u, left, positions[j], float(need[j]))
+        return _around(domain, path, k, u, left, positions[j], float(need[j]) + DETOUR_MARGIN)
     return path
 
 
-def _gap(c: np.ndarray, p: np.ndarray, q: np.ndarray) -> float:
-    """[m] the distance from point ``c`` to the segment p-q."""
-    d = q - p
-    t = float(np.clip((c - p) @ d / max(float(d @ d), 1e-18), 0.0, 1.0))
-    return float(np.hypot(*(p + t * d - c)))
-
-
 def _around(domain: CoverageDomain, path: np.ndarray, k: int, u: np.ndarray, left: np.ndarray,
-            centre: np.ndarray, need: float) -> np.ndarray:
-    """:func:`detour`'s bend of leg ``k`` (direction ``u``) around ``centre``, kept ``need``
-    from: an arc at ``need`` + :data:`DETOUR_MARGIN`, its legs free and none nearer than
-    ``need``."""
+            centre: np.ndarray, radius: float) -> np.ndarray:
+    """:func:`detour`'s bend of leg ``k`` (direction ``u``) around ``centre`` at ``radius``."""
     a = path[k]
     rest = path[k + 1:]
-    radius = need + DETOUR_MARGIN
     for side in (-1.0, 1.0):  # right of the way first
         arc = centre + radius * (side * np.cos(DETOUR_ANGLES)[:, None] * left
                                  + np.sin(DETOUR_ANGLES)[:, None] * u)
@@ -250,7 +239,6 @@ def _around(domain: CoverageDomain, path: np.ndarray, k: int, u: np.ndarray, lef
             & (np.hypot(*(rest - centre).T) >= radius)
         keep = int(np.argmax(past)) if past.any() else len(rest) - 1
         new = np.vstack([a, arc, rest[keep]])
-        if all(segment_free(domain, p, q) and _gap(centre, p, q) >= need - 1e-9
-               for p, q in pairwise(new)):
+        if all(segment_free(domain, p, q) for p, q in pairwise(new)):
             return np.vstack([path[:k + 1], arc, rest[keep:]])
     return path

@@ -194,8 +194,8 @@ def detour(domain: CoverageDomain, path: np.ndarray | None, positions: np.ndarra
     goal (a settled robot on a relocating one's way) held it until it moved (the live Lee &
     Lee Fig. 18a-c: 45 s, giving way three times and planning the same straight line again).
     Not only the first leg: a path starts at the robot and goes on from the nearest cell
-    centre, so its first leg may be a few centimetres long, the robot in the way on the next
-    (a relocating robot held for 300 s behind a settled one in a corridor)."""
+    centre, so its first leg may be a few centimetres long and the robot in the way on the
+    next."""
     if path is None or len(path) < 2 or len(positions) == 0:
         return path
     positions = np.asarray(positions, dtype=np.float64).reshape(-1, 2)

@@ -170,11 +170,14 @@ def _visible(ok: np.ndarray, a: np.ndarray, ends: np.ndarray) -> np.ndarray:
     return np.logical_and.reduceat(free, starts)
 
 
-#: [m] a detour keeps this much more than the safety filter needs from the robot it passes.
+#: [m] a detour keeps this much more than the safety filter needs from the robot it passes
+#: (half of it when no bend with all of it is free: a narrow corridor).
 DETOUR_MARGIN = 0.06
-#: Points of the arc a detour bends around a robot in the way (from 60 degrees before it
-#: to 60 degrees past it): chords of 30 degrees stay within 4 % of the arc's radius.
-DETOUR_ANGLES = np.radians([-60.0, -30.0, 0.0, 30.0, 60.0])
+#: [rad] step between the points of the arc a detour bends around a robot in the way: chords
+#: of 30 degrees stay within 4 % of the arc's radius.
+DETOUR_STEP = math.radians(30.0)
+#: [rad] where the arc ends: this far past the side of the robot in the way, ahead of it.
+DETOUR_END = math.radians(60.0)
 #: [m] of path from the robot within which a detour looks for the robot in the way (the
 #: safety filter holds a robot for neighbours closer than this).
 DETOUR_REACH = 1.0
@@ -183,19 +186,21 @@ DETOUR_REACH = 1.0
 def detour(domain: CoverageDomain, path: np.ndarray | None, positions: np.ndarray,
            clearances: np.ndarray) -> np.ndarray | None:
     """``path`` bent around the first robot in its way: neighbours at ``positions (n, 2)``
-    [m], from which the safety filter keeps ``clearances (n,)`` [m]. The first leg within
-    :data:`DETOUR_REACH` of the start that runs into one gets an arc of :data:`DETOUR_ANGLES`
-    around it, at its clearance plus :data:`DETOUR_MARGIN`, on the right of the way if the new
-    legs are free (the side a robot gives way to, :mod:`.recovery`), else on the left; the path
-    takes up again at its first waypoint past the arc. ``path`` as it was when no neighbour is
-    in the way or neither side is free.
+    [m], from which the safety filter keeps ``clearances (n,)`` [m]. Around the first one
+    that a leg within :data:`DETOUR_REACH` of the start runs into, the path goes on an arc at
+    its clearance plus :data:`DETOUR_MARGIN` from the robot's own bearing from it (so the first
+    leg moves round the neighbour, not past it), round the side it is already on
+    (on a tie, the right: the side a robot gives way to, :mod:`.recovery`), else round the
+    other, and takes up again at its first waypoint past the arc. When no bend from the robot
+    is free (a path round a corner), the bend starts at that leg. ``path`` as it was when no
+    neighbour is in the way or no bend is free.
 
     The planner knows only the map: a robot standing on the straight line to another one's
     goal (a settled robot on a relocating one's way) held it until it moved (the live Lee &
     Lee Fig. 18a-c: 45 s, giving way three times and planning the same straight line again).
     Not only the first leg: a path starts at the robot and goes on from the nearest cell
-    centre, so its first leg may be a few centimetres long and the robot in the way on the
-    next."""
+    centre, so its first leg may be a few centimetres long, in any direction, and the robot in
+    the way on the next."""
     if path is None or len(path) < 2 or len(positions) == 0:
         return path
     positions = np.asarray(positions, dtype=np.float64).reshape(-1, 2)
@@ -206,7 +211,8 @@ def detour(domain: CoverageDomain, path: np.ndarray | None, positions: np.ndarra
             break
         a, b = path[k], path[k + 1]
         length = float(np.hypot(*(b - a)))
-        if length < 1e-9:
+        if length < domain.resolution:  # a snap to a cell centre: no direction to speak of
+            walked += length
             continue
         u = (b - a) / length
         left = np.array([-u[1], u[0]])
@@ -217,28 +223,56 @@ def detour(domain: CoverageDomain, path: np.ndarray | None, positions: np.ndarra
         if not blocking.any():
             continue
         j = int(np.argmin(np.where(blocking, along, np.inf)))
-        return _around(domain, path, k, u, left, positions[j], float(need[j]) + DETOUR_MARGIN)
+        for radius in float(need[j]) + np.array([DETOUR_MARGIN, 0.5 * DETOUR_MARGIN]):
+            for s in dict.fromkeys((0, k)):  # from the robot, else from the leg's start
+                bent = _around(domain, path, s, k, u, positions[j], float(need[j]), radius)
+                if bent is not None:
+                    return bent
+        return path
     return path
 
 
-def _around(domain: CoverageDomain, path: np.ndarray, k: int, u: np.ndarray, left: np.ndarray,
-            centre: np.ndarray, radius: float) -> np.ndarray:
-    """:func:`detour`'s bend of leg ``k`` (direction ``u``) around ``centre`` at ``radius``."""
-    a = path[k]
-    rest = path[k + 1:]
-    for side in (-1.0, 1.0):  # right of the way first
-        arc = centre + radius * (side * np.cos(DETOUR_ANGLES)[:, None] * left
-                                 + np.sin(DETOUR_ANGLES)[:, None] * u)
-        # (arc points already behind the robot are left out: it starts beside the neighbour)
-        arc = arc[(arc - a) @ u > 0.0]
-        if len(arc) == 0:
-            continue
+def _around(domain: CoverageDomain, path: np.ndarray, s: int, k: int, u: np.ndarray,
+            centre: np.ndarray, need: float, radius: float) -> np.ndarray | None:
+    """:func:`detour`'s bend from waypoint ``s`` around ``centre`` (the filter keeping
+    ``need`` [m] from it) at ``radius``, in the way of leg ``k`` (direction ``u``); None if no
+    side is free."""
+    a, rest = path[s], path[k + 1:]
+    left = np.array([-u[1], u[0]])
+    offset = a - centre
+    # [m] no new leg comes nearer the neighbour than the filter's clearance, or than the
+    # robot already is (it may stand nearer: it then moves no nearer)
+    floor = min(need, float(np.hypot(*offset))) - 1e-3
+    start = math.atan2(offset[1], offset[0])
+    arcs = []
+    for side in (-1.0, 1.0):  # right of the way, left of it
+        end_dir = side * math.cos(DETOUR_END) * left + math.sin(DETOUR_END) * u
+        end = math.atan2(end_dir[1], end_dir[0])
+        sense = -side  # round the right: counter-clockwise
+        sweep = (sense * (end - start)) % (2 * math.pi)
+        if sweep > 2 * math.pi - DETOUR_END - DETOUR_STEP:
+            continue  # already past its end on this side (ahead of the neighbour)
+        steps = np.arange(DETOUR_STEP, sweep - DETOUR_STEP / 3, DETOUR_STEP)
+        angles = start + sense * np.append(steps, sweep)
+        arcs.append((sweep + 1e-6 * side, centre + radius * np.column_stack(
+            [np.cos(angles), np.sin(angles)])))
+    for _, arc in sorted(arcs, key=lambda sa: sa[0]):
         # Back on the path at its first waypoint past the arc, outside the circle (the goal
         # at the latest).
         past = ((rest - a) @ u >= float((arc[-1] - a) @ u)) \
             & (np.hypot(*(rest - centre).T) >= radius)
         keep = int(np.argmax(past)) if past.any() else len(rest) - 1
         new = np.vstack([a, arc, rest[keep]])
-        if all(segment_free(domain, p, q) for p, q in pairwise(new)):
-            return np.vstack([path[:k + 1], arc, rest[keep:]])
-    return path
+        if _distance(centre, new[:-1], new[1:]).min() >= floor and \
+                all(segment_free(domain, p, q) for p, q in pairwise(new)):
+            return np.vstack([path[:s + 1], arc, rest[keep:]])
+    return None
+
+
+def _distance(c: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``(m,)`` [m] from point ``c`` to each segment ``a[i]``-``b[i]`` (``(m, 2)`` each)."""
+    d = b - a
+    t = np.clip(np.einsum("ij,ij->i", c - a, d) / np.maximum(np.einsum("ij,ij->i", d, d),
+                                                              1e-18), 0.0, 1.0)
+    dist: np.ndarray = np.hypot(*(a + t[:, None] * d - c).T)
+    return dist

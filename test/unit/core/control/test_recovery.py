@@ -154,6 +154,31 @@ def test_a_detour_finds_the_robot_in_its_way_past_a_short_first_leg_and_goes_on_
     # Beyond the reach of a detour, a robot on the way changes nothing (it may move off).
     assert detour(corridor, path, np.array([[5.0, 1.125]]), need) is path
 
+def test_a_detour_round_a_robot_by_the_wall_starts_from_where_the_robot_stands():
+    """A relocating robot along a corridor's south wall stands 0.29 m behind and south of a
+    settled one, nearer than a bend's radius. The south side is the wall; the bend goes north
+    from the robot's own bearing from the neighbour, round behind it, and never comes nearer
+    to it than the robot already is - whichever way the few-centimetre snap to the first cell
+    centre points (here also back, away from the way)."""
+    occ = np.zeros((60, 200), np.int8)
+    occ[:15, :] = occ[45:, :] = OCCUPIED  # free 0.75 .. 2.25 m, walls along x
+    corridor = CoverageDomain.from_grid(GridMap(occ, 0.05), RADIUS)
+    start, neighbour = np.array([2.0, 0.87]), np.array([[2.25, 1.02]])
+    need = np.array([2 * RADIUS + 0.06])
+    near = float(np.hypot(*(start - neighbour[0])))
+    assert near < need[0] + DETOUR_MARGIN
+    for snap in ([2.025, 0.875], [1.975, 0.875]):
+        path = np.array([start, snap, [3.0, 0.875], [8.0, 0.875]])
+        bent = detour(corridor, path, neighbour, need)
+        assert bent is not path
+        assert np.array_equal(bent[0], start) and np.array_equal(bent[-1], path[-1])
+        assert all(segment_free(corridor, a, b) for a, b in pairwise(bent))
+        pts = np.vstack([a + t * (b - a) for a, b in pairwise(bent)
+                         for t in np.linspace(0.0, 1.0, 50)])
+        assert float(np.hypot(*(pts - neighbour[0]).T).min()) >= near - 1e-3
+        assert bent[1:-1, 1].max() > neighbour[0, 1] + need[0]  # round the north side
+
+
 class _GoalAt:
     """A strategy whose goal is always ``goal`` (its cells and states another's)."""
 

@@ -124,13 +124,13 @@ def summary_table(data: dict, labels: tuple[str, ...] = ("before", "after"),
 
 def live_ends(run: dict) -> str:
     """When a map's live runs ended: their fixed duration, or each case's end [s of sim time]
-    where they ran until settled (at most the duration)."""
+    where they ran until settled (at most the duration: "unsettled")."""
     settings = run["settings"]
     if "until_settled" not in settings:
         return f"{settings['duration']:g} s"
     ends = [f"{c['settled_at']:.0f}" if c.get("settled_at") is not None
-            else f"{settings['duration']:g}" for c in run["cases"]]
-    return f"ended at {' / '.join(ends)} s, settled for {settings['until_settled']:g} s"
+            else f"{settings['duration']:g} unsettled" for c in run["cases"]]
+    return f"ended at {' / '.join(ends)} s, once settled for {settings['until_settled']:g} s"
 
 
 def map_names(data: dict) -> list[str]:

@@ -142,7 +142,7 @@ def test_live_column_shows_each_start_and_maps_not_run():
         "settings": {"duration": 900.0, "until_settled": 60.0},
         "cases": [{"ratio": 1.02, "settled_at": 412.5}, {"ratio": 1.104, "settled_at": None}]}
     assert summary_table(data).splitlines()[3].endswith(
-        "| 1.020 / 1.104 (ended at 412 / 900 s, settled for 60 s) |")
+        "| 1.020 / 1.104 (ended at 412 / 900 unsettled s, once settled for 60 s) |")
 
 
 def test_within_at_is_the_start_of_the_last_stay_within_five_percent():

@@ -193,8 +193,20 @@ def _main(argv: list[str] | None) -> int:
     ap.add_argument("--jobs", type=int, default=1,
                     help="with --live: runs at once (start seeds of a map), each team in its "
                          "own ROS domain")
+    ap.add_argument("--keep", type=Path, default=None, metavar="DIR",
+                    help="with --live: keep each run's folder (world file, node logs, "
+                         "summary) as DIR/<map>/seed-<k> instead of deleting it")
+    ap.add_argument("--record", action="store_true",
+                    help="with --keep: also record each run for the rerun viewer "
+                         "(recording.rrd in its folder; lock-step: the same run)")
     ap.add_argument("--json", type=Path, default=RESULTS)
     args = ap.parse_args(argv)
+    if (args.keep is not None or args.record) and not args.live:
+        raise ConfigError.at("--keep" if args.keep is not None else "--record",
+                             "applies to live runs only", expected="--live as well")
+    if args.record and args.keep is None:
+        raise ConfigError.at("--record", "needs a folder to keep the recordings in",
+                             expected="--keep DIR as well")
     if args.jobs < 1:
         raise ConfigError.at("--jobs", "must be >= 1", args.jobs)
     if args.duration is not None and args.duration <= 0:

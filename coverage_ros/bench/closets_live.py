@@ -16,7 +16,9 @@ ratio <= 1.05. The run's own H series gives the sim time from which H stayed wit
 best known.
 
 The cases go into the results file under ``--label`` (default ``live``) with their own
-settings (the duration), so they never count towards the best known H.
+settings (the duration), so they never count towards the best known H. A run's folder (world
+file, node logs, summary) is deleted once its map is done unless ``--keep DIR`` keeps it as
+``DIR/<map>/seed-<k>``, with ``--record`` also a recording to watch in the rerun viewer.
 """
 
 from __future__ import annotations
@@ -79,6 +81,8 @@ def run_case(name: str, seed: int, args, folder: Path, duration: float) -> dict:
         cmd += ["--until-settled", f"{args.until_settled:g}"]
     if args.params:
         cmd += ["--strategy-params", json.dumps(args.params)]
+    if getattr(args, "record", False):
+        cmd += ["--record"]
     t0 = time.perf_counter()
     proc = subprocess.run(TEAM + cmd, capture_output=True, text=True, timeout=duration / MIN_RTF)
     if proc.returncode != 0:
@@ -117,8 +121,10 @@ def bench_live(args, maps: list[str], data: dict, say, duration: float) -> dict[
     its settings and cases."""
     best = data.get("best", {})
     results = {}
+    keep = getattr(args, "keep", None)
     with tempfile.TemporaryDirectory(prefix="bench-closets-live-") as tmp:
         for name in maps:
+            root = Path(tmp) / name if keep is None else Path(keep) / name
             settings = {"robots": args.robots, "resolution": args.resolution,
                         "live": True, "duration": duration}
             if args.until_settled > 0:
@@ -126,7 +132,7 @@ def bench_live(args, maps: list[str], data: dict, say, duration: float) -> dict[
             cases = []
             with ThreadPoolExecutor(max_workers=args.jobs) as jobs:
                 # (each team in its own ROS domain, its world file in its own folder)
-                runs = [jobs.submit(run_case, name, seed, args, Path(tmp) / f"seed-{seed}",
+                runs = [jobs.submit(run_case, name, seed, args, root / f"seed-{seed}",
                                     duration) for seed in range(args.seeds)]
                 done = [run.result() for run in runs]
             for seed, case in enumerate(done):

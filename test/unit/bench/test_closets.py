@@ -174,4 +174,8 @@ def test_a_wrong_option_is_refused_in_one_line_before_anything_runs(tmp_path, ca
     assert len(err) == 1 and "--maps" in err[0] and "nope" in err[0], err
     assert main(["--label", "x", "--live", "--duration", "0", "--json", str(out)]) == 2
     assert "--duration" in capsys.readouterr().err
+    assert main(["--label", "x", "--keep", str(tmp_path), "--json", str(out)]) == 2
+    assert "--keep" in capsys.readouterr().err
+    assert main(["--label", "x", "--live", "--record", "--json", str(out)]) == 2
+    assert "--record" in capsys.readouterr().err
     assert not out.exists()

@@ -16,7 +16,8 @@ ratio <= 1.05. The run's own H series gives the sim time from which H stayed wit
 best known.
 
 The cases go into the results file under ``--label`` (default ``live``) with their own
-settings (the duration), so they never count towards the best known H. A run's folder (world
+settings (the duration); a live end lower than every restart's is the best known H (a
+configuration's H does not depend on how it was found). A run's folder (world
 file, node logs, summary) is deleted once its map is done unless ``--keep DIR`` keeps it as
 ``DIR/<map>/seed-<k>``, with ``--record`` also a recording to watch in the rerun viewer.
 """

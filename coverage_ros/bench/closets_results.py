@@ -50,15 +50,21 @@ def rows(data: dict) -> list[dict]:
     return out
 
 
+#: The settings that make a map's problem (a case with others scores a different H).
+PROBLEM = ("robots", "resolution")
+
+
 def best_and_ratios(data: dict) -> None:
-    """Best known H per map (restarts and every case of every label with the map's settings)
-    and every case's ratio to it."""
+    """Best known H per map (restarts and every case of every label, offline or live, on the
+    map's problem: the restarts' robots and raster) and every case's ratio to it."""
     best: dict[str, float] = {}
     for name, r in data["restarts"].items():
         best[name] = min(r["H"])
     for run in data["runs"].values():
         for name, m in run["maps"].items():
-            if m["settings"] == data["restarts"].get(name, {}).get("settings"):
+            restarts = data["restarts"].get(name, {}).get("settings")
+            if restarts is not None and all(m["settings"].get(k) == restarts.get(k)
+                                            for k in PROBLEM):
                 best[name] = min([best.get(name, math.inf)] + [c["H"] for c in m["cases"]])
     data["best"] = {name: {"H": h, "restarts": len(data["restarts"][name]["H"])}
                     for name, h in best.items()}

@@ -25,6 +25,7 @@ from coverage_ros.bench.closets_results import (
     README_BEGIN,
     README_END,
     RESULTS,
+    best_and_ratios,
     map_names,
     summary_table,
     update_readme,
@@ -46,6 +47,27 @@ def test_summary_gives_every_start_before_and_after():
     table = summary_table(_data([2.228, 1.316, 2.061], [1.005, 1.004, 1.0]))
     assert table.splitlines()[2] == "| ward | 498.6 (10) | 2.228 / 1.316 / 2.061 " \
         "| 1.005 / 1.004 / 1.000 |"
+
+
+def test_the_best_known_is_the_lowest_h_of_any_run_on_the_same_problem():
+    """Restarts, offline cases and live cases alike (how a configuration was found does not
+    change its H); a case with another team size or raster is another problem."""
+    problem = {"robots": 8, "resolution": 0.1}
+    data = {"restarts": {"ward": {"H": [500.0, 510.0], "settings": {
+                **problem, "max_iterations": 300, "restart_seed": 1000}}},
+            "runs": {
+                "after": {"maps": {"ward": {"settings": {**problem, "max_iterations": 300},
+                                            "cases": [{"H": 505.0}]}}},
+                "live": {"maps": {"ward": {"settings": {**problem, "live": True,
+                                                        "duration": 900.0},
+                                           "cases": [{"H": 495.0}, {"H": 515.0}]}}},
+                "twice": {"maps": {"ward": {"settings": {**problem, "robots": 16},
+                                            "cases": [{"H": 250.0}]}}}}}
+    best_and_ratios(data)
+    assert data["best"]["ward"] == {"H": 495.0, "restarts": 2}
+    assert data["runs"]["after"]["maps"]["ward"]["cases"][0]["ratio"] == 505.0 / 495.0
+    live = data["runs"]["live"]["maps"]["ward"]
+    assert live["worst_ratio"] == 515.0 / 495.0 and live["met"]
 
 
 def test_update_replaces_only_the_marked_table(tmp_path):

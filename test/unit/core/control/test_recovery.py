@@ -96,21 +96,29 @@ def test_a_robot_held_by_a_standing_neighbour_waits_then_gives_way_to_the_right(
     assert any("gave way to a robot ahead 1 time(s)" in line for line in c.describe())
 
 
+def _closest(bent: np.ndarray, centre: np.ndarray) -> float:
+    """[m] the nearest a path ``bent`` comes to ``centre``."""
+    pts = np.vstack([a + t * (b - a) for a, b in pairwise(bent)
+                     for t in np.linspace(0.0, 1.0, 50)])
+    return float(np.hypot(*(pts - centre).T).min())
+
+
+def _corridor() -> CoverageDomain:
+    """A corridor 1.5 m wide along x (free 0.75 .. 2.25 m), 10 m long."""
+    occ = np.zeros((60, 200), np.int8)
+    occ[:15, :] = occ[45:, :] = OCCUPIED
+    return CoverageDomain.from_grid(GridMap(occ, 0.05), RADIUS)
+
+
 def test_a_detour_bends_the_first_leg_around_the_robot_in_its_way_on_the_free_side():
     d = room(wall=False)
     path = np.array([[1.0, 1.5], [3.0, 1.5]])
     need = np.array([2 * RADIUS + 0.06])
-
-    def clearance(bent: np.ndarray, centre: np.ndarray) -> float:
-        pts = np.vstack([a + t * (b - a) for a, b in pairwise(bent)
-                         for t in np.linspace(0.0, 1.0, 50)])
-        return float(np.hypot(*(pts - centre).T).min())
-
     centre = np.array([1.5, 1.5])
     bent = detour(d, path, centre[None], need)
     assert np.array_equal(bent[0], path[0]) and np.array_equal(bent[-1], path[-1])
     assert (bent[1:-1, 1] < 1.5).all()  # on the right of the way (east: south)
-    assert need[0] < clearance(bent, centre) <= need[0] + DETOUR_MARGIN + 1e-9
+    assert need[0] < _closest(bent, centre) <= need[0] + DETOUR_MARGIN + 1e-9
     assert all(segment_free(d, a, b) for a, b in pairwise(bent))
     # Near the south wall the right side is not free: the left one is taken.
     low = np.array([[1.0, 0.4], [3.0, 0.4]])
@@ -134,9 +142,7 @@ def test_a_detour_finds_the_robot_in_its_way_past_a_short_first_leg_and_goes_on_
     nearest one, here up and to the right; a settled robot a little right of the way along a
     corridor 1.5 m wide stands clear of that leg's line but on the next leg. The path bends
     round it and goes on forward."""
-    occ = np.zeros((60, 200), np.int8)
-    occ[:15, :] = occ[45:, :] = OCCUPIED  # free 0.75 .. 2.25 m, walls along x
-    corridor = CoverageDomain.from_grid(GridMap(occ, 0.05), RADIUS)
+    corridor = _corridor()
     start = np.array([2.015, 1.105])
     path = np.array([start, [2.025, 1.125], [2.125, 1.125], [2.825, 1.125], [8.0, 1.125]])
     neighbour = start + np.array([[0.27, -0.10]])
@@ -147,12 +153,11 @@ def test_a_detour_finds_the_robot_in_its_way_past_a_short_first_leg_and_goes_on_
     assert bent is not path
     assert np.array_equal(bent[0], start) and np.array_equal(bent[-1], path[-1])
     assert all(segment_free(corridor, a, b) for a, b in pairwise(bent))
-    pts = np.vstack([a + t * (b - a) for a, b in pairwise(bent)
-                     for t in np.linspace(0.0, 1.0, 50)])
-    assert float(np.hypot(*(pts - neighbour[0]).T).min()) > need[0]
+    assert _closest(bent, neighbour[0]) > need[0]
     assert (np.diff(bent[:, 0]) >= -1e-9).all()  # forward all the way: it does not turn back
     # Beyond the reach of a detour, a robot on the way changes nothing (it may move off).
     assert detour(corridor, path, np.array([[5.0, 1.125]]), need) is path
+
 
 def test_a_detour_round_a_robot_by_the_wall_starts_from_where_the_robot_stands():
     """A relocating robot along a corridor's south wall stands 0.29 m behind and south of a
@@ -160,9 +165,7 @@ def test_a_detour_round_a_robot_by_the_wall_starts_from_where_the_robot_stands()
     from the robot's own bearing from the neighbour, round behind it, and never comes nearer
     to it than the robot already is - whichever way the few-centimetre snap to the first cell
     centre points (here also back, away from the way)."""
-    occ = np.zeros((60, 200), np.int8)
-    occ[:15, :] = occ[45:, :] = OCCUPIED  # free 0.75 .. 2.25 m, walls along x
-    corridor = CoverageDomain.from_grid(GridMap(occ, 0.05), RADIUS)
+    corridor = _corridor()
     start, neighbour = np.array([2.0, 0.87]), np.array([[2.25, 1.02]])
     need = np.array([2 * RADIUS + 0.06])
     near = float(np.hypot(*(start - neighbour[0])))
@@ -173,9 +176,7 @@ def test_a_detour_round_a_robot_by_the_wall_starts_from_where_the_robot_stands()
         assert bent is not path
         assert np.array_equal(bent[0], start) and np.array_equal(bent[-1], path[-1])
         assert all(segment_free(corridor, a, b) for a, b in pairwise(bent))
-        pts = np.vstack([a + t * (b - a) for a, b in pairwise(bent)
-                         for t in np.linspace(0.0, 1.0, 50)])
-        assert float(np.hypot(*(pts - neighbour[0]).T).min()) >= near - 1e-3
+        assert _closest(bent, neighbour[0]) >= near - 1e-3
         assert bent[1:-1, 1].max() > neighbour[0, 1] + need[0]  # round the north side
 
 

@@ -36,8 +36,8 @@ _COMMON = ("x", "y", "weight", "radius", "v_max", "vx", "vy", "mass", "cost", "u
 _TANGENTBUG = ("virtual_x", "virtual_y", "cost_real", "cost_virtual", "converged")
 _ACVT = ("reach", "dropout", "iteration", "greedy", "settled", "relocating", "plan_from",
          "plan_seq")
-_HANDOVER = ("settled", "offer_gain", "offer_x", "offer_y", "offer_base", "claim",
-             "claim_gain", "grant", "relocating", "to_x", "to_y")
+_HANDOVER = ("settled", "offer_gain", "offer_x", "offer_y", "offer_base", "offer2_gain",
+             "offer2_x", "offer2_y", "claim", "claim_gain", "grant", "relocating", "to_x", "to_y")
 NAN = math.nan
 
 
@@ -84,7 +84,9 @@ def coverage_state_msg(stamp: Time, values: dict[str, float], frame_id: str = MA
         msg.handover = [HandoverState(
             settled=bool(values.get("settled", 0.0)), offer_gain=_f(values, "offer_gain"),
             offer_x=_f(values, "offer_x"), offer_y=_f(values, "offer_y"),
-            offer_base=_f(values, "offer_base"), claim=int(values.get("claim", -1.0)),
+            offer_base=_f(values, "offer_base"),
+            offer2_gain=float(values.get("offer2_gain", 0.0)), offer2_x=_f(values, "offer2_x"),
+            offer2_y=_f(values, "offer2_y"), claim=int(values.get("claim", -1.0)),
             claim_gain=_f(values, "claim_gain"), grant=int(values.get("grant", -1.0)),
             relocating=bool(values.get("relocating", 0.0)), to_x=_f(values, "to_x"),
             to_y=_f(values, "to_y"))]
@@ -140,7 +142,8 @@ def coverage_state_values(msg: RobotState, expected_frame: str = MAP_FRAME
         out["greedy"] = float(e.greedy)
     for h in msg.handover:
         out.update(settled=float(h.settled), offer_gain=h.offer_gain, offer_x=h.offer_x,
-                   offer_y=h.offer_y, offer_base=h.offer_base, claim=float(h.claim),
+                   offer_y=h.offer_y, offer_base=h.offer_base, offer2_gain=h.offer2_gain,
+                   offer2_x=h.offer2_x, offer2_y=h.offer2_y, claim=float(h.claim),
                    claim_gain=h.claim_gain, grant=float(h.grant),
                    relocating=float(h.relocating), to_x=h.to_x, to_y=h.to_y)
     out.update(zip(msg.extra_names, msg.extra_values, strict=True))

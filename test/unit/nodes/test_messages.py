@@ -11,7 +11,7 @@ from rosutil import RosClient, domain_id
 HASHES = {
     "LockstepTick": "RIHS01_3a871c373118d9a3de4ead182bba819f89a98eb90ac04bfda313b4a455e0ad43",
     "LockstepReport": "RIHS01_791805ffc8c00e0966431cc90025254e4128d16fd06fd1c56c5592f02bf0b1f7",
-    "RobotState": "RIHS01_8f610f2bc088f016b7c686f51173e5ccebc0662f071ba8933af26c0c8025ed5f",
+    "RobotState": "RIHS01_663224977c0aba1a1e9ed7b106f648aa6953ab6b8ab6a73f1bb007eeef9f8a97",
     "WorldStatus": "RIHS01_6616ba3753495967fd1c316f91c59d25b3c351eb915d074d3a08c020d20e938b",
 }
 

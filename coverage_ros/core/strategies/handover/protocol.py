@@ -8,7 +8,8 @@ Every robot publishes, with its state (``SharedState.extra``):
   blocked by the monotone rule or by another robot);
 * ``offer_gain``, ``offer_x``, ``offer_y``, ``offer_base``: settled, what splitting its own cell
   with a second generator at (x, y) would save, and its cell's cost (:func:`.bounds.split_offer`;
-  gain 0: no offer);
+  gain 0: no offer); ``offer2_gain``, ``offer2_x``, ``offer2_y``: a second split, in the part of
+  the cell the first leaves to it (:func:`.bounds.split_offers`: a cell spanning two rooms);
 * ``claim`` (a robot id, -1: none) and ``claim_gain``: the cell it asks to move into and the
   bound's saving;
 * ``grant``: the one claimant it lets in (-1: none);
@@ -69,7 +70,7 @@ from coverage_ros.core.strategies.handover.bounds import (
     joint_change,
     known_cells,
     removal_increase,
-    split_offer,
+    split_offers,
 )
 from coverage_ros.core.strategies.handover.published import NONE, idle, value
 
@@ -131,7 +132,7 @@ class Handover:
     relocations: int = 0  # moves made
     _last: np.ndarray | None = field(default=None, repr=False)  # (2,) [m] previous position
     _still: int = 0  # [updates] in a row that moved less than the convergence tolerance
-    _offer: tuple[np.ndarray, SplitOffer | None] | None = field(default=None, repr=False)
+    _offer: tuple[np.ndarray, list[SplitOffer]] | None = field(default=None, repr=False)
     _removal: tuple[np.ndarray, dict[int, float], Tessellations] | None = field(
         default=None, repr=False)
     _joint: tuple[np.ndarray, Known, dict[tuple[int, float, float, int], float]] | None = field(
@@ -161,9 +162,9 @@ class Handover:
         self._still = self._still + 1 if moved < convergence_tolerance else 0
         settled = step < s.settle or self._still >= STILL_UPDATES
         key = _key(position, neighbours)
-        offer = None
+        offers: list[SplitOffer] = []
         if settled and self.claim < 0:
-            offer = self._cached_offer(key, cell, weight)
+            offers = self._cached_offers(key, cell, weight)
         claimants = sorted(((value(n, "claim_gain"), -n.robot_id) for n in neighbours
                             if value(n, "claim", NONE) == self.robot_id), reverse=True)
         mine = (self.claim_gain, -self.robot_id)
@@ -183,9 +184,12 @@ class Handover:
                      claim_gain=self.claim_gain if self.claim >= 0 else 0.0, grant=grant)
         if self.relocating:
             extra.update(self._heading())
-        if offer is not None and grant == NONE and self.claim < 0:
-            extra.update(offer_gain=offer.gain, offer_x=float(offer.point[0]),
-                         offer_y=float(offer.point[1]), offer_base=offer.base)
+        if offers and grant == NONE and self.claim < 0:
+            extra.update(offer_gain=offers[0].gain, offer_x=float(offers[0].point[0]),
+                         offer_y=float(offers[0].point[1]), offer_base=offers[0].base)
+            if len(offers) > 1:
+                extra.update(offer2_gain=offers[1].gain, offer2_x=float(offers[1].point[0]),
+                             offer2_y=float(offers[1].point[1]))
         # standing still away from the Lloyd goal, not yet for long enough to count as settled:
         # not done either (it may claim once it is)
         waiting = 0 < self._still < STILL_UPDATES and step >= s.settle
@@ -245,28 +249,25 @@ class Handover:
             return  # one move at a time (module docstring)
         if any(_same(k, key, RETURN_CELLS * self.domain.resolution) for k in self._departures):
             return  # the team came back here after a move from here: no move again
-        offers = [n for n in neighbours if value(n, "offer_gain") > 0
-                  and value(n, "claim", NONE) < 0 and value(n, "grant", NONE) == NONE
+        offers = [o for n in neighbours for o in _offers(n)
+                  if value(n, "claim", NONE) < 0 and value(n, "grant", NONE) == NONE
                   and abs(n.state.weight - weight) < WEIGHT_MATCH
-                  and math.isfinite(value(n, "offer_x", math.nan))
-                  and math.isfinite(value(n, "offer_y", math.nan))
-                  and self.domain.is_free_point(np.array([value(n, "offer_x"),
-                                                          value(n, "offer_y")]))]
+                  and self.domain.is_free_point(o.point)]
         if not offers:
             return
         # the removal bound per target: one held fixed when it borders the own cell
-        removal = {n.robot_id: self._cached_removal(key, position, weight, cell, neighbours,
-                                                    bordering, n.robot_id)
-                   for n in offers}
+        removal = {o.robot_id: self._cached_removal(key, position, weight, cell, neighbours,
+                                                    bordering, o.robot_id)
+                   for o in offers}
         best, saving = self._best(offers, cell.cost, {
-            n.robot_id: value(n, "offer_gain") - removal[n.robot_id] for n in offers})
+            o.key: o.gain - removal[o.robot_id] for o in offers})
         rings = 1
         while best is None and stopped and rings <= self.settings.joint_rings:
             # no pair's bound suffices: the bound with both cells' neighbours re-spreading,
             # then theirs too
             best, saving = self._best(offers, cell.cost, {
-                n.robot_id: -self._cached_joint(key, position, weight, neighbours, n, rings)
-                for n in offers})
+                o.key: -self._cached_joint(key, position, weight, neighbours, o, rings)
+                for o in offers})
             rings += 1
         if best is None and stopped and self.settings.descent_offers > 0:
             # no bound sees it: where the whole team's own descent goes from the largest
@@ -277,26 +278,25 @@ class Handover:
             if self._turns[1] <= _rank(self.robot_id, cell.cost, neighbours):
                 self._awaits_turn = True
                 return
-            largest = sorted(offers, key=lambda n: (-value(n, "offer_gain"), n.robot_id))[
+            largest = sorted(offers, key=lambda o: (-o.gain, o.key))[
                 :self.settings.descent_offers]
             best, saving = self._best(largest, cell.cost, {
-                n.robot_id: -self._cached_descent(
-                    key, position, weight, neighbours, n,
-                    self.settings.gain * (cell.cost + value(n, "offer_base")))
-                for n in largest})
+                o.key: -self._cached_descent(key, position, weight, neighbours, o,
+                                             self.settings.gain * (cell.cost + o.base))
+                for o in largest})
         if best is None:
             return
         self.claim, self.claim_gain, self.claim_age = best.robot_id, saving, 0
-        self.target = np.array([value(best, "offer_x"), value(best, "offer_y")])
+        self.target = best.point.copy()
         self._claimed_from = key
 
-    def _best(self, offers: Sequence[Neighbour], cost: float, savings: dict[int, float]
-              ) -> tuple[Neighbour | None, float]:
-        """The offer of the largest saving (then the lower id), if it beats ``escape_gain``
-        of the pair's cost (``cost``: the own cell's)."""
-        best = max(offers, key=lambda n: (savings[n.robot_id], -n.robot_id))
-        saving = savings[best.robot_id]
-        if not saving > self.settings.gain * (cost + value(best, "offer_base")):
+    def _best(self, offers: Sequence[_Offer], cost: float,
+              savings: dict[tuple[int, int], float]) -> tuple[_Offer | None, float]:
+        """The offer of the largest saving (then the lower id, then the first of a robot's
+        two), if it beats ``escape_gain`` of the pair's cost (``cost``: the own cell's)."""
+        best = max(offers, key=lambda o: (savings[o.key], -o.robot_id, -o.key[1]))
+        saving = savings[best.key]
+        if not saving > self.settings.gain * (cost + best.base):
             return None, 0.0
         return best, saving
 
@@ -305,13 +305,13 @@ class Handover:
         self.relocating, self.target = False, None
         self.cooldown = self.settings.cooldown
 
-    def _cached_offer(self, key: np.ndarray, cell: CellResult, weight: float
-                      ) -> SplitOffer | None:
-        """The own split offer, computed again only when some generator moved by a cell."""
+    def _cached_offers(self, key: np.ndarray, cell: CellResult, weight: float
+                       ) -> list[SplitOffer]:
+        """The own split offers, computed again only when some generator moved by a cell."""
         if self._offer is None or not _same(self._offer[0], key, self.domain.resolution):
-            offer = split_offer(self.domain, cell.nodes, cell.distances, cell.cost, weight,
-                                cell.cell_radius, self.settings.steps, self.method)
-            self._offer = (key, offer)
+            offers = split_offers(self.domain, cell.nodes, cell.distances, cell.cost, weight,
+                                  cell.cell_radius, self.settings.steps, self.method)
+            self._offer = (key, offers)
         return self._offer[1]
 
     def _known(self, key: np.ndarray, position: np.ndarray, neighbours: Sequence[Neighbour]
@@ -323,13 +323,13 @@ class Handover:
         return self._joint[1], self._joint[2]
 
     def _cached_joint(self, key: np.ndarray, position: np.ndarray, weight: float,
-                      neighbours: Sequence[Neighbour], target: Neighbour, rings: int) -> float:
+                      neighbours: Sequence[Neighbour], target: _Offer, rings: int) -> float:
         """The bound of :func:`.bounds.joint_change` for a move into ``target``'s cell at its
         offered point with ``rings`` (>= 1) of cells re-spreading."""
         if any(abs(n.state.weight - weight) >= WEIGHT_MATCH for n in neighbours):
             return math.inf  # the bound assumes equal power weights
         known, values = self._known(key, position, neighbours)
-        point = np.array([value(target, "offer_x"), value(target, "offer_y")])
+        point = target.point
         memo = (target.robot_id, float(point[0]), float(point[1]), rings)
         if memo not in values:
             t = 1 + [n.robot_id for n in neighbours].index(target.robot_id)
@@ -339,14 +339,14 @@ class Handover:
         return values[memo]
 
     def _cached_descent(self, key: np.ndarray, position: np.ndarray, weight: float,
-                        neighbours: Sequence[Neighbour], target: Neighbour,
+                        neighbours: Sequence[Neighbour], target: _Offer,
                         enough: float) -> float:
         """:func:`.bounds.descent_change` of a move to ``target``'s offered point, every
         generator it hears descending, stopped once H is lower by more than ``enough``."""
         if any(abs(n.state.weight - weight) >= WEIGHT_MATCH for n in neighbours):
             return math.inf  # the descent prices equal power weights
         known, values = self._known(key, position, neighbours)
-        point = np.array([value(target, "offer_x"), value(target, "offer_y")])
+        point = target.point
         memo = (target.robot_id, float(point[0]), float(point[1]), 0)  # (rings 0: descent)
         if memo not in values:
             values[memo] = descent_change(self.domain, known, weight,
@@ -376,6 +376,31 @@ class Handover:
                     [1 + ids.index(fixed)] if fixed >= 0 else [], cell.cell_radius,
                     self.settings.steps, self.method, tessellations).increase
         return values[fixed]
+
+
+@dataclass(frozen=True)
+class _Offer:
+    """One split a neighbour offers (its first or second: ``key`` (robot id, 0 or 1))."""
+
+    key: tuple[int, int]
+    gain: float  # units of H
+    point: np.ndarray  # (2,) [m]
+    base: float  # the offering robot's cell cost
+
+    @property
+    def robot_id(self) -> int:
+        return self.key[0]
+
+
+def _offers(n: Neighbour) -> list[_Offer]:
+    """The splits neighbour ``n`` offers (a saving > 0 at a finite point)."""
+    out = []
+    for k, prefix in enumerate(("offer", "offer2")):
+        gain = value(n, f"{prefix}_gain")
+        point = np.array([value(n, f"{prefix}_x", math.nan), value(n, f"{prefix}_y", math.nan)])
+        if gain > 0 and np.all(np.isfinite(point)):
+            out.append(_Offer((n.robot_id, k), gain, point, value(n, "offer_base")))
+    return out
 
 
 def _rank(robot_id: int, cost: float, neighbours: Sequence[Neighbour]) -> int:

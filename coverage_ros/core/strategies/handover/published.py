@@ -28,6 +28,7 @@ def idle() -> dict[str, float]:
     """What a robot publishes that neither offers, claims, grants nor relocates."""
     return {"settled": 0.0, "claim": NONE, "claim_gain": 0.0, "grant": NONE,
             "offer_gain": 0.0, "offer_x": 0.0, "offer_y": 0.0, "offer_base": 0.0,
+            "offer2_gain": 0.0, "offer2_x": 0.0, "offer2_y": 0.0,
             "relocating": 0.0, "to_x": 0.0, "to_y": 0.0}
 
 

@@ -367,8 +367,9 @@ def split_offers(domain: CoverageDomain, nodes: np.ndarray, g_own: np.ndarray, c
                  second: bool = True) -> list[SplitOffer]:
     """:func:`split_offer`'s split, then (``second``) the best split from
     :data:`SECOND_STARTS` further starts whose point lies outside the first split's part (the
-    nodes its second generator would take): the cell's other room, where it spans two. Empty
-    for a cell of fewer than two nodes; the second only where it saves something."""
+    nodes its second generator would take) if it saves more than the first: the cell's other
+    room, where it spans two and the farthest node lies in the smaller. Empty for a cell of
+    fewer than two nodes."""
     nodes = np.asarray(nodes, dtype=np.int64)
     if len(nodes) < 2:
         return []
@@ -414,7 +415,8 @@ def split_offers(domain: CoverageDomain, nodes: np.ndarray, g_own: np.ndarray, c
             break
         split, point, _part = descend(far)
         at = int(np.argmin(np.hypot(*(pts - point).T)))
-        if not first_part[at] and split < cost and (other is None or split < other[0]):
+        if not first_part[at] and split < min(first_cost, cost) \
+                and (other is None or split < other[0]):
             other = (split, point)
     if other is not None:
         offers.append(SplitOffer(gain=cost - other[0], point=other[1].copy(), base=cost))

@@ -34,6 +34,7 @@ from coverage_ros.core.strategies.handover import (
     removal_increase,
     split_offer,
 )
+from coverage_ros.core.strategies.handover.bounds import split_offers
 from coverage_ros.core.strategies.handover.protocol import STILL_UPDATES
 from coverage_ros.core.world import parse_world
 from coverage_ros.core.world.placement import largest_free_region, team_starts
@@ -277,6 +278,61 @@ def _team(positions, domain=None):
                           StrategyContext(domain=domain, robot_id=i,
                                           convergence_tolerance=TOLERANCE))
             for i in range(len(positions))]
+
+
+#: [m] where a team of 8 on drawn plan 6 ended with one offer per robot (start seed 2 of
+#: scripts/bench_closets, H 6 % above the best known): robot 1's cell reaches from its room
+#: through a doorway into the corridor and the west rooms; its farthest node lies in the east.
+PLAN6_TWO_ROOMS = np.array([
+    [2.053, 16.725], [4.233, 12.463], [6.233, 6.009], [1.891, 3.223], [1.833, 6.829],
+    [6.529, 2.188], [6.578, 16.888], [6.691, 9.134]])
+
+
+def _plan6():
+    from coverage_ros.bench.closet_maps import RESOLUTION, coarse_world, drawn_plan
+
+    world = coarse_world(parse_world(drawn_plan(6)), RESOLUTION)
+    return world_domain(world, world.robot_spec(0).radius)
+
+
+def test_a_cell_spanning_two_rooms_offers_its_split_in_either():
+    """Robot 1's cell offers the farthest-node split (split_offer's, east) and a second one
+    in the part that split leaves it (west), which saves more; a generator added at either
+    point lowers the team's H by at least the offer's gain (a split is one assignment of the
+    cell's nodes, the tessellation the best); the other cells, one room each, offer one split,
+    the farthest node's. Claimants price both: the team's first claim goes to the second."""
+    domain = _plan6()
+    P = PLAN6_TWO_ROOMS
+    gens = [Generator(p) for p in P]
+    H0 = fast_tessellate(domain, gens).cost
+    cells = [geodesic_cell(domain, g, gens[:k] + gens[k + 1:]) for k, g in enumerate(gens)]
+    for k, c in enumerate(cells):
+        offers = split_offers(domain, c.nodes, c.distances, c.cost, 0.0, c.cell_radius, 3)
+        first = split_offer(domain, c.nodes, c.distances, c.cost, 0.0, c.cell_radius, 3)
+        assert first is not None
+        assert offers[0].gain == first.gain and np.array_equal(offers[0].point, first.point)
+        assert len(offers) == (2 if k == 1 else 1), k
+        for o in offers:
+            added = fast_tessellate(domain, gens + [Generator(o.point)]).cost
+            assert added <= H0 - o.gain + 1e-9 * H0, k
+    east, west = split_offers(domain, cells[1].nodes, cells[1].distances, cells[1].cost, 0.0,
+                              cells[1].cell_radius, 3)
+    assert west.gain > 1.3 * east.gain and west.point[0] < P[1][0] < east.point[0]
+
+    team = _team(P, domain)
+    published = [s.shared_state(Observation(k, np.array([*P[k], 0.0]), 0.0))
+                 for k, s in enumerate(team)]
+    for _ in range(STILL_UPDATES + 3):
+        decisions = _round(team, P, published)
+        published = [d.shared for d in decisions]
+        claims = [(k, d.shared.extra["claim"]) for k, d in enumerate(decisions)
+                  if d.shared.extra["claim"] >= 0]
+        if claims:
+            break
+    assert claims and all(c == 1.0 for _, c in claims)
+    assert published[1].extra["offer2_x"] == pytest.approx(west.point[0])
+    for k, _ in claims:
+        assert np.allclose(team[k].handover.target, west.point), k
 
 
 #: [m] where a team of 8 on the warehouse map (shared/maps) ended with the pair and the one-ring

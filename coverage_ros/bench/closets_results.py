@@ -56,22 +56,39 @@ PROBLEM = ("robots", "resolution")
 
 def best_and_ratios(data: dict) -> None:
     """Best known H per map (restarts and every case of every label, offline or live, on the
-    map's problem: the restarts' robots and raster) and every case's ratio to it."""
-    best: dict[str, float] = {}
+    map's problem: the restarts' robots and raster; and the best stored before on the same
+    problem, so that a row run again does not lose a configuration once found) with where it
+    was found, and every case's ratio to it."""
+    best: dict[str, dict] = {}
+
+    def consider(name: str, h: float, found: dict) -> None:
+        if h < best.get(name, {}).get("H", math.inf):
+            best[name] = {"H": h, "found": found}
+
     for name, r in data["restarts"].items():
-        best[name] = min(r["H"])
-    for run in data["runs"].values():
+        problem = {k: r["settings"].get(k) for k in PROBLEM}
+        before = data.get("best", {}).get(name, {})
+        if before.get("problem") == problem:
+            consider(name, before["H"], before.get("found", {}))
+        for k, h in enumerate(r["H"]):
+            consider(name, h, {"restart": k})
+    for label, run in data["runs"].items():
         for name, m in run["maps"].items():
             restarts = data["restarts"].get(name, {}).get("settings")
             if restarts is not None and all(m["settings"].get(k) == restarts.get(k)
                                             for k in PROBLEM):
-                best[name] = min([best.get(name, math.inf)] + [c["H"] for c in m["cases"]])
-    data["best"] = {name: {"H": h, "restarts": len(data["restarts"][name]["H"])}
-                    for name, h in best.items()}
+                commit = m.get("provenance", run.get("provenance", {})).get("commit")
+                for c in m["cases"]:
+                    consider(name, c["H"], {"label": label, "seed": c.get("seed"),
+                                            "commit": commit})
+    data["best"] = {name: {**b, "restarts": len(data["restarts"][name]["H"]),
+                           "problem": {k: data["restarts"][name]["settings"].get(k)
+                                       for k in PROBLEM}}
+                    for name, b in best.items()}
     for run in data["runs"].values():
         for name, m in run["maps"].items():
             for c in m["cases"]:
-                c["ratio"] = c["H"] / best[name] if name in best else None
+                c["ratio"] = c["H"] / best[name]["H"] if name in best else None
             ratios = [c["ratio"] for c in m["cases"] if c.get("ratio") is not None]
             m["worst_ratio"] = max(ratios) if ratios else None
             m["met"] = bool(ratios) and max(ratios) <= TARGET

@@ -63,11 +63,24 @@ def test_the_best_known_is_the_lowest_h_of_any_run_on_the_same_problem():
                                            "cases": [{"H": 495.0}, {"H": 515.0}]}}},
                 "twice": {"maps": {"ward": {"settings": {**problem, "robots": 16},
                                             "cases": [{"H": 250.0}]}}}}}
+    data["runs"]["live"]["provenance"] = {"commit": "abc1234"}
     best_and_ratios(data)
-    assert data["best"]["ward"] == {"H": 495.0, "restarts": 2}
+    assert data["best"]["ward"] == {"H": 495.0, "restarts": 2, "problem": problem,
+                                    "found": {"label": "live", "seed": None,
+                                              "commit": "abc1234"}}
     assert data["runs"]["after"]["maps"]["ward"]["cases"][0]["ratio"] == 505.0 / 495.0
     live = data["runs"]["live"]["maps"]["ward"]
     assert live["worst_ratio"] == 515.0 / 495.0 and live["met"]
+    # the live row run again, ending higher: the configuration found before still counts
+    live["cases"] = [{"H": 502.0}]
+    best_and_ratios(data)
+    assert data["best"]["ward"]["H"] == 495.0 and live["worst_ratio"] == 502.0 / 495.0
+    # ... on the same problem only
+    data["restarts"]["ward"]["settings"]["resolution"] = 0.05
+    data["runs"]["after"]["maps"]["ward"]["settings"]["resolution"] = 0.05
+    best_and_ratios(data)
+    assert data["best"]["ward"]["H"] == 500.0
+    assert data["best"]["ward"]["found"] == {"restart": 0}
 
 
 def test_update_replaces_only_the_marked_table(tmp_path):

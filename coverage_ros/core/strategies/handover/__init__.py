@@ -6,13 +6,12 @@ re-spreading, says H drops (:mod:`.bounds`), after a claim the neighbour grants
 from coverage_ros.core.strategies.handover.bounds import (
     Known,
     Removal,
-    SplitOffer,
     joint_change,
     known_cells,
     removal_increase,
-    split_offer,
 )
 from coverage_ros.core.strategies.handover.protocol import Handover, HandoverSettings, HandoverStep
+from coverage_ros.core.strategies.handover.split import SplitOffer, split_offer, split_offers
 
 __all__ = ["Handover", "HandoverSettings", "HandoverStep", "Known", "Removal", "SplitOffer",
-           "joint_change", "known_cells", "removal_increase", "split_offer"]
+           "joint_change", "known_cells", "removal_increase", "split_offer", "split_offers"]

@@ -7,9 +7,9 @@ Every robot publishes, with its state (``SharedState.extra``):
   convergence tolerance over its last :data:`STILL_UPDATES` updates (a step it does not take:
   blocked by the monotone rule or by another robot);
 * ``offer_gain``, ``offer_x``, ``offer_y``, ``offer_base``: settled, what splitting its own cell
-  with a second generator at (x, y) would save, and its cell's cost (:func:`.bounds.split_offer`;
+  with a second generator at (x, y) would save, and its cell's cost (:func:`.split.split_offer`;
   gain 0: no offer); ``offer2_gain``, ``offer2_x``, ``offer2_y``: a second split, in the part of
-  the cell the first leaves to it (:func:`.bounds.split_offers`: a cell spanning two rooms);
+  the cell the first leaves to it (:func:`.split.split_offers`: a cell spanning two rooms);
 * ``claim`` (a robot id, -1: none) and ``claim_gain``: the cell it asks to move into and the
   bound's saving;
 * ``grant``: the one claimant it lets in (-1: none);
@@ -64,15 +64,14 @@ from coverage_ros.core.geodesic.domain import CoverageDomain
 from coverage_ros.core.strategies.base import Neighbour
 from coverage_ros.core.strategies.handover.bounds import (
     Known,
-    SplitOffer,
     Tessellations,
     descent_change,
     joint_change,
     known_cells,
     removal_increase,
-    split_offers,
 )
-from coverage_ros.core.strategies.handover.published import NONE, idle, value
+from coverage_ros.core.strategies.handover.published import NONE, Offer, idle, offers_of, value
+from coverage_ros.core.strategies.handover.split import SplitOffer, split_offers
 
 #: [updates] standing still this long counts as settled: a robot turning towards a new goal
 #: stands still for an update or two (half a turn at 2.84 rad/s takes 1.1 s, at 2 Hz).
@@ -249,7 +248,7 @@ class Handover:
             return  # one move at a time (module docstring)
         if any(_same(k, key, RETURN_CELLS * self.domain.resolution) for k in self._departures):
             return  # the team came back here after a move from here: no move again
-        offers = [o for n in neighbours for o in _offers(n)
+        offers = [o for n in neighbours for o in offers_of(n)
                   if value(n, "claim", NONE) < 0 and value(n, "grant", NONE) == NONE
                   and abs(n.state.weight - weight) < WEIGHT_MATCH
                   and self.domain.is_free_point(o.point)]
@@ -290,8 +289,8 @@ class Handover:
         self.target = best.point.copy()
         self._claimed_from = key
 
-    def _best(self, offers: Sequence[_Offer], cost: float,
-              savings: dict[tuple[int, int], float]) -> tuple[_Offer | None, float]:
+    def _best(self, offers: Sequence[Offer], cost: float,
+              savings: dict[tuple[int, int], float]) -> tuple[Offer | None, float]:
         """The offer of the largest saving (then the lower id, then the first of a robot's
         two), if it beats ``escape_gain`` of the pair's cost (``cost``: the own cell's)."""
         best = max(offers, key=lambda o: (savings[o.key], -o.robot_id, -o.key[1]))
@@ -323,7 +322,7 @@ class Handover:
         return self._joint[1], self._joint[2]
 
     def _cached_joint(self, key: np.ndarray, position: np.ndarray, weight: float,
-                      neighbours: Sequence[Neighbour], target: _Offer, rings: int) -> float:
+                      neighbours: Sequence[Neighbour], target: Offer, rings: int) -> float:
         """The bound of :func:`.bounds.joint_change` for a move into ``target``'s cell at its
         offered point with ``rings`` (>= 1) of cells re-spreading."""
         if any(abs(n.state.weight - weight) >= WEIGHT_MATCH for n in neighbours):
@@ -339,7 +338,7 @@ class Handover:
         return values[memo]
 
     def _cached_descent(self, key: np.ndarray, position: np.ndarray, weight: float,
-                        neighbours: Sequence[Neighbour], target: _Offer,
+                        neighbours: Sequence[Neighbour], target: Offer,
                         enough: float) -> float:
         """:func:`.bounds.descent_change` of a move to ``target``'s offered point, every
         generator it hears descending, stopped once H is lower by more than ``enough``."""
@@ -376,31 +375,6 @@ class Handover:
                     [1 + ids.index(fixed)] if fixed >= 0 else [], cell.cell_radius,
                     self.settings.steps, self.method, tessellations).increase
         return values[fixed]
-
-
-@dataclass(frozen=True)
-class _Offer:
-    """One split a neighbour offers (its first or second: ``key`` (robot id, 0 or 1))."""
-
-    key: tuple[int, int]
-    gain: float  # units of H
-    point: np.ndarray  # (2,) [m]
-    base: float  # the offering robot's cell cost
-
-    @property
-    def robot_id(self) -> int:
-        return self.key[0]
-
-
-def _offers(n: Neighbour) -> list[_Offer]:
-    """The splits neighbour ``n`` offers (a saving > 0 at a finite point)."""
-    out = []
-    for k, prefix in enumerate(("offer", "offer2")):
-        gain = value(n, f"{prefix}_gain")
-        point = np.array([value(n, f"{prefix}_x", math.nan), value(n, f"{prefix}_y", math.nan)])
-        if gain > 0 and np.all(np.isfinite(point)):
-            out.append(_Offer((n.robot_id, k), gain, point, value(n, "offer_base")))
-    return out
 
 
 def _rank(robot_id: int, cost: float, neighbours: Sequence[Neighbour]) -> int:

@@ -10,6 +10,7 @@ bound priced - rather than into the cell it left, which would have to be given b
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -40,3 +41,28 @@ def destination(n: Neighbour) -> np.ndarray:
         if np.all(np.isfinite(to)):
             return to
     return n.position
+
+
+@dataclass(frozen=True)
+class Offer:
+    """One split a neighbour offers (its first or its second: ``key`` (robot id, 0 or 1))."""
+
+    key: tuple[int, int]
+    gain: float  # units of H
+    point: np.ndarray  # (2,) [m]
+    base: float  # the offering robot's cell cost
+
+    @property
+    def robot_id(self) -> int:
+        return self.key[0]
+
+
+def offers_of(n: Neighbour) -> list[Offer]:
+    """The splits neighbour ``n`` offers (a saving > 0 at a finite point)."""
+    out = []
+    for k, prefix in enumerate(("offer", "offer2")):
+        gain = value(n, f"{prefix}_gain")
+        point = np.array([value(n, f"{prefix}_x", math.nan), value(n, f"{prefix}_y", math.nan)])
+        if gain > 0 and np.all(np.isfinite(point)):
+            out.append(Offer((n.robot_id, k), gain, point, value(n, "offer_base")))
+    return out

@@ -33,8 +33,8 @@ from coverage_ros.core.strategies.handover import (
     known_cells,
     removal_increase,
     split_offer,
+    split_offers,
 )
-from coverage_ros.core.strategies.handover.bounds import split_offers
 from coverage_ros.core.strategies.handover.protocol import STILL_UPDATES
 from coverage_ros.core.world import parse_world
 from coverage_ros.core.world.placement import largest_free_region, team_starts

@@ -1,0 +1,102 @@
+"""What a robot offers its neighbours in the closet escape: a split of its own cell with a
+second generator of its power weight (:mod:`.protocol`), and what that split saves - the
+second term of a handover's bound (:mod:`.bounds`)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from coverage_ros.core.geodesic.domain import CoverageDomain
+from coverage_ros.core.geodesic.whole_map import nearest
+from coverage_ros.core.strategies.handover.bounds import SLACK_EDGES, node_points
+
+
+@dataclass(frozen=True)
+class SplitOffer:
+    """What splitting the own cell with a second generator would save."""
+
+    gain: float  # H_k - cost of the split (>= 0), units of H
+    point: np.ndarray  # (2,) [m] map frame: where the second generator goes (a node of the cell)
+    base: float  # H_k, the own cell's cost before the split
+
+
+#: Further starts of :func:`split_offers`' second offer, each the node farthest from the own
+#: generator and every earlier start: a cell reaching into two rooms splits best in either.
+SECOND_STARTS = 2
+
+
+def split_offer(domain: CoverageDomain, nodes: np.ndarray, g_own: np.ndarray, cost: float,
+                weight: float, cell_radius: float, steps: int,
+                method: str = "auto") -> SplitOffer | None:
+    """The best split of the own cell ``nodes`` (distances ``g_own`` from the own generator,
+    cost ``cost``) with a second generator of the own power weight: started at the node
+    farthest from the own generator, moved ``steps`` times to the mass centroid of its part
+    (the part's node nearest to it); the least cost seen. None for a cell of fewer than two
+    nodes."""
+    offers = split_offers(domain, nodes, g_own, cost, weight, cell_radius, steps, method,
+                          second=False)
+    return offers[0] if offers else None
+
+
+def split_offers(domain: CoverageDomain, nodes: np.ndarray, g_own: np.ndarray, cost: float,
+                 weight: float, cell_radius: float, steps: int, method: str = "auto",
+                 second: bool = True) -> list[SplitOffer]:
+    """:func:`split_offer`'s split, then (``second``) the best split from
+    :data:`SECOND_STARTS` further starts whose point lies outside the first split's part (the
+    nodes its second generator would take) if it saves more than the first: the cell's other
+    room, where it spans two and the farthest node lies in the smaller. Empty for a cell of
+    fewer than two nodes."""
+    nodes = np.asarray(nodes, dtype=np.int64)
+    if len(nodes) < 2:
+        return []
+    wdA = domain.mass_element.ravel()[nodes]
+    pts = node_points(domain, nodes)
+    own = g_own * g_own - weight ** 2
+    limit = 2.0 * cell_radius + SLACK_EDGES * domain.graph.max_edge_cost
+    apart = np.array(g_own, dtype=np.float64)  # [m] from the own generator and the starts
+
+    def descend(start: int) -> tuple[float, np.ndarray, np.ndarray]:
+        """The least split cost from node ``start``, its point and its part (mask)."""
+        nonlocal apart
+        s = pts[start]
+        best: tuple[float, np.ndarray, np.ndarray] = (math.inf, s, np.zeros(len(nodes), bool))
+        for step in range(max(1, steps)):
+            gs = nearest(domain, s[None], limit, method)[0][nodes]
+            if step == 0:
+                apart = np.minimum(apart, gs)  # (inf beyond the search's reach)
+            theirs = np.where(np.isfinite(gs), gs * gs - weight ** 2, np.inf)
+            mine = theirs < own
+            split = float(np.where(mine, theirs, own).dot(wdA))
+            if split < best[0]:
+                best = (split, s, mine)
+            m = float(wdA[mine].sum())
+            if m <= 0:
+                break
+            centroid = (pts[mine] * wdA[mine, None]).sum(axis=0) / m
+            part = pts[mine]
+            nxt = part[int(np.argmin(np.hypot(*(part - centroid).T)))]
+            if np.allclose(nxt, s):
+                break
+            s = nxt
+        return best
+
+    first_cost, first_point, first_part = descend(int(np.argmax(g_own)))
+    offers = [SplitOffer(gain=max(cost - first_cost, 0.0), point=first_point.copy(), base=cost)]
+    if not second:
+        return offers
+    other: tuple[float, np.ndarray] | None = None
+    for _ in range(SECOND_STARTS):
+        far = int(np.argmax(apart))
+        if not (apart[far] > 0.0 and np.isfinite(apart[far])):
+            break
+        split, point, _part = descend(far)
+        at = int(np.argmin(np.hypot(*(pts - point).T)))
+        if not first_part[at] and split < min(first_cost, cost) \
+                and (other is None or split < other[0]):
+            other = (split, point)
+    if other is not None:
+        offers.append(SplitOffer(gain=cost - other[0], point=other[1].copy(), base=cost))
+    return offers

@@ -288,10 +288,12 @@ PLAN6_TWO_ROOMS = np.array([
     [6.529, 2.188], [6.578, 16.888], [6.691, 9.134]])
 
 
-def _plan6():
+@cache
+def _drawn_plan(seed: int):
+    """The domain of scripts/bench_closets' drawn plan ``seed`` on its raster."""
     from coverage_ros.bench.closet_maps import RESOLUTION, coarse_world, drawn_plan
 
-    world = coarse_world(parse_world(drawn_plan(6)), RESOLUTION)
+    world = coarse_world(parse_world(drawn_plan(seed)), RESOLUTION)
     return world_domain(world, world.robot_spec(0).radius)
 
 
@@ -301,7 +303,7 @@ def test_a_cell_spanning_two_rooms_offers_its_split_in_either():
     point lowers the team's H by at least the offer's gain (a split is one assignment of the
     cell's nodes, the tessellation the best); the other cells, one room each, offer one split,
     the farthest node's. Claimants price both: the team's first claim goes to the second."""
-    domain = _plan6()
+    domain = _drawn_plan(6)
     P = PLAN6_TWO_ROOMS
     gens = [Generator(p) for p in P]
     H0 = fast_tessellate(domain, gens).cost
@@ -438,13 +440,6 @@ PLAN2_SETTLED = np.array([
     [13.398, 6.0], [13.854, 2.256], [8.488, 5.382]])
 
 
-def _plan2():
-    from coverage_ros.bench.closet_maps import RESOLUTION, coarse_world, drawn_plan
-
-    world = coarse_world(parse_world(drawn_plan(2)), RESOLUTION)
-    return world_domain(world, world.robot_spec(0).radius)
-
-
 @pytest.mark.slow
 def test_a_move_no_bound_sees_is_priced_by_the_teams_own_descent():
     """Robot 2 moving to robot 7's offered point: every bound says H rises (the pair's, the
@@ -455,7 +450,7 @@ def test_a_move_no_bound_sees_is_priced_by_the_teams_own_descent():
     priced so, by the robot whose cell costs least."""
     from coverage_ros.core.strategies.handover.bounds import descent_change
 
-    domain = _plan2()
+    domain = _drawn_plan(2)
     P, (i, j) = PLAN2_SETTLED, (2, 7)
     gens = [Generator(p) for p in P]
     H0 = fast_tessellate(domain, gens).cost
@@ -519,7 +514,7 @@ def test_a_robot_claims_no_more_where_the_team_came_back_after_its_move():
     relocates; if the team comes back to where it left from (its steps need not reach the
     configuration the descent named), robot 1 does not claim from there again, where a robot
     that did not move from there claims."""
-    domain, P = _plan2(), PLAN2_SETTLED
+    domain, P = _drawn_plan(2), PLAN2_SETTLED
 
     def robot(k):
         return make_strategy(strategy_choice("geodesic", {"escape_descent_offers": 1}),

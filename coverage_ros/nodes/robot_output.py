@@ -48,7 +48,7 @@ class RobotOutput:
         neighbour, so their number must not grow with the update rate."""
         stamp = conv.to_time_msg(now)
         d = result.decision
-        if d.mode != self.mode and "relocate" in (d.mode, self.mode):
+        if d.mode != self.mode and {"relocate", "make_way"} & {d.mode, self.mode}:
             where = "" if d.goal is None else f" for ({d.goal[0]:.2f}, {d.goal[1]:.2f})"
             self.logger.info(f"t {now:.1f} s: mode {self.mode or '-'} -> {d.mode}{where} from "
                              f"({result.pose[0]:.2f}, {result.pose[1]:.2f})")

@@ -34,6 +34,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from coverage_ros.core.control import published_state
+from coverage_ros.core.control.make_way import make_way
 from coverage_ros.core.control.neighbours import NeighbourTable, safety_discs
 from coverage_ros.core.control.planning import detour, plan_path
 from coverage_ros.core.control.pose_age import PoseAges
@@ -48,6 +49,7 @@ from coverage_ros.core.geodesic.domain import CoverageDomain
 from coverage_ros.core.geometry import wrap_angle
 from coverage_ros.core.strategies import (
     Decision,
+    Neighbour,
     Observation,
     Scan,
     StrategyChoice,
@@ -204,6 +206,7 @@ class RobotController:
             _ = nav.clearance  # computed here, not under the lock (see _commit)
         obs = Observation(self.config.robot_id, pose, now, scan, snapshot, scan_pose)
         decision = seek_region(self.domain, self.region, self.strategy.update(obs, nbrs), pose)
+        decision = make_way(nav, decision, pose, nbrs, self._keep_from)
         update_ms = (time.perf_counter() - t0) * 1e3
         if decision.velocity is None and decision.goal is not None:
             new_goal = np.asarray(decision.goal, dtype=np.float64)
@@ -234,6 +237,11 @@ class RobotController:
             if nav is not self.safety.domain:
                 self.safety.set_domain(nav)
         return result
+
+    def _keep_from(self, n: Neighbour) -> float:
+        """[m] the centre distance the safety filter keeps from neighbour ``n``."""
+        radius = n.state.extra.get("radius", self.config.robot.radius)
+        return float(self.safety.config.clearance_to(np.array([radius]))[0])
 
     def presence_state(self) -> dict[str, float]:
         """What to publish before the first update (:func:`.published_state.before_update`)."""

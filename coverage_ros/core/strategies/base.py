@@ -172,7 +172,7 @@ class StrategyDetails:
 #: index here (``mode``; -1 for one not listed), as the coverage state's ``mode`` constant.
 MODES = ("lloyd", "greedy", "frontier", "done", "stay", "cvt", "dropout", "plain", "guided",
          "escape", "motion_to_goal", "boundary_following", "projecting", "reached",
-         "projected", "blocked", "seek", "relocate")
+         "projected", "blocked", "seek", "relocate", "make_way")
 
 
 def mode_code(mode: str) -> int:

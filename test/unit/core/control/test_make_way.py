@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from coverage_ros.core.control.controller import ControllerConfig, RobotController
 from coverage_ros.core.control.make_way import (
     AHEAD,
     MARGIN,
@@ -18,7 +19,7 @@ from coverage_ros.core.control.make_way import (
 from coverage_ros.core.control.planning import plan_path
 from coverage_ros.core.geodesic.domain import CoverageDomain
 from coverage_ros.core.strategies import Decision, Neighbour
-from coverage_ros.core.strategies.base import SharedState
+from coverage_ros.core.strategies.base import SharedState, mode_code
 from coverage_ros.core.world.grid import OCCUPIED, GridMap
 
 RADIUS = 0.105  # [m]
@@ -118,3 +119,23 @@ def test_in_a_corridor_too_narrow_to_step_aside_the_decision_stands():
     n = _relocating([1.5, 3.0], [5.5, 3.0])
     d = make_way(domain, _decision(goal), np.array([*goal, 0.0]), [n], _keep)
     assert d.mode == "lloyd" and d.goal == pytest.approx(goal)
+
+
+def test_the_controller_makes_way_for_a_relocating_neighbour_it_hears():
+    """Through :class:`RobotController`: a robot standing in the doorway hears a neighbour
+    relocating through it and heads off its way; once that neighbour says it has arrived, the
+    robot's own strategy decides again."""
+    domain = _rooms()
+    c = RobotController(domain, ControllerConfig(robot_id=0))
+    c.set_pose((3.0, 3.0, 0.0))
+    heard = {"x": 2.2, "y": 4.2, "weight": 0.0, "mass": 1.0, "relocating": 1.0, "to_x": 3.0,
+             "to_y": 1.0, "radius": RADIUS}
+    assert c.neighbours.receive(7, heard, now=1.0) == ""
+    result = c.update(1.0)
+    assert result is not None and result.decision.mode == "make_way"
+    assert result.state["mode"] == mode_code("make_way")
+    way = plan_path(domain, np.array([2.2, 4.2]), np.array([3.0, 1.0]))
+    assert distance_to_path(way, result.decision.goal[None])[0] >= KEEP
+    assert c.neighbours.receive(7, {**heard, "x": 3.0, "y": 1.0, "relocating": 0.0},
+                                now=2.0) == ""
+    assert c.update(2.0).decision.mode != "make_way"

@@ -34,7 +34,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from coverage_ros.core.control import published_state
-from coverage_ros.core.control.make_way import make_way
+from coverage_ros.core.control.make_way import Ways, make_way
 from coverage_ros.core.control.neighbours import NeighbourTable, safety_discs
 from coverage_ros.core.control.planning import detour, plan_path
 from coverage_ros.core.control.pose_age import PoseAges
@@ -119,6 +119,7 @@ class RobotController:
         #: What the robot believes of an unknown map (exploring), else None.
         self.belief = belief
         self._planned_version = -1  # belief version the current path was planned on
+        self._ways = Ways()  # relocating neighbours' paths (make_way)
         ctx = StrategyContext(domain=domain, robot=config.robot, robot_id=config.robot_id,
                               convergence_tolerance=config.goal_tolerance,
                               seed=config.robot_id, search_reuse=config.search_reuse)
@@ -206,7 +207,7 @@ class RobotController:
             _ = nav.clearance  # computed here, not under the lock (see _commit)
         obs = Observation(self.config.robot_id, pose, now, scan, snapshot, scan_pose)
         decision = seek_region(self.domain, self.region, self.strategy.update(obs, nbrs), pose)
-        decision = make_way(nav, decision, pose, nbrs, self._keep_from)
+        decision = make_way(nav, decision, pose, nbrs, self._keep_from, self._ways)
         update_ms = (time.perf_counter() - t0) * 1e3
         if decision.velocity is None and decision.goal is not None:
             new_goal = np.asarray(decision.goal, dtype=np.float64)

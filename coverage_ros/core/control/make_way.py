@@ -13,6 +13,10 @@ point off every such neighbour's whole path that it reaches in a straight line (
 ``make_way``; a point further along the path would only put off the meeting), and back to its
 own goal once the neighbour has passed, arrived or given up. Where no such point lies within
 :data:`STEP_ASIDE` (a corridor too narrow for two robots side by side), the decision stands.
+
+A neighbour's path is planned once per relocation (:class:`Ways`: a path across a large map
+takes seconds) and followed from the point of it nearest the neighbour while the neighbour
+keeps within :data:`STRAY` of it.
 """
 
 from __future__ import annotations
@@ -38,22 +42,53 @@ MARGIN = 0.1
 STEP_ASIDE = 1.5
 #: candidate points (nearest first) checked for a straight way there
 TRIES = 24
+#: [m] a neighbour farther than this from the path planned for it gets a new one
+STRAY = 0.5
+
+
+class Ways:
+    """The paths of relocating neighbours, by robot id, each with the point it leads to."""
+
+    def __init__(self) -> None:
+        self._paths: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+
+    def of(self, domain: CoverageDomain, n: Neighbour, to: np.ndarray) -> np.ndarray | None:
+        """``(M, 2)`` [m] ``n``'s way from where it stands to ``to`` (None: unreachable)."""
+        known = self._paths.get(n.robot_id)
+        if known is not None and np.array_equal(known[0], to):
+            rest = remaining(known[1], n.position)
+            if rest is not None:
+                return rest
+        path = plan_path(domain, n.position, to)
+        if path is None:
+            self._paths.pop(n.robot_id, None)
+        else:
+            self._paths[n.robot_id] = (np.array(to, dtype=np.float64), path)
+        return path
+
+    def keep_only(self, robot_ids: set[int]) -> None:
+        """Forget the paths of every other robot (they no longer relocate near here)."""
+        for rid in set(self._paths) - robot_ids:
+            del self._paths[rid]
 
 
 def make_way(domain: CoverageDomain, decision: Decision, pose: np.ndarray,
-             neighbours: Sequence[Neighbour], keep_from: Callable[[Neighbour], float]
-             ) -> Decision:
+             neighbours: Sequence[Neighbour], keep_from: Callable[[Neighbour], float],
+             known: Ways | None = None) -> Decision:
     """``decision``, or one heading off the way of a relocating neighbour (module docstring).
-    ``keep_from(n)`` [m]: the centre distance the safety filter keeps from neighbour ``n``."""
+    ``keep_from(n)`` [m]: the centre distance the safety filter keeps from neighbour ``n``;
+    ``known``: the neighbours' paths planned so far (kept up to date here)."""
+    known = Ways() if known is None else known
+    here = np.asarray(pose[:2], dtype=np.float64)
+    near = [n for n in neighbours if value(n, "relocating") > 0
+            and float(np.hypot(*(n.position - here))) <= NEAR]
+    known.keep_only({n.robot_id for n in near})
     if decision.velocity is not None or decision.goal is None or decision.mode == "relocate":
         return decision
-    here = np.asarray(pose[:2], dtype=np.float64)
     ways = []
-    for n in neighbours:
-        if value(n, "relocating") <= 0 or float(np.hypot(*(n.position - here))) > NEAR:
-            continue
+    for n in near:
         to = destination(n)
-        path = None if to is n.position else plan_path(domain, n.position, to)
+        path = None if to is n.position else known.of(domain, n, to)
         if path is None:
             continue
         way = ahead(path, AHEAD)
@@ -77,6 +112,23 @@ def ahead(path: np.ndarray, length: float) -> np.ndarray:
         return path
     t = (length - walked[k - 1]) / max(legs[k - 1], 1e-12)
     return np.vstack([path[:k], path[k - 1] + t * (path[k] - path[k - 1])])
+
+
+def remaining(path: np.ndarray, position: np.ndarray) -> np.ndarray | None:
+    """``path (M, 2)`` from the point of it nearest ``position`` on, with ``position`` first;
+    None when ``position`` is farther than :data:`STRAY` from it."""
+    if len(path) < 2:
+        return None
+    a, b = path[:-1], path[1:]
+    ab = b - a
+    t = np.clip(((position - a) * ab).sum(axis=1) / np.maximum((ab * ab).sum(axis=1), 1e-12),
+                0.0, 1.0)
+    foot = a + t[:, None] * ab
+    gap = np.hypot(*(foot - position).T)
+    k = int(np.argmin(gap))
+    if gap[k] > STRAY:
+        return None
+    return np.vstack([position, foot[k], path[k + 1:]])
 
 
 def distance_to_path(path: np.ndarray, points: np.ndarray) -> np.ndarray:

@@ -139,3 +139,26 @@ def test_the_controller_makes_way_for_a_relocating_neighbour_it_hears():
     assert c.neighbours.receive(7, {**heard, "x": 3.0, "y": 1.0, "relocating": 0.0},
                                 now=2.0) == ""
     assert c.update(2.0).decision.mode != "make_way"
+
+
+def test_a_neighbours_way_is_planned_once_and_followed_from_where_it_stands(monkeypatch):
+    import coverage_ros.core.control.make_way as mw
+
+    planned = []
+
+    def counting(domain, start, goal, *args):
+        planned.append(tuple(start))
+        return plan_path(domain, start, goal, *args)
+
+    monkeypatch.setattr(mw, "plan_path", counting)
+    domain, known = _rooms(), mw.Ways()
+    to = np.array([3.0, 1.0])
+    first = known.of(domain, _relocating([2.2, 4.2], to), to)
+    on = first[0] + 0.5 * (first[1] - first[0]) + np.array([0.05, 0.0])  # drove on, a bit off
+    later = known.of(domain, _relocating(on, to), to)
+    assert len(planned) == 1
+    assert later[0] == pytest.approx(on) and later[-1] == pytest.approx(to)
+    assert distance_to_path(first, later[1:]) == pytest.approx(0.0, abs=1e-9)
+    known.of(domain, _relocating([5.5, 5.5], to), to)  # strayed: planned again
+    known.of(domain, _relocating([5.5, 5.5], [1.0, 1.0]), np.array([1.0, 1.0]))  # new point
+    assert len(planned) == 3

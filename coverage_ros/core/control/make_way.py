@@ -28,6 +28,7 @@ import numpy as np
 
 from coverage_ros.core.control.planning import PATH_MARGIN, plan_path, segment_free
 from coverage_ros.core.geodesic.domain import CoverageDomain
+from coverage_ros.core.geometry import distance_to_segments
 from coverage_ros.core.strategies import Decision
 from coverage_ros.core.strategies.base import Neighbour
 from coverage_ros.core.strategies.handover.published import destination, value
@@ -132,18 +133,8 @@ def remaining(path: np.ndarray, position: np.ndarray) -> np.ndarray | None:
 
 
 def distance_to_path(path: np.ndarray, points: np.ndarray) -> np.ndarray:
-    """``(N,)`` [m] from each of ``points (N, 2)`` to the polyline ``path (M, 2)``."""
-    points = np.asarray(points, dtype=np.float64).reshape(-1, 2)
-    if len(path) == 1:
-        one: np.ndarray = np.hypot(*(points - path[0]).T)
-        return one
-    a, b = path[:-1], path[1:]
-    ab = b - a
-    t = np.einsum("nmk,mk->nm", points[:, None, :] - a[None], ab) / np.maximum(
-        np.einsum("mk,mk->m", ab, ab), 1e-12)
-    foot = a[None] + np.clip(t, 0.0, 1.0)[..., None] * ab[None]
-    d: np.ndarray = np.hypot(*(points[:, None, :] - foot).transpose(2, 0, 1)).min(axis=1)
-    return d
+    """``(N,)`` [m] from each of ``points (N, 2)`` to the polyline ``path (M >= 2, 2)``."""
+    return distance_to_segments(points, path[:-1], path[1:])
 
 
 def aside(domain: CoverageDomain, here: np.ndarray,

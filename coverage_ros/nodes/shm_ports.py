@@ -10,6 +10,12 @@ unsized or unmarked :data:`STALE_AGE` seconds after its last change is broken (a
 takes microseconds). Participants re-create a removed port as they need it. A process already
 waiting cannot be helped from inside (the wait holds the GIL): the team launcher starts such a
 child again (:func:`held_broken_ports`, ``ProcessSet.restart_stuck``).
+
+A process started again in place of a killed one keeps off shared memory
+(:func:`restarted_env`): Fast DDS gives its participant the killed one's port number, and a
+listener that takes over a dead port's file can leave the live processes writing into the
+segment they had mapped before, so the new process hears nothing from them - no map, no clock -
+while they hear it (eProsima/Fast-DDS#5053, #4728).
 """
 
 from __future__ import annotations
@@ -55,6 +61,14 @@ def broken_ports(shm_dir: Path | None = None, now: float | None = None) -> list[
         except OSError:  # (gone meanwhile, or not ours to read)
             continue
     return broken
+
+
+def restarted_env(env: dict[str, str]) -> dict[str, str]:
+    """What to add to ``env`` for a process started in place of a killed one: Fast DDS on UDP
+    alone (module docstring), unless ``env`` already chooses its transports."""
+    if "FASTDDS_BUILTIN_TRANSPORTS" in env:
+        return {}
+    return {"FASTDDS_BUILTIN_TRANSPORTS": "UDPv4"}
 
 
 def held_broken_ports(fd_dir: Path = Path("/proc/self/fd")) -> list[Path]:

@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from coverage_ros.nodes.shm_ports import held_broken_ports
+from coverage_ros.nodes.shm_ports import held_broken_ports, restarted_env
 
 PACKAGE = "coverage_ros"
 PR_SET_PDEATHSIG = 1  # linux/prctl.h
@@ -156,7 +156,9 @@ class ProcessSet:
             say(f"coverage-team: {name} waited on a broken Fast DDS shared-memory file "
                 f"({', '.join(p.name for p in paths)}) that a killed process left: removed it "
                 f"and started {name} again")
-            self.start(name, child.cmd, append=True, extra_env=child.extra_env)
+            extra = child.extra_env or {}
+            self.start(name, child.cmd, append=True,
+                       extra_env={**extra, **restarted_env({**self.env, **extra})})
         return list(stuck)
 
     def signal(self, name: str, sig: int) -> None:

@@ -46,3 +46,10 @@ def test_a_start_up_timeout_names_the_broken_ports_it_removed(tmp_path, monkeypa
     hint = shm_ports.startup_hint()
     assert "1 broken Fast DDS shared-memory file(s)" in hint and "fastrtps_port7007" in hint
     assert "run again" in hint and not (tmp_path / "fastrtps_port7007").exists()
+
+
+def test_a_process_started_again_keeps_to_udp_unless_its_transports_are_chosen():
+    from coverage_ros.nodes.shm_ports import restarted_env
+
+    assert restarted_env({"ROS_DOMAIN_ID": "3"}) == {"FASTDDS_BUILTIN_TRANSPORTS": "UDPv4"}
+    assert restarted_env({"FASTDDS_BUILTIN_TRANSPORTS": "LARGE_DATA"}) == {}

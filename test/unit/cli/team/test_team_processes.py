@@ -35,7 +35,8 @@ def test_a_child_holding_a_broken_port_open_is_killed_and_started_again(tmp_path
     port.touch()
     logs = tmp_path / "logs"
     logs.mkdir()
-    procs = ProcessSet(dict(os.environ), logs)
+    env = {k: v for k, v in os.environ.items() if k != "FASTDDS_BUILTIN_TRANSPORTS"}
+    procs = ProcessSet(env, logs)
     hold = f"import time; f = open({str(port)!r}, 'rb'); time.sleep(60)"
     first = procs.start("robot_3", [sys.executable, "-c", hold])
     try:
@@ -49,6 +50,8 @@ def test_a_child_holding_a_broken_port_open_is_killed_and_started_again(tmp_path
         assert len(said) == 1 and "robot_3" in said[0] and "fastrtps_port7007" in said[0]
         again = procs.children["robot_3"]
         assert again.popen.pid != first.popen.pid and again.popen.wait(timeout=20) == 1
+        # (the new process keeps off shared memory: it would take over the killed one's port)
+        assert again.extra_env == {"FASTDDS_BUILTIN_TRANSPORTS": "UDPv4"}
         assert procs.restart_stuck(said.append, recheck=0.1) == []
     finally:
         procs.stop()

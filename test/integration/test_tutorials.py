@@ -16,7 +16,8 @@ pytestmark = [pytest.mark.slow, pytest.mark.lockstep]
 
 DOCS = REPO / "docs"
 #: (page, command as the page writes it, sim seconds to run it for instead). Teams run in
-#: lock-step whatever the page says, so the run is short and reproducible.
+#: lock-step whatever the page says, so the run is short and reproducible; plans stop after
+#: :data:`PLAN_ITERATIONS` (their results are checked in test_plan_cli.py and the benchmarks).
 COMMANDS = [
     ("tutorials/known-map.md", "coverage-team --world office --robots 6 --duration 90 --lockstep",
      6),
@@ -50,15 +51,20 @@ COMMANDS = [
      "coverage-team --world targets --robots 10 --strategy acvt --duration 240 --lockstep", 4),
 ]
 
+#: A plan's updates at most here (the office's six robots take 84 updates and 48 s of CPU to
+#: converge, most of it spent looking for a better configuration).
+PLAN_ITERATIONS = 30
+
 
 def runnable(command: str, tmp_path, seconds: float, k: int) -> list[str]:
-    """The command with its outputs in ``tmp_path``, and, for a team, lock-step, quiet, a domain
-    of this test's and ``seconds`` of sim time (at least enough for a --kill / --restart)."""
+    """The command with its outputs in ``tmp_path``, quiet; for a plan, at most
+    :data:`PLAN_ITERATIONS` updates; for a team, lock-step, a domain of this test's and
+    ``seconds`` of sim time (at least enough for a --kill / --restart)."""
     words = shlex.split(command.replace("out/", f"{tmp_path}/").replace(
         "/tmp/sphere.yaml", f"{tmp_path}/sphere.yaml"))
     words[0] = entry_point(words[0])
     if "coverage-plan" in command:
-        return words + ["--quiet"]
+        return words + ["--quiet", "--max-iterations", str(PLAN_ITERATIONS)]
     if "@" in command:  # a robot killed or restarted at 25 s: run past it
         seconds = 30
     return words + ["--lockstep", "--quiet", "--no-markers", "--duration", str(seconds),

@@ -32,7 +32,7 @@ from coverage_ros.cli.team.processes import ProcessSet, executable, ros_args
 from coverage_ros.cli.team.summary import RunLog, picture, summarize, summary_table
 from coverage_ros.core.world import write_team
 from coverage_ros.errors import ConfigError, CoverageError
-from coverage_ros.nodes.shm_ports import restarted_env, warn_removed_ports
+from coverage_ros.nodes.shm_ports import warn_removed_ports
 
 #: [s] wall time the children get to stop cleanly after an interrupt before SIGTERM, then SIGKILL
 #: (everything is gone within 10 s).
@@ -122,9 +122,8 @@ def run(plan: RunPlan) -> int:
     try:
         if config.discovery is not None:
             start_discovery_server(procs, config.discovery)
-        commands = {p.ids[0]: p.cmd for p in plan.processes if len(p.ids) == 1}
-        monitor = TeamMonitor(plan, procs, say, relaunch=lambda rid: procs.start(
-            f"robot_{rid}", commands[rid], append=True, extra_env=restarted_env(env)))
+        monitor = TeamMonitor(plan, procs, say,
+                              relaunch=lambda rid: procs.start_again(f"robot_{rid}"))
         # Robots first: they load while the world starts, then wait for /map and /clock.
         for proc in plan.processes:
             if proc.ids[0] in plan.remote:  # printed even with --quiet: someone has to run it

@@ -124,6 +124,15 @@ class ProcessSet:
         self.children[name] = child
         return child
 
+    def start_again(self, name: str) -> Child:
+        """Start child ``name`` again, in place of its killed process: its command and
+        environment, its log appended to, Fast DDS on UDP alone
+        (:func:`~coverage_ros.nodes.shm_ports.restarted_env`)."""
+        child = self.children[name]
+        extra = child.extra_env or {}
+        return self.start(name, child.cmd, append=True,
+                          extra_env={**extra, **restarted_env({**self.env, **extra})})
+
     def stuck_on_broken_ports(self) -> dict[str, list[Path]]:
         """Children (by name) that hold a broken Fast DDS shared-memory port open: they wait
         on it for ever (:mod:`coverage_ros.nodes.shm_ports`)."""
@@ -156,9 +165,7 @@ class ProcessSet:
             say(f"coverage-team: {name} waited on a broken Fast DDS shared-memory file "
                 f"({', '.join(p.name for p in paths)}) that a killed process left: removed it "
                 f"and started {name} again")
-            extra = child.extra_env or {}
-            self.start(name, child.cmd, append=True,
-                       extra_env={**extra, **restarted_env({**self.env, **extra})})
+            self.start_again(name)
         return list(stuck)
 
     def signal(self, name: str, sig: int) -> None:

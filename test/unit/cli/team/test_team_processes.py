@@ -55,3 +55,16 @@ def test_a_child_holding_a_broken_port_open_is_killed_and_started_again(tmp_path
         assert procs.restart_stuck(said.append, recheck=0.1) == []
     finally:
         procs.stop()
+
+
+def test_a_child_started_again_keeps_its_command_and_log_and_keeps_off_shared_memory(tmp_path):
+    from coverage_ros.cli.team.processes import ProcessSet
+
+    env = {k: v for k, v in os.environ.items() if k != "FASTDDS_BUILTIN_TRANSPORTS"}
+    procs = ProcessSet(env, tmp_path)
+    say = "import os; print(os.environ.get('FASTDDS_BUILTIN_TRANSPORTS'), os.environ['ROBOT'])"
+    first = procs.start("robot_1", [sys.executable, "-c", say], extra_env={"ROBOT": "1"})
+    assert first.popen.wait(timeout=20) == 0
+    again = procs.start_again("robot_1")
+    assert again.popen.wait(timeout=20) == 0 and again.cmd == first.cmd
+    assert (tmp_path / "robot_1.log").read_text().split("\n")[:2] == ["None 1", "UDPv4 1"]

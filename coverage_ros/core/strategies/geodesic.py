@@ -48,8 +48,11 @@ class GeodesicParams:
     #: least saving of the bound, as a share of the pair's cost (hysteresis against moves
     #: that gain little)
     escape_gain: float = 0.01
-    #: [m] a robot whose Lloyd step is shorter counts as settled (offers, claims)
+    #: [m] a robot whose Lloyd step is shorter counts as settled (offers, claims) ...
     escape_settle: float = 0.1
+    #: ... and shorter than this share of its cell's radius sqrt(area / pi) as well: on
+    #: small cells a step of a few cm is still a large part of the descent left
+    escape_settle_share: float = 0.035
     #: [updates] after a relocation or a dropped claim, before the robot claims again
     escape_cooldown: int = 10
     #: [updates] a claim waits this long for the neighbour's grant
@@ -76,7 +79,7 @@ class GeodesicParams:
             raise ConfigError.at("method", "unknown method", self.method, f"one of {METHODS}")
         if not isinstance(self.escape, bool):
             raise ConfigError.at("escape", "must be true or false", self.escape)
-        for name in ("escape_gain", "escape_settle"):
+        for name in ("escape_gain", "escape_settle", "escape_settle_share"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int | float) or not (
                     math.isfinite(v) and v >= 0):
@@ -92,6 +95,7 @@ class GeodesicParams:
 
     def handover(self) -> HandoverSettings:
         return HandoverSettings(gain=float(self.escape_gain), settle=float(self.escape_settle),
+                                settle_share=float(self.escape_settle_share),
                                 cooldown=self.escape_cooldown, wait=self.escape_wait,
                                 transit=self.escape_transit, steps=self.escape_steps,
                                 joint_steps=self.escape_joint_steps,

@@ -3,9 +3,9 @@ bound says H drops (:mod:`.bounds`), after a claim its neighbour grants.
 
 Every robot publishes, with its state (``SharedState.extra``):
 
-* ``settled`` (1/0): its Lloyd step is shorter than ``escape_settle``, or it moved less than the
-  convergence tolerance over its last :data:`STILL_UPDATES` updates (a step it does not take:
-  blocked by the monotone rule or by another robot);
+* ``settled`` (1/0): its Lloyd step is below ``escape_settle`` and ``escape_settle_share`` of its
+  cell's radius sqrt(area / pi), or it moved less than the convergence tolerance over its last
+  :data:`STILL_UPDATES` updates (a step it does not take: monotone rule, blocked);
 * ``offer_gain``, ``offer_x``, ``offer_y``, ``offer_base``: settled, what splitting its own cell
   with a second generator at (x, y) would save, and its cell's cost (:func:`.split.split_offer`;
   gain 0: no offer); ``offer2_gain``, ``offer2_x``, ``offer2_y``: a second split, in the part of
@@ -78,10 +78,9 @@ from coverage_ros.core.strategies.handover.split import SplitOffer, split_offers
 STILL_UPDATES = 4
 #: Power weights closer than this [m] count as equal (the bound assumes equal weights).
 WEIGHT_MATCH = 1e-9
-#: A relocating robot has arrived within this many convergence tolerances of its point ...
-ARRIVAL_TOLERANCES = 3.0
-#: ... or this many grid cells, whichever is more (a goal is a cell centre).
-ARRIVAL_CELLS = 2.0
+#: A relocating robot has arrived within this many convergence tolerances of its point, or
+#: this many grid cells, whichever is more (a goal is a cell centre).
+ARRIVAL_TOLERANCES, ARRIVAL_CELLS = 3.0, 2.0
 #: A configuration within this many grid cells of one a robot relocated from is one the team
 #: came back to: it does not claim from it again.
 RETURN_CELLS = 2.0
@@ -94,7 +93,7 @@ class HandoverSettings:
     """The ``escape_*`` settings of the geodesic strategy (validated there)."""
 
     gain: float  # least saving of the bound, as a share of the pair's cost H_i + H_j
-    settle: float  # [m] a robot whose Lloyd step is shorter is settled
+    settle: float  # [m] a robot whose Lloyd step is shorter is settled ...
     cooldown: int  # [updates] after a relocation or a dropped claim, before the next claim
     wait: int  # [updates] a claim waits this long for its grant
     transit: int  # [updates] a relocating robot gives up after this many
@@ -103,6 +102,11 @@ class HandoverSettings:
     joint_rings: int = 1  # rings of cells around the pair the joint bound widens to, at most
     #: offers (the largest first) priced by the team's own descent when no bound passes
     descent_offers: int = 0
+    settle_share: float = math.inf  # ... and shorter than this share of its cell's radius
+
+    def settle_below(self, area: float) -> float:
+        """[m] a Lloyd step shorter than this settles a robot whose cell has ``area`` [m^2]."""
+        return min(self.settle, self.settle_share * math.sqrt(area / math.pi))
 
 
 @dataclass(frozen=True)
@@ -159,7 +163,8 @@ class Handover:
         moved = math.inf if self._last is None else float(np.hypot(*(position - self._last)))
         self._last = np.array(position, dtype=np.float64)
         self._still = self._still + 1 if moved < convergence_tolerance else 0
-        settled = step < s.settle or self._still >= STILL_UPDATES
+        settle = s.settle_below(len(cell.nodes) * self.domain.resolution ** 2)
+        settled = step < settle or self._still >= STILL_UPDATES
         key = _key(position, neighbours)
         offers: list[SplitOffer] = []
         if settled and self.claim < 0:
@@ -189,9 +194,8 @@ class Handover:
             if len(offers) > 1:
                 extra.update(offer2_gain=offers[1].gain, offer2_x=float(offers[1].point[0]),
                              offer2_y=float(offers[1].point[1]))
-        # standing still away from the Lloyd goal, not yet for long enough to count as settled:
-        # not done either (it may claim once it is)
-        waiting = 0 < self._still < STILL_UPDATES and step >= s.settle
+        # standing still off the Lloyd goal, not yet settled: not done either (may claim later)
+        waiting = 0 < self._still < STILL_UPDATES and step >= settle
         # in its cooldown (after a move or a dropped claim) it may claim again once it ends:
         # not done either (all claims made at once but one are dropped, so at Lloyd's end
         # most of a team may be cooling down together)

@@ -35,7 +35,7 @@ from coverage_ros.core.strategies.handover import (
     split_offer,
     split_offers,
 )
-from coverage_ros.core.strategies.handover.protocol import STILL_UPDATES
+from coverage_ros.core.strategies.handover.protocol import STILL_UPDATES, Handover
 from coverage_ros.core.world import parse_world
 from coverage_ros.core.world.placement import largest_free_region, team_starts
 from coverage_ros.errors import ConfigError
@@ -630,6 +630,30 @@ def test_standing_still_away_from_the_centroid_settles_only_after_a_while():
         published = [d.shared for d in decisions]
 
 
+def test_the_settle_threshold_is_a_share_of_a_small_cells_radius():
+    """escape_settle caps it; on a cell of area pi r^2 it is escape_settle_share * r [m]."""
+    s = GeodesicParams(escape_settle=0.1, escape_settle_share=0.04).handover()
+    assert s.settle_below(math.pi) == pytest.approx(0.04)  # r = 1 m
+    assert s.settle_below(math.pi * 0.25) == pytest.approx(0.02)  # r = 0.5 m
+    assert s.settle_below(math.pi * 100.0) == 0.1  # r = 10 m: escape_settle
+    assert s.settle_below(0.0) == 0.0
+
+
+def test_a_step_short_of_escape_settle_on_a_small_cell_does_not_settle():
+    """A robot of the start cluster, its first update, its Lloyd goal between the share of its
+    cell's radius and escape_settle away: not settled, but settled by escape_settle alone."""
+    _, domain = ward()
+    P = cluster(0)[:, :2]
+    cell = geodesic_cell(domain, Generator(P[0], 0.0), [Generator(q, 0.0) for q in P[1:]])
+    below = GeodesicParams().handover().settle_below(len(cell.nodes) * domain.resolution ** 2)
+    assert below < GeodesicParams().escape_settle  # a small cell
+    step = 0.5 * (below + GeodesicParams().escape_settle)  # [m]
+    for share, settled in ((GeodesicParams().escape_settle_share, 0.0), (1.0, 1.0)):
+        robot = Handover(0, domain, GeodesicParams(escape_settle_share=share).handover())
+        out = robot.step(cell.goal - [step, 0.0], 0.0, cell, [], [], TOLERANCE)
+        assert out.extra["settled"] == settled, share
+
+
 def _two_wards_at_lloyds_end():
     """Two wards side by side, plain Lloyd's end state of the ward in each: the domain, the
     positions, a fresh team there and what it publishes before its first update."""
@@ -724,7 +748,8 @@ def test_update_takes_only_the_observation_and_the_neighbours():
 
 @pytest.mark.parametrize("name,value", [
     ("escape", "yes"), ("escape_gain", -0.1), ("escape_gain", math.inf),
-    ("escape_settle", -1.0), ("escape_cooldown", 0), ("escape_wait", 0),
+    ("escape_settle", -1.0), ("escape_settle_share", -0.1), ("escape_settle_share", math.nan),
+    ("escape_cooldown", 0), ("escape_wait", 0),
     ("escape_transit", 0), ("escape_steps", 0), ("escape_steps", 1.5),
     ("escape_joint_steps", 0), ("escape_joint_rings", 0), ("escape_joint_rings", 1.5),
     ("escape_descent_offers", -1), ("escape_descent_offers", True)])

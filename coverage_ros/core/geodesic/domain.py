@@ -111,6 +111,12 @@ class CoverageDomain(LineOfSight):
         mass: np.ndarray = self._cache[key]
         return mass
 
+    def area_of(self, nodes: np.ndarray) -> float:
+        """[m^2] the area of the cells ``nodes`` (by the area element on a curved chart)."""
+        area = self.graph.area
+        return len(nodes) * self.resolution ** 2 if area is None else float(
+            area.ravel()[nodes].sum())
+
     def with_density(self, density: np.ndarray) -> CoverageDomain:
         """Same geometry and metric, another density raster (zeroed off the free space)."""
         w = np.asarray(density, dtype=np.float64)

@@ -163,7 +163,7 @@ class Handover:
         moved = math.inf if self._last is None else float(np.hypot(*(position - self._last)))
         self._last = np.array(position, dtype=np.float64)
         self._still = self._still + 1 if moved < convergence_tolerance else 0
-        settle = s.settle_below(len(cell.nodes) * self.domain.resolution ** 2)
+        settle = s.settle_below(self.domain.area_of(cell.nodes))
         settled = step < settle or self._still >= STILL_UPDATES
         key = _key(position, neighbours)
         offers: list[SplitOffer] = []

@@ -10,6 +10,7 @@ import os
 import re
 import signal
 import subprocess
+import sys
 import time
 
 import psutil
@@ -90,6 +91,50 @@ def test_an_interrupt_at_any_moment_leaves_nothing_behind(tmp_path, when):
     finally:
         for pid in alive:
             os.killpg(pid, signal.SIGKILL)
+
+
+#: Ctrl-C while rclpy builds a received message in Python: the launcher's handlers, a message
+#: whose constructor receives the signal, and what comes out of the spin.
+_INTERRUPT_IN_A_MESSAGE = """
+import os, signal
+import rclpy
+from rclpy.signals import SignalHandlerOptions
+from std_msgs.msg import String
+from coverage_ros.cli.team.launch import Interrupts
+
+rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+stop = Interrupts()
+node = rclpy.create_node("interrupt_probe")
+node.create_subscription(String, "probe", lambda msg: None, 10)
+publisher = node.create_publisher(String, "probe", 10)
+armed = []
+build = String.__init__
+
+def build_then_signal(self, *args, **kwargs):
+    build(self, *args, **kwargs)
+    if armed:
+        os.kill(os.getpid(), signal.SIGINT)
+
+String.__init__ = build_then_signal
+try:
+    for _ in range(100):
+        publisher.publish(String(data="x"))
+        armed.append(True)
+        rclpy.spin_once(node, timeout_sec=0.1)
+        armed.clear()
+    print("no message arrived")
+except (KeyboardInterrupt, RuntimeError) as exc:
+    print(type(exc).__name__, "interrupt" if stop.caused(exc) else "failure", exc)
+"""
+
+
+def test_an_interrupt_while_rclpy_builds_a_message_counts_as_an_interrupt():
+    """The signal's KeyboardInterrupt raised inside rclpy's C++ comes out of the spin as
+    pybind11's conversion error: the launcher takes it for the interrupt, not a failure."""
+    probe = subprocess.run([sys.executable, "-c", _INTERRUPT_IN_A_MESSAGE], capture_output=True,
+                           text=True, timeout=60, env=ros_env(domain_id(28)))
+    assert probe.returncode == 0, probe.stderr
+    assert probe.stdout.startswith("RuntimeError interrupt Unable to convert"), probe.stdout
 
 
 @pytest.mark.parametrize("when", [3.0, 10.0])  # [s] after its first child

@@ -116,8 +116,7 @@ def run(plan: RunPlan) -> int:
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     # From the first process on, SIGINT and SIGTERM end the run the same way: children stopped
     # (SIGKILL on their process groups at the end), a summary of what was measured, one line.
-    handlers = {sig: signal.signal(sig, _signal_as_interrupt)
-                for sig in (signal.SIGINT, signal.SIGTERM)}
+    stop = Interrupts()
     t_wall0 = time.monotonic()
     try:
         if config.discovery is not None:
@@ -138,14 +137,12 @@ def run(plan: RunPlan) -> int:
         if config.markers:
             procs.start("markers", executable("marker_node") + ros_args(use_sim_time=True))
         monitor.run()
-    except KeyboardInterrupt:
-        interrupted = True
-    except RuntimeError as exc:
-        failure = str(exc)
+    except (KeyboardInterrupt, RuntimeError) as exc:
+        interrupted = stop.caused(exc)
+        if not interrupted:
+            failure = str(exc)
     finally:
-        # A second Ctrl-C must not cut the clean-up short.
-        for sig in handlers:
-            signal.signal(sig, signal.SIG_IGN)
+        stop.ignore()  # a second Ctrl-C must not cut the clean-up short
         if interrupted:
             procs.stop(timeout=INTERRUPT_GRACE)  # all at once: nothing left within 10 s
         else:
@@ -153,8 +150,7 @@ def run(plan: RunPlan) -> int:
             procs.stop(["bridge"], timeout=30.0)  # let the recording be closed and indexed
             procs.stop(["world"])
             procs.stop([n for n in procs.children if n != "viewer"])
-        for sig, previous in handlers.items():
-            signal.signal(sig, previous)
+        stop.restore()
     wall = time.monotonic() - t_wall0
     try:
         log = monitor.finish() if monitor is not None else None
@@ -167,6 +163,34 @@ def run(plan: RunPlan) -> int:
             monitor.destroy_node()
         rclpy.try_shutdown()
         domain_lock.release()
+
+
+class Interrupts:
+    """SIGINT and SIGTERM raised as KeyboardInterrupt from now on, and remembered: one raised
+    while rclpy's C++ builds a message in Python comes out as pybind11's conversion error (a
+    RuntimeError, "Unable to convert call argument"), which after a signal is the interrupt."""
+
+    SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+    def __init__(self) -> None:
+        self.received: list[int] = []
+        self.previous = {sig: signal.signal(sig, self._raise) for sig in self.SIGNALS}
+
+    def _raise(self, signum, frame) -> None:
+        self.received.append(signum)
+        raise KeyboardInterrupt
+
+    def caused(self, exc: BaseException) -> bool:
+        """``exc`` ends the run as an interrupt (not as a failure)."""
+        return isinstance(exc, KeyboardInterrupt) or bool(self.received)
+
+    def ignore(self) -> None:
+        for sig in self.SIGNALS:
+            signal.signal(sig, signal.SIG_IGN)
+
+    def restore(self) -> None:
+        for sig, previous in self.previous.items():
+            signal.signal(sig, previous)
 
 
 def _report(plan: RunPlan, monitor: TeamMonitor | None, log: RunLog | None, procs: ProcessSet,
@@ -200,10 +224,6 @@ def _report(plan: RunPlan, monitor: TeamMonitor | None, log: RunLog | None, proc
     if config.record:
         say(f"  recording: {out / 'recording.rrd'}  (open it with: rerun {out / 'recording.rrd'})")
     return 0
-
-
-def _signal_as_interrupt(signum, frame) -> None:
-    raise KeyboardInterrupt
 
 
 def _start_viz(plan: RunPlan, procs: ProcessSet, say) -> None:

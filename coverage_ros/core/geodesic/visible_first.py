@@ -238,20 +238,25 @@ def _improve(domain: CoverageDomain, hidden: np.ndarray, pos: np.ndarray, hc: np
     place). A path from such a seed is at least the straight line from its generator, so it
     can only be shorter where that line is shorter than the path found - and so is every node
     before it on the path: one search from the new seeds over those cells alone, each cell
-    then taking the shorter of its two distances, is the search with every seed at once."""
+    then taking the shorter of its two distances, is the search with every seed at once.
+    A path from a seed ``s`` (cost ``e_s``) to a cell ``q`` is no shorter than
+    ``e_s + |q - s|``, nor is it anywhere on the way: only the tiles where that bound, least
+    over blocks of seeds (box to box), is no longer than the longest path found into the tile
+    are searched (on depot about a third of the cells the straight lines alone leave)."""
     d, p, src = found
     n_hidden = len(hidden)
     m = len(d) - len(grids)  # the sub-graph's nodes; its sources follow
-    upper = d[:n_hidden]
-    can = np.zeros(n_hidden, dtype=bool)
-    by_tile, starts, per_tile = tiled[:3]
-    res = domain.resolution
-    for k in fresh:
-        may = _may_be_shorter(tiled, grids[k], biases[k], res)
-        near = by_tile[_ranges(starts[may], per_tile[may])]
-        e = np.hypot(hc[near, 0] - grids[k, 0], hc[near, 1] - grids[k, 1]) * res + biases[k]
-        can[near[e <= upper[near] + 1e-9]] = True
-    cells = np.flatnonzero(can)  # hidden indices (the sub-graph's first nodes)
+    by_tile, starts, per_tile, longest, tx0, ty0 = tiled
+    scale = domain.resolution * (1.0 - 1e-12)  # [m per cell] (rounding: the bound stays below)
+    seeds = np.concatenate([idx for idx, _ in fresh.values()])
+    boxes, least = _seed_blocks(hc[seeds], np.concatenate([e for _, e in fresh.values()]))
+    gap = np.hypot(_gap(tx0[:, None], tx0[:, None] + SIGHT_TILE, boxes[None, :, 0],
+                        boxes[None, :, 2]),
+                   _gap(ty0[:, None], ty0[:, None] + SIGHT_TILE, boxes[None, :, 1],
+                        boxes[None, :, 3]))
+    may = np.flatnonzero((least[None, :] + gap * scale).min(axis=1) <= longest + 1e-9)
+    cells = np.sort(by_tile[_ranges(starts[may], per_tile[may])])  # (hidden indices: the
+    # sub-graph's first nodes, in order)
     m2 = len(cells)
     at = np.full(n_hidden + 1, -1, dtype=np.int32)  # hidden index -> index among cells
     at[cells] = np.arange(m2, dtype=np.int32)
@@ -275,6 +280,28 @@ def _improve(domain: CoverageDomain, hidden: np.ndarray, pos: np.ndarray, hc: np
     p[idx] = np.where(parent >= m2, m + gens[np.maximum(parent - m2, 0)],
                       cells[np.minimum(np.maximum(parent, 0), max(m2 - 1, 0))])
     src[idx] = m + gens[src2[shorter] - m2]
+
+
+def _seed_blocks(points: np.ndarray, costs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The seeds at ``points`` [cells] by blocks of SIGHT_TILE x SIGHT_TILE cells: each
+    block's bounding box of its seeds ``(x0, y0, x1, y1)`` and its least cost."""
+    block = np.floor(points / SIGHT_TILE).astype(np.int64)
+    key = block[:, 1] * (int(block[:, 0].max()) + 1) + block[:, 0]  # (cells >= 0)
+    order = np.argsort(key, kind="stable")
+    first = np.flatnonzero(np.diff(key[order], prepend=-1))
+    pts = points[order]
+    boxes = np.column_stack([np.minimum.reduceat(pts[:, 0], first),
+                             np.minimum.reduceat(pts[:, 1], first),
+                             np.maximum.reduceat(pts[:, 0], first),
+                             np.maximum.reduceat(pts[:, 1], first)])
+    least: np.ndarray = np.minimum.reduceat(costs[order], first)
+    return boxes, least
+
+
+def _gap(lo: np.ndarray, hi: np.ndarray, lo2: np.ndarray, hi2: np.ndarray) -> np.ndarray:
+    """The gap between the intervals ``[lo, hi]`` and ``[lo2, hi2]`` (0 where they meet)."""
+    gap: np.ndarray = np.maximum(np.maximum(lo2 - hi, lo - hi2), 0.0)
+    return gap
 
 
 def _ranges(starts: np.ndarray, counts: np.ndarray) -> np.ndarray:

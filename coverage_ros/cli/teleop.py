@@ -26,6 +26,7 @@ import sys
 import time
 from dataclasses import dataclass
 
+from coverage_ros.cli.interrupts import Interrupts
 from coverage_ros.core.world.robot import TB3_V_MAX, TB3_W_MAX
 
 PUBLISH_PERIOD = 0.1  # [s] the command is repeated this often (robot_node's timeout: 0.5 s)
@@ -168,8 +169,7 @@ class Teleop:
         raw = _RawTerminal()
         # All three raise KeyboardInterrupt - SIGINT too: a process started in the background
         # of a script inherits SIGINT ignored, and Python then leaves it so.
-        for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
-            signal.signal(sig, signal.default_int_handler)
+        stop = Interrupts((signal.SIGINT, signal.SIGTERM, signal.SIGHUP))
         try:
             with raw:
                 deadline = time.monotonic() + 5.0
@@ -198,9 +198,11 @@ class Teleop:
                         last = now
                         self._send(self.cmd.v, self.cmd.w)
                         self._show()
-        except KeyboardInterrupt:
-            pass
+        except (KeyboardInterrupt, RuntimeError) as exc:
+            if not stop.caused(exc):
+                raise
         finally:
+            stop.ignore()  # (the robot is handed back whatever comes next)
             with contextlib.suppress(Exception):
                 self._send(0.0, 0.0)
                 if self.took_over:

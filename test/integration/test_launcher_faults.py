@@ -100,7 +100,7 @@ import os, signal
 import rclpy
 from rclpy.signals import SignalHandlerOptions
 from std_msgs.msg import String
-from coverage_ros.cli.team.launch import Interrupts
+from coverage_ros.cli.interrupts import Interrupts
 
 rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
 stop = Interrupts()

@@ -14,11 +14,11 @@ from __future__ import annotations
 import contextlib
 import json
 import os
-import signal
 import sys
 import time
 from pathlib import Path
 
+from coverage_ros.cli.interrupts import Interrupts
 from coverage_ros.cli.team.domains import acquire_domain
 from coverage_ros.cli.team.monitor import TeamMonitor
 from coverage_ros.cli.team.network import (
@@ -163,34 +163,6 @@ def run(plan: RunPlan) -> int:
             monitor.destroy_node()
         rclpy.try_shutdown()
         domain_lock.release()
-
-
-class Interrupts:
-    """SIGINT and SIGTERM raised as KeyboardInterrupt from now on, and remembered: one raised
-    while rclpy's C++ builds a message in Python comes out as pybind11's conversion error (a
-    RuntimeError, "Unable to convert call argument"), which after a signal is the interrupt."""
-
-    SIGNALS = (signal.SIGINT, signal.SIGTERM)
-
-    def __init__(self) -> None:
-        self.received: list[int] = []
-        self.previous = {sig: signal.signal(sig, self._raise) for sig in self.SIGNALS}
-
-    def _raise(self, signum, frame) -> None:
-        self.received.append(signum)
-        raise KeyboardInterrupt
-
-    def caused(self, exc: BaseException) -> bool:
-        """``exc`` ends the run as an interrupt (not as a failure)."""
-        return isinstance(exc, KeyboardInterrupt) or bool(self.received)
-
-    def ignore(self) -> None:
-        for sig in self.SIGNALS:
-            signal.signal(sig, signal.SIG_IGN)
-
-    def restore(self) -> None:
-        for sig, previous in self.previous.items():
-            signal.signal(sig, previous)
 
 
 def _report(plan: RunPlan, monitor: TeamMonitor | None, log: RunLog | None, procs: ProcessSet,

@@ -73,6 +73,9 @@ class GeodesicParams:
     #: where the team's own generalized Lloyd descent goes from the move, every robot the
     #: robot hears descending, one robot per update, the least cell first (0: none)
     escape_descent_offers: int = 3
+    #: starts over the cells of the robots that made those offers, for a point in each room of
+    #: such a cell, priced the same way when none of the offers pays (0 or 1: off)
+    escape_descent_rooms: int = 6
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
@@ -89,9 +92,10 @@ class GeodesicParams:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < 1:
                 raise ConfigError.at(name, "must be an integer >= 1", v)
-        v = self.escape_descent_offers
-        if isinstance(v, bool) or not isinstance(v, int) or v < 0:
-            raise ConfigError.at("escape_descent_offers", "must be an integer >= 0", v)
+        for name in ("escape_descent_offers", "escape_descent_rooms"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or v < 0:
+                raise ConfigError.at(name, "must be an integer >= 0", v)
 
     def handover(self) -> HandoverSettings:
         return HandoverSettings(gain=float(self.escape_gain), settle=float(self.escape_settle),
@@ -100,7 +104,8 @@ class GeodesicParams:
                                 transit=self.escape_transit, steps=self.escape_steps,
                                 joint_steps=self.escape_joint_steps,
                                 joint_rings=self.escape_joint_rings,
-                                descent_offers=self.escape_descent_offers)
+                                descent_offers=self.escape_descent_offers,
+                                descent_rooms=self.escape_descent_rooms)
 
 
 @dataclass(frozen=True)

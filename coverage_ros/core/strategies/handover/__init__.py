@@ -11,7 +11,13 @@ from coverage_ros.core.strategies.handover.bounds import (
     removal_increase,
 )
 from coverage_ros.core.strategies.handover.protocol import Handover, HandoverSettings, HandoverStep
-from coverage_ros.core.strategies.handover.split import SplitOffer, split_offer, split_offers
+from coverage_ros.core.strategies.handover.split import (
+    SplitOffer,
+    room_offers,
+    split_offer,
+    split_offers,
+)
 
 __all__ = ["Handover", "HandoverSettings", "HandoverStep", "Known", "Removal", "SplitOffer",
-           "joint_change", "known_cells", "removal_increase", "split_offer", "split_offers"]
+           "joint_change", "known_cells", "removal_increase", "room_offers", "split_offer",
+           "split_offers"]

@@ -32,10 +32,15 @@ cannot take its cell alone; such a move is priced by where the team's own genera
 descent from it ends (:func:`.bounds.descent_change`). If still none passes, the largest
 ``escape_descent_offers`` offers are priced by that descent alone, every robot i hears
 descending: a move that pays only once robots far from both cells shift along (rooms off a
-long corridor). The robots price so one per update of a settled configuration, the one whose
-cell costs least first (its leaving costs least), each descent stopping as soon as the move
-pays; the first move found is claimed and the others need not price. Robot j grants the claim
-of the highest priority (saving, then lower id) among those on it unless it claims itself.
+long corridor); if none of them pays, so is a point in each other room of the cells those
+offers split (:func:`.split.room_offers` on i's own tessellation of what it hears, with
+``escape_descent_rooms`` starts): a robot covering several rooms from a corridor offers the
+splits that save most in its cell alone, which need not be where a robot moving in pays
+once the team re-spreads. The robots price so one per update of a settled configuration,
+the one whose cell costs least first (its leaving costs least), each descent stopping as
+soon as the move pays; the first move found is claimed and the others need not price.
+Robot j grants the claim of the highest priority (saving, then lower id) among those on it
+unless it claims itself.
 Granted, i drives to j's offered point (mode ``relocate``), keeping its claim, so that j lets
 nobody else in and i's neighbours do not leave meanwhile; there it drops the claim and waits
 ``escape_cooldown`` updates before it may claim again (hysteresis), busy meanwhile (not
@@ -44,8 +49,12 @@ target grants another, is dropped the same way.
 
 Each move is backed by a configuration next to it with H lower by at least ``escape_gain`` of
 a pair's cost (:mod:`.bounds`), and the cooldown keeps a robot from moving back and forth.
-The team's own steps need not reach that configuration: where it comes back to one a robot
-relocated from (within :data:`RETURN_CELLS`), that robot claims no more from it.
+The team's own steps need not reach that configuration (live robots less still: where they
+stop is not exactly where Lloyd's steps end), so a robot keeps what its moves left: the
+robots it heard, their H over the cells of those robots (:meth:`.pricing.Prices.heard_cost`)
+and the saving the move had to beat. It claims again, hearing the same robots, only from a
+configuration whose H is below each of those by that saving: a team that came back to where
+a robot left from, or to no better, does not send it again, and each robot's moves end.
 What a robot uses is its own cell, the generators and published values of the robots it
 hears (its bordering neighbours' cells, and for the joint bound the target's and those that
 touch either, are tessellated from them), nothing else; the protocol is deterministic.
@@ -62,28 +71,21 @@ import numpy as np
 from coverage_ros.core.geodesic.cell import CellResult
 from coverage_ros.core.geodesic.domain import CoverageDomain
 from coverage_ros.core.strategies.base import Neighbour
-from coverage_ros.core.strategies.handover.bounds import (
-    Known,
-    Tessellations,
-    descent_change,
-    joint_change,
-    known_cells,
-    removal_increase,
+from coverage_ros.core.strategies.handover.pricing import (
+    WEIGHT_MATCH,
+    Prices,
+    config_key,
+    same_config,
 )
 from coverage_ros.core.strategies.handover.published import NONE, Offer, idle, offers_of, value
-from coverage_ros.core.strategies.handover.split import SplitOffer, split_offers
+from coverage_ros.core.strategies.handover.split import SplitOffer
 
 #: [updates] standing still this long counts as settled: a robot turning towards a new goal
 #: stands still for an update or two (half a turn at 2.84 rad/s takes 1.1 s, at 2 Hz).
 STILL_UPDATES = 4
-#: Power weights closer than this [m] count as equal (the bound assumes equal weights).
-WEIGHT_MATCH = 1e-9
 #: A relocating robot has arrived within this many convergence tolerances of its point, or
 #: this many grid cells, whichever is more (a goal is a cell centre).
 ARRIVAL_TOLERANCES, ARRIVAL_CELLS = 3.0, 2.0
-#: A configuration within this many grid cells of one a robot relocated from is one the team
-#: came back to: it does not claim from it again.
-RETURN_CELLS = 2.0
 #: [configurations] relocated from, remembered per robot (the latest)
 DEPARTURES = 8
 
@@ -102,6 +104,9 @@ class HandoverSettings:
     joint_rings: int = 1  # rings of cells around the pair the joint bound widens to, at most
     #: offers (the largest first) priced by the team's own descent when no bound passes
     descent_offers: int = 0
+    #: starts over the cell of each robot offering one of those, for one point per room of it
+    #: (:func:`.split.room_offers`) priced by the descent too when none of the offers pays
+    descent_rooms: int = 0
     settle_share: float = math.inf  # ... and shorter than this share of its cell's radius
 
     def settle_below(self, area: float) -> float:
@@ -116,6 +121,15 @@ class HandoverStep:
     goal: np.ndarray | None  # (2,) [m] the relocation point, None: the Lloyd goal stands
     extra: dict[str, float]  # what to publish
     busy: bool  # a claim, grant or relocation is under way (the team has not settled)
+
+
+@dataclass(frozen=True)
+class Departure:
+    """Where a robot's move left from."""
+
+    ids: tuple[int, ...]  # the robots it heard, sorted
+    cost: float  # H over their cells and its own (units of H)
+    saving: float  # what the move had to save (units of H)
 
 
 @dataclass
@@ -135,16 +149,17 @@ class Handover:
     relocations: int = 0  # moves made
     _last: np.ndarray | None = field(default=None, repr=False)  # (2,) [m] previous position
     _still: int = 0  # [updates] in a row that moved less than the convergence tolerance
-    _offer: tuple[np.ndarray, list[SplitOffer]] | None = field(default=None, repr=False)
-    _removal: tuple[np.ndarray, dict[int, float], Tessellations] | None = field(
-        default=None, repr=False)
-    _joint: tuple[np.ndarray, Known, dict[tuple[int, float, float, int], float]] | None = field(
-        default=None, repr=False)
     #: updates that reached the descent's pricing in one configuration (its key); waiting
     _turns: tuple[np.ndarray, int] | None = field(default=None, repr=False)
     _awaits_turn: bool = False
-    _claimed_from: np.ndarray | None = field(default=None, repr=False)  # the claim's key
-    _departures: list[np.ndarray] = field(default_factory=list, repr=False)  # keys left
+    #: (ids heard, their H, the saving to beat) where the claim was made / moves were made
+    _claimed_from: Departure | None = field(default=None, repr=False)
+    _departures: list[Departure] = field(default_factory=list, repr=False)
+    prices: Prices = field(init=False, repr=False)  # what it priced, per configuration
+
+    def __post_init__(self) -> None:
+        s = self.settings
+        self.prices = Prices(self.domain, self.method, s.steps, s.joint_steps, s.descent_rooms)
 
     def step(self, position: np.ndarray, weight: float, cell: CellResult,
              neighbours: Sequence[Neighbour], bordering: Sequence[int],
@@ -165,10 +180,10 @@ class Handover:
         self._still = self._still + 1 if moved < convergence_tolerance else 0
         settle = s.settle_below(self.domain.area_of(cell.nodes))
         settled = step < settle or self._still >= STILL_UPDATES
-        key = _key(position, neighbours)
-        offers: list[SplitOffer] = []
+        key = config_key(position, neighbours)
+        offers: list[SplitOffer] = []  # the own (published)
         if settled and self.claim < 0:
-            offers = self._cached_offers(key, cell, weight)
+            offers = self.prices.offers(key, cell, weight)
         claimants = sorted(((value(n, "claim_gain"), -n.robot_id) for n in neighbours
                             if value(n, "claim", NONE) == self.robot_id), reverse=True)
         mine = (self.claim_gain, -self.robot_id)
@@ -250,8 +265,6 @@ class Handover:
         saves most, with one ring of cells re-spreading, else with the next ring too."""
         if any(value(n, "claim", NONE) >= 0 for n in neighbours):
             return  # one move at a time (module docstring)
-        if any(_same(k, key, RETURN_CELLS * self.domain.resolution) for k in self._departures):
-            return  # the team came back here after a move from here: no move again
         offers = [o for n in neighbours for o in offers_of(n)
                   if value(n, "claim", NONE) < 0 and value(n, "grant", NONE) == NONE
                   and abs(n.state.weight - weight) < WEIGHT_MATCH
@@ -259,8 +272,8 @@ class Handover:
         if not offers:
             return
         # the removal bound per target: one held fixed when it borders the own cell
-        removal = {o.robot_id: self._cached_removal(key, position, weight, cell, neighbours,
-                                                    bordering, o.robot_id)
+        removal = {o.robot_id: self.prices.removal(key, position, weight, cell, neighbours,
+                                                   bordering, o.robot_id)
                    for o in offers}
         best, saving = self._best(offers, cell.cost, {
             o.key: o.gain - removal[o.robot_id] for o in offers})
@@ -269,13 +282,13 @@ class Handover:
             # no pair's bound suffices: the bound with both cells' neighbours re-spreading,
             # then theirs too
             best, saving = self._best(offers, cell.cost, {
-                o.key: -self._cached_joint(key, position, weight, neighbours, o, rings)
+                o.key: -self.prices.joint(key, position, weight, neighbours, o, rings)
                 for o in offers})
             rings += 1
         if best is None and stopped and self.settings.descent_offers > 0:
             # no bound sees it: where the whole team's own descent goes from the largest
             # offers, priced by one robot per update, the one whose cell costs least first
-            if self._turns is None or not _same(self._turns[0], key, self.domain.resolution):
+            if self._turns is None or not same_config(self._turns[0], key, self.domain.resolution):
                 self._turns = (key, 0)
             self._turns = (key, self._turns[1] + 1)  # (updates here, this one counted)
             if self._turns[1] <= _rank(self.robot_id, cell.cost, neighbours):
@@ -284,14 +297,28 @@ class Handover:
             largest = sorted(offers, key=lambda o: (-o.gain, o.key))[
                 :self.settings.descent_offers]
             best, saving = self._best(largest, cell.cost, {
-                o.key: -self._cached_descent(key, position, weight, neighbours, o,
-                                             self.settings.gain * (cell.cost + o.base))
+                o.key: -self.prices.descent(key, position, weight, neighbours, o,
+                                            self.settings.gain * (cell.cost + o.base))
                 for o in largest})
+            if best is None and self.settings.descent_rooms > 1:
+                # none of them pays: a point in every other room of the cells they split
+                rooms = [o for j in dict.fromkeys(o.robot_id for o in largest)
+                         for o in self.prices.rooms(key, position, weight, neighbours, j,
+                                                    offers)]
+                if rooms:
+                    best, saving = self._best(rooms, cell.cost, {
+                        o.key: -self.prices.descent(key, position, weight, neighbours, o,
+                                                    self.settings.gain * (cell.cost + o.base))
+                        for o in rooms})
         if best is None:
             return
+        ids = tuple(sorted(n.robot_id for n in neighbours))
+        H = self.prices.heard_cost(key, position, neighbours, weight)
+        if any(d.ids == ids and not H < d.cost - d.saving for d in self._departures):
+            return  # no better than where a move of its own left from (module docstring)
         self.claim, self.claim_gain, self.claim_age = best.robot_id, saving, 0
         self.target = best.point.copy()
-        self._claimed_from = key
+        self._claimed_from = Departure(ids, H, self.settings.gain * (cell.cost + best.base))
 
     def _best(self, offers: Sequence[Offer], cost: float,
               savings: dict[tuple[int, int], float]) -> tuple[Offer | None, float]:
@@ -308,78 +335,6 @@ class Handover:
         self.relocating, self.target = False, None
         self.cooldown = self.settings.cooldown
 
-    def _cached_offers(self, key: np.ndarray, cell: CellResult, weight: float
-                       ) -> list[SplitOffer]:
-        """The own split offers, computed again only when some generator moved by a cell."""
-        if self._offer is None or not _same(self._offer[0], key, self.domain.resolution):
-            offers = split_offers(self.domain, cell.nodes, cell.distances, cell.cost, weight,
-                                  cell.cell_radius, self.settings.steps, self.method)
-            self._offer = (key, offers)
-        return self._offer[1]
-
-    def _known(self, key: np.ndarray, position: np.ndarray, neighbours: Sequence[Neighbour]
-               ) -> tuple[Known, dict[tuple[int, float, float, int], float]]:
-        """The cells of all it hears and the prices found on them (again once one moved)."""
-        if self._joint is None or not _same(self._joint[0], key, self.domain.resolution):
-            gens = np.vstack([position[None], [n.position for n in neighbours]])
-            self._joint = (key, known_cells(self.domain, gens, self.method), {})
-        return self._joint[1], self._joint[2]
-
-    def _cached_joint(self, key: np.ndarray, position: np.ndarray, weight: float,
-                      neighbours: Sequence[Neighbour], target: Offer, rings: int) -> float:
-        """The bound of :func:`.bounds.joint_change` for a move into ``target``'s cell at its
-        offered point with ``rings`` (>= 1) of cells re-spreading."""
-        if any(abs(n.state.weight - weight) >= WEIGHT_MATCH for n in neighbours):
-            return math.inf  # the bound assumes equal power weights
-        known, values = self._known(key, position, neighbours)
-        point = target.point
-        memo = (target.robot_id, float(point[0]), float(point[1]), rings)
-        if memo not in values:
-            t = 1 + [n.robot_id for n in neighbours].index(target.robot_id)
-            values[memo] = joint_change(self.domain, known, weight, t, point,
-                                        self.settings.joint_steps, self.method,
-                                        rings).increase
-        return values[memo]
-
-    def _cached_descent(self, key: np.ndarray, position: np.ndarray, weight: float,
-                        neighbours: Sequence[Neighbour], target: Offer,
-                        enough: float) -> float:
-        """:func:`.bounds.descent_change` of a move to ``target``'s offered point, every
-        generator it hears descending, stopped once H is lower by more than ``enough``."""
-        if any(abs(n.state.weight - weight) >= WEIGHT_MATCH for n in neighbours):
-            return math.inf  # the descent prices equal power weights
-        known, values = self._known(key, position, neighbours)
-        point = target.point
-        memo = (target.robot_id, float(point[0]), float(point[1]), 0)  # (rings 0: descent)
-        if memo not in values:
-            values[memo] = descent_change(self.domain, known, weight,
-                                          list(range(1, len(known.generators))), point,
-                                          self.method, enough=enough).increase
-        return values[memo]
-
-    def _cached_removal(self, key: np.ndarray, position: np.ndarray, weight: float,
-                        cell: CellResult, neighbours: Sequence[Neighbour],
-                        bordering: Sequence[int], target: int) -> float:
-        """The own removal bound with ``target`` held fixed if it borders the own cell (one
-        bound for all other targets), computed again only when some generator moved by a
-        cell."""
-        if self._removal is None or not _same(self._removal[0], key, self.domain.resolution):
-            self._removal = (key, {}, {})
-        fixed = target if target in bordering else -1
-        _, values, tessellations = self._removal
-        if fixed not in values:
-            if any(abs(n.state.weight - weight) >= WEIGHT_MATCH for n in neighbours):
-                values[fixed] = math.inf  # the bound assumes equal power weights
-            else:
-                ids = [n.robot_id for n in neighbours]
-                gens = np.vstack([position[None], [n.position for n in neighbours]])
-                near = [1 + ids.index(j) for j in bordering if j in ids]
-                values[fixed] = removal_increase(
-                    self.domain, gens, weight, near,
-                    [1 + ids.index(fixed)] if fixed >= 0 else [], cell.cell_radius,
-                    self.settings.steps, self.method, tessellations).increase
-        return values[fixed]
-
 
 def _rank(robot_id: int, cost: float, neighbours: Sequence[Neighbour]) -> int:
     """How many robots it hears published a cell cost below the own (then a lower id): its
@@ -387,14 +342,3 @@ def _rank(robot_id: int, cost: float, neighbours: Sequence[Neighbour]) -> int:
     return sum((value(n, "offer_base"), n.robot_id) < (cost, robot_id) for n in neighbours
                if value(n, "offer_gain") > 0)
 
-
-def _key(position: np.ndarray, neighbours: Sequence[Neighbour]) -> np.ndarray:
-    """``(1 + m, 3)`` the own position and the neighbours' (id, x, y), sorted by id."""
-    rows = [(-1.0, *position)] + sorted((float(n.robot_id), *n.position) for n in neighbours)
-    return np.array(rows, dtype=np.float64)
-
-
-def _same(a: np.ndarray, b: np.ndarray, tolerance: float) -> bool:
-    """Same robots, none moved by ``tolerance`` [m] or more."""
-    return a.shape == b.shape and bool(np.all(a[:, 0] == b[:, 0])) and \
-        float(np.abs(a[:, 1:] - b[:, 1:]).max()) < tolerance

@@ -49,6 +49,60 @@ def split_offers(domain: CoverageDomain, nodes: np.ndarray, g_own: np.ndarray, c
     nodes its second generator would take) if it saves more than the first: the cell's other
     room, where it spans two and the farthest node lies in the smaller. Empty for a cell of
     fewer than two nodes."""
+    splits = split_parts(domain, nodes, g_own, weight, cell_radius, steps, method,
+                         1 + SECOND_STARTS if second else 1)
+    if not splits:
+        return []
+    first = splits[0]
+    offers = [SplitOffer(gain=max(cost - first.cost, 0.0), point=first.point.copy(), base=cost)]
+    other: Split | None = None
+    for split in splits[1:]:
+        if not first.part[split.at] and split.cost < min(first.cost, cost) \
+                and (other is None or split.cost < other.cost):
+            other = split
+    if other is not None:
+        offers.append(SplitOffer(gain=cost - other.cost, point=other.point.copy(), base=cost))
+    return offers
+
+
+def room_offers(domain: CoverageDomain, nodes: np.ndarray, g_own: np.ndarray, cost: float,
+                weight: float, cell_radius: float, steps: int, starts: int,
+                taken: np.ndarray, method: str = "auto") -> list[SplitOffer]:
+    """Splits of a cell ``nodes`` from ``starts`` farthest-point starts (:func:`split_parts`)
+    that save something, one per part: a split whose part holds the point of an earlier one,
+    or one of ``taken (k, 2)`` [m] (offers already made), is the same room's. The cell of a
+    robot that covers several rooms from a corridor offers one point per room, largest saving
+    first - not only the one or two its own splits rank best, which need not be where a robot
+    moving in pays once the team re-spreads."""
+    pts = node_points(domain, np.asarray(nodes, dtype=np.int64))
+    taken_at = [int(np.argmin(np.hypot(*(pts - t).T))) for t in np.reshape(taken, (-1, 2))]
+    kept: list[Split] = []
+    for split in split_parts(domain, nodes, g_own, weight, cell_radius, steps, method, starts):
+        if split.cost < cost and not any(split.part[k.at] or k.part[split.at] for k in kept) \
+                and not any(split.part[t] for t in taken_at):
+            kept.append(split)
+    kept.sort(key=lambda k: k.cost)
+    return [SplitOffer(gain=cost - k.cost, point=k.point.copy(), base=cost) for k in kept]
+
+
+@dataclass(frozen=True)
+class Split:
+    """One split of a cell with a second generator."""
+
+    cost: float  # of the cell split so, units of H
+    point: np.ndarray  # (2,) [m] the second generator (a node of the cell)
+    at: int  # index of that node in the cell's nodes
+    part: np.ndarray  # (len(nodes),) bool: the nodes the second generator takes
+
+
+def split_parts(domain: CoverageDomain, nodes: np.ndarray, g_own: np.ndarray, weight: float,
+                cell_radius: float, steps: int, method: str, starts: int) -> list[Split]:
+    """The least-cost split of the cell ``nodes`` (distances ``g_own`` from the own
+    generator) from each of ``starts`` starts: the node farthest from the own generator, then
+    each the node farthest from it and every earlier start (fewer where none is left in
+    reach); from a start, the second generator moves ``steps`` times to the mass centroid of
+    its part (the part's node nearest to it), and the least cost seen counts. Empty for a cell
+    of fewer than two nodes."""
     nodes = np.asarray(nodes, dtype=np.int64)
     if len(nodes) < 2:
         return []
@@ -58,11 +112,11 @@ def split_offers(domain: CoverageDomain, nodes: np.ndarray, g_own: np.ndarray, c
     limit = 2.0 * cell_radius + SLACK_EDGES * domain.graph.max_edge_cost
     apart = np.array(g_own, dtype=np.float64)  # [m] from the own generator and the starts
 
-    def descend(start: int) -> tuple[float, np.ndarray, np.ndarray]:
-        """The least split cost from node ``start``, its point and its part (mask)."""
+    def descend(start: int) -> Split:
+        """The least split cost from node ``start``, its point and its part."""
         nonlocal apart
         s = pts[start]
-        best: tuple[float, np.ndarray, np.ndarray] = (math.inf, s, np.zeros(len(nodes), bool))
+        best = Split(math.inf, s, start, np.zeros(len(nodes), bool))
         for step in range(max(1, steps)):
             gs = nearest(domain, s[None], limit, method)[0][nodes]
             if step == 0:
@@ -70,8 +124,8 @@ def split_offers(domain: CoverageDomain, nodes: np.ndarray, g_own: np.ndarray, c
             theirs = np.where(np.isfinite(gs), gs * gs - weight ** 2, np.inf)
             mine = theirs < own
             split = float(np.where(mine, theirs, own).dot(wdA))
-            if split < best[0]:
-                best = (split, s, mine)
+            if split < best.cost:
+                best = Split(split, s, int(np.argmin(np.hypot(*(pts - s).T))), mine)
             m = float(wdA[mine].sum())
             if m <= 0:
                 break
@@ -83,20 +137,10 @@ def split_offers(domain: CoverageDomain, nodes: np.ndarray, g_own: np.ndarray, c
             s = nxt
         return best
 
-    first_cost, first_point, first_part = descend(int(np.argmax(g_own)))
-    offers = [SplitOffer(gain=max(cost - first_cost, 0.0), point=first_point.copy(), base=cost)]
-    if not second:
-        return offers
-    other: tuple[float, np.ndarray] | None = None
-    for _ in range(SECOND_STARTS):
+    out = [descend(int(np.argmax(g_own)))]
+    for _ in range(starts - 1):
         far = int(np.argmax(apart))
         if not (apart[far] > 0.0 and np.isfinite(apart[far])):
             break
-        split, point, _part = descend(far)
-        at = int(np.argmin(np.hypot(*(pts - point).T)))
-        if not first_part[at] and split < min(first_cost, cost) \
-                and (other is None or split < other[0]):
-            other = (split, point)
-    if other is not None:
-        offers.append(SplitOffer(gain=cost - other[0], point=other[1].copy(), base=cost))
-    return offers
+        out.append(descend(far))
+    return out

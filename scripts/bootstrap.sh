@@ -164,6 +164,45 @@ _build_interface() {  # _build_interface NAME: interfaces/NAME into the venv
     ) && "$VENV/bin/python" -c "import $name.msg" 2>/dev/null
 }
 
+# The interface packages' build cache: what the builds installed into a venv, kept per inputs
+# (sources, pinned wheels, this script, Python, compiler) so that another clone's venv (a CI
+# checkout) gets it without building. Off with COVERAGE_ROS_NO_BUILD_CACHE=1.
+_interfaces_cache() {  # _interfaces_cache SOURCES_HASH: the cache folder of these inputs
+    local key
+    key="$( { printf '%s\n' "$1"
+              cat "$COVERAGE_ROS_ROOT/requirements.txt" "$COVERAGE_ROS_ROOT/scripts/bootstrap.sh"
+              "$VENV/bin/python" -c 'import platform, sys; print(sys.version, platform.machine())'
+              g++ --version 2>/dev/null | head -1
+            } | sha256sum | cut -d' ' -f1)"
+    printf '%s' "${XDG_CACHE_HOME:-$HOME/.cache}/coverage_ros/interfaces/$key"
+}
+
+_restore_interfaces() {  # _restore_interfaces DIR: the cached files into the venv, paths ours
+    local dir="$1" old
+    [ -f "$dir/files.tar" ] && [ -f "$dir/prefix" ] || return 1
+    old="$(cat "$dir/prefix")"
+    tar -C "$VENV" -xf "$dir/files.tar" || return 1
+    if [ "$old" != "$VENV" ]; then  # (a few text files name the venv they were built for)
+        (cd "$VENV" && tar -tf "$dir/files.tar" | while IFS= read -r f; do
+            if [ -f "$f" ] && grep -qIF "$old" "$f"; then sed -i "s|$old|$VENV|g" "$f"; fi
+        done)
+    fi
+    "$VENV/bin/python" -c "import tf2_msgs.msg, coverage_msgs.msg" 2>/dev/null
+}
+
+_store_interfaces() {  # _store_interfaces DIR: what the builds installed (their manifests)
+    local dir="$1" tmp m
+    mkdir -p "$(dirname "$dir")" 2>/dev/null || return 0
+    tmp="$(mktemp -d "$(dirname "$dir")/.new-XXXXXX")" || return 0
+    if for m in "$COVERAGE_ROS_ROOT"/build/interfaces/*/install_manifest.txt; do
+            cat "$m"; echo
+        done | sed -n "s|^$VENV/||p" | tar -C "$VENV" -cf "$tmp/files.tar" -T - &&
+        printf '%s' "$VENV" > "$tmp/prefix"; then
+        rm -rf "$dir" && mv "$tmp" "$dir"
+    fi
+    rm -rf "$tmp"
+}
+
 bootstrap_interfaces() {
     # The interface packages in interfaces/, built with the rosidl generators and ament_cmake
     # wheels, gcc and cmake, and installed into the venv (no sourcing needed afterwards):
@@ -175,6 +214,15 @@ bootstrap_interfaces() {
         interfaces/cmake/*.cmake)"
     if _stamp_ok interfaces "$want" && "$VENV/bin/python" -c "import tf2_msgs.msg, coverage_msgs.msg" 2>/dev/null; then
         return 0
+    fi
+    local cache=""
+    if [ -z "${COVERAGE_ROS_NO_BUILD_CACHE:-}" ]; then
+        cache="$(_interfaces_cache "$want")"
+        if _restore_interfaces "$cache"; then
+            _say "coverage_msgs and tf2_msgs into .venv from the build cache ($cache)"
+            _stamp_set interfaces "$want"
+            return 0
+        fi
     fi
     if ! command -v cmake >/dev/null 2>&1 || ! command -v g++ >/dev/null 2>&1; then
         if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
@@ -196,6 +244,8 @@ bootstrap_interfaces() {
         _say "warning: building tf2_msgs failed (logs: build/interfaces/tf2_msgs.*.log); the world node will publish no /tf"
         return 0
     fi
+    # (the key again: the compiler may have been installed above)
+    [ -z "$cache" ] || _store_interfaces "$(_interfaces_cache "$want")"
     _stamp_set interfaces "$want"
 }
 

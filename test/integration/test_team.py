@@ -27,12 +27,13 @@ def team_cmd(*args: str) -> list[str]:
 def best_plan_cost(robots: int, seeds, tmp_path) -> float:
     """The best final H coverage-plan finds on the same map from clustered starts (of 3 and 4
     robots, seeds 0 and 2 end in the same configuration, H within 0.002 %: the team's seed
-    serves)."""
+    serves), with the team's accelerated solver: the robots' own updates end within 0.002 %
+    of it here, in 30 times its time (the closet escape prices every move at the end)."""
     best = float("inf")
     for seed in seeds:
         out = tmp_path / f"plan-{robots}-{seed}.json"
         assert plan_main(["--map", str(WORLD), "--robots", str(robots), "--seed", str(seed),
-                          "--json", str(out), "--quiet"]) == 0
+                          "--solver", "accelerated", "--json", str(out), "--quiet"]) == 0
         best = min(best, json.loads(out.read_text())["H"])
     return best
 

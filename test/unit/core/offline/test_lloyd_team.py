@@ -169,15 +169,18 @@ def test_coverage_plan_solver_option(tmp_path, capsys):
 @pytest.mark.slow
 def test_geodesic_team_solver_reaches_the_decentralized_runs_cost(tmp_path):
     """coverage-plan --strategy geodesic: the whole team's step (one shared search per step)
-    ends where every robot's own updates end, at the same cost."""
+    ends where every robot's own updates end, at the same cost. (The robots' own updates
+    without the closet escape, which the team solvers do not make: plain generalized Lloyd on
+    both sides; on this map the three end within 0.02 % of each other.)"""
     runs = {}
     for solver in ("decentralized", "lloyd", "accelerated"):
         out = tmp_path / f"{solver}.json"
+        params = ["--strategy-params", "{escape: false}"] if solver == "decentralized" else []
         assert main(["--map", "l_shape", "--robots", "4", "--strategy", "geodesic", "--solver",
-                     solver, "--json", str(out), "--quiet"]) == 0
+                     solver, *params, "--json", str(out), "--quiet"]) == 0
         runs[solver] = json.loads(out.read_text())
     ref = runs["decentralized"]
     for solver in ("lloyd", "accelerated"):
         assert runs[solver]["converged"]
-        assert runs[solver]["H"] == pytest.approx(ref["H"], rel=0.02), (solver, runs)
+        assert runs[solver]["H"] == pytest.approx(ref["H"], rel=2e-3), (solver, runs)
         assert runs[solver]["H"] < 0.5 * ref["H_start"]

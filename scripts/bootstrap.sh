@@ -198,7 +198,8 @@ _store_interfaces() {  # _store_interfaces DIR: what the builds installed (their
             cat "$m"; echo
         done | sed -n "s|^$VENV/||p" | tar -C "$VENV" -cf "$tmp/files.tar" -T - &&
         printf '%s' "$VENV" > "$tmp/prefix"; then
-        rm -rf "$dir" && mv "$tmp" "$dir"
+        # (-T: where another set-up stored the same meanwhile, keep its folder as it is)
+        { rm -rf "$dir" && mv -T "$tmp" "$dir"; } 2>/dev/null || true
     fi
     rm -rf "$tmp"
 }

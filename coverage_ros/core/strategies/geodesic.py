@@ -27,7 +27,7 @@ from coverage_ros.core.strategies.base import (
     StrategyDetails,
 )
 from coverage_ros.core.strategies.handover import Handover, HandoverSettings
-from coverage_ros.core.strategies.handover.published import destination
+from coverage_ros.core.strategies.handover.published import held
 from coverage_ros.errors import ConfigError
 
 #: A monotone-step cost search reaches this many longest edges beyond the cell and the step
@@ -130,20 +130,24 @@ class GeodesicStrategy(Strategy):
     def __init__(self, context: StrategyContext, params: GeodesicParams | None = None) -> None:
         super().__init__(context, params)
         self.cache = SearchCache()
+        self._origins: dict[int, np.ndarray] = {}  # [m] relocating neighbours' by robot id
         self.handover = Handover(context.robot_id, context.domain, self.params.handover(),
                                  self.params.method) if self.params.escape else None
 
     def update(self, obs: Observation, neighbours: Sequence[Neighbour]) -> Decision:
         own = Generator(obs.position, self.context.weight)
-        # a relocating neighbour's generator counts where it is going (handover.published)
-        others = [Generator(destination(n), n.state.weight) for n in neighbours]
+        # a relocating neighbour's generator counts where it left from (handover.published)
+        counted = [held(n, self._origins, self.context.domain.resolution) for n in neighbours]
+        others = [Generator(p, n.state.weight) for (p, _), n in zip(counted, neighbours,
+                                                                      strict=True)]
         cell = geodesic_cell(self.context.domain, own, others, cache=self.cache,
                              method=self.params.method, reuse=self.context.search_reuse)
         bordering = tuple(neighbours[k].robot_id for k in cell.neighbours)
         goal, extra, busy = cell.goal, {}, False
         if self.handover is not None:
             move = self.handover.step(obs.position, self.context.weight, cell, neighbours,
-                                      bordering, self.context.convergence_tolerance)
+                                      bordering, self.context.convergence_tolerance,
+                                      arrived=any(a for _, a in counted))
             goal = cell.goal if move.goal is None else move.goal
             extra, busy = move.extra, move.busy
         relocating = goal is not cell.goal

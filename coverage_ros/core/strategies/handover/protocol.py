@@ -14,7 +14,8 @@ Every robot publishes, with its state (``SharedState.extra``):
   bound's saving;
 * ``grant``: the one claimant it lets in (-1: none);
 * ``relocating``, ``to_x``, ``to_y``: on its way to a claimed cell's point, and that point (its
-  neighbours' cells count its generator there: :mod:`.published`).
+  neighbours' cells count its generator where it left from until it arrives:
+  :mod:`.published`).
 
 Robot i claims neighbour j (any robot it hears: the offer is j's, the removal i's own, so the bound
 needs no common border) when i and every robot it hears are settled and none of them claims (one
@@ -163,9 +164,10 @@ class Handover:
 
     def step(self, position: np.ndarray, weight: float, cell: CellResult,
              neighbours: Sequence[Neighbour], bordering: Sequence[int],
-             convergence_tolerance: float) -> HandoverStep:
+             convergence_tolerance: float, arrived: bool = False) -> HandoverStep:
         """One update: ``cell`` is the own cell at ``position`` [m], ``bordering`` the ids of
-        the neighbours whose cells border it."""
+        the neighbours whose cells border it; ``arrived``: a neighbour has just ended a
+        relocation away from where its generator counted meanwhile."""
         s = self.settings
         by_id = {n.robot_id: n for n in neighbours}
         self._awaits_turn = False
@@ -178,6 +180,8 @@ class Handover:
         moved = math.inf if self._last is None else float(np.hypot(*(position - self._last)))
         self._last = np.array(position, dtype=np.float64)
         self._still = self._still + 1 if moved < convergence_tolerance else 0
+        if arrived:
+            self._still = 0  # the cells changed at once: standing still so far says nothing
         settle = s.settle_below(self.domain.area_of(cell.nodes))
         settled = step < settle or self._still >= STILL_UPDATES
         key = config_key(position, neighbours)

@@ -1,10 +1,13 @@
 """What a robot of the closet escape publishes (``SharedState.extra``, the ``HandoverState`` of
 its coverage state) and how its neighbours read it.
 
-A relocating robot publishes where it is going (``relocating``, ``to_x``, ``to_y``): its
-neighbours tessellate with its generator there (:func:`destination`), so that while it drives
-the team re-spreads as it would with the robot already arrived - the configuration the claim's
-bound priced - rather than into the cell it left, which would have to be given back on arrival.
+A relocating robot publishes where it is going (``relocating``, ``to_x``, ``to_y``); its
+neighbours keep its generator where it stood when they first heard it relocating
+(:func:`held`) until it has arrived, so that nobody spreads into the cell it leaves meanwhile:
+every price of a move (:mod:`.bounds`) is of the team re-spreading from the robot at its point,
+which is where the team then descends from. Spreading during the drive, around a robot that
+cannot shift along until it arrives, ends elsewhere (often above where the robot left from).
+Whoever makes way for it reads where it is going (:func:`destination`).
 """
 
 from __future__ import annotations
@@ -31,6 +34,18 @@ def idle() -> dict[str, float]:
             "offer_gain": 0.0, "offer_x": 0.0, "offer_y": 0.0, "offer_base": 0.0,
             "offer2_gain": 0.0, "offer2_x": 0.0, "offer2_y": 0.0,
             "relocating": 0.0, "to_x": 0.0, "to_y": 0.0}
+
+
+def held(n: Neighbour, origins: dict[int, np.ndarray], resolution: float
+         ) -> tuple[np.ndarray, bool]:
+    """(2,) [m] where ``n``'s generator counts in its neighbours' cells - while it relocates,
+    where it stood when first heard relocating (kept in ``origins`` by robot id), else its
+    position - and whether it has just arrived more than ``resolution`` [m] from there."""
+    if value(n, "relocating") > 0:
+        return origins.setdefault(n.robot_id, np.array(n.position, dtype=np.float64)), False
+    origin = origins.pop(n.robot_id, None)
+    moved = origin is not None and float(np.hypot(*(n.position - origin))) > resolution
+    return n.position, moved
 
 
 def destination(n: Neighbour) -> np.ndarray:

@@ -27,6 +27,7 @@ from coverage_ros.core.strategies import (
     make_strategy,
     strategy_choice,
 )
+from coverage_ros.core.strategies.base import SharedState
 from coverage_ros.core.strategies.geodesic import GeodesicParams, GeodesicStrategy
 from coverage_ros.core.strategies.handover import (
     joint_change,
@@ -37,6 +38,7 @@ from coverage_ros.core.strategies.handover import (
     split_offers,
 )
 from coverage_ros.core.strategies.handover.protocol import STILL_UPDATES, Handover
+from coverage_ros.core.strategies.handover.published import held
 from coverage_ros.core.world import parse_world
 from coverage_ros.core.world.placement import largest_free_region, team_starts
 from coverage_ros.errors import ConfigError
@@ -655,10 +657,13 @@ def test_one_claimant_per_cell_and_claims_follow_grants():
     assert relocated
 
 
-def test_a_relocating_robots_neighbours_count_its_generator_where_it_goes():
-    """A robot on its way publishes its point; while it drives (here: held where it was), the
-    others' cells are those of the team with it arrived (the configuration its claim priced),
-    not cells that spread into the one it left."""
+def test_a_relocating_robots_neighbours_hold_its_generator_where_it_left_until_it_arrives():
+    """A robot on its way publishes its point; while it drives the others' cells keep its
+    generator where it stood when they first heard it relocating, so nobody spreads into the
+    cell it leaves before it has arrived (the team then descends from the configuration the
+    claim priced, the robot at its point, not from one the others reached meanwhile). Once it
+    has arrived they take its new position, and standing still so far no longer settles them:
+    a robot whose Lloyd step is now long neither offers nor claims."""
     P = run(cluster(2), escape=False).positions[-1]
     team = _team(P)
     domain = ward()[1]
@@ -672,23 +677,60 @@ def test_a_relocating_robots_neighbours_count_its_generator_where_it_goes():
         if mover is not None:
             break
     assert mover is not None
-    goal = decisions[mover].goal
+    goal = np.array(decisions[mover].goal)
     extra = published[mover].extra
     assert extra["relocating"] == 1.0 and (extra["to_x"], extra["to_y"]) == tuple(goal)
-    decisions = _round(team, P, published)  # the mover still where it was
-    assert decisions[mover].mode == "relocate"
+
+    def cells_with(i, at):  # robot i's cell of the team at ``at``
+        return geodesic_cell(domain, Generator(at[i], 0.0),
+                             [Generator(q, 0.0) for k, q in enumerate(at) if k != i]).nodes
+
+    driving = P.copy()
+    for share in (0.0, 0.5):  # first heard where it stood, then half way there
+        driving[mover] = P[mover] + share * (goal - P[mover])
+        decisions = _round(team, driving, published)
+        published = [d.shared for d in decisions]
+        assert decisions[mover].mode == "relocate"
+        for i, d in enumerate(decisions):
+            if i != mover:
+                assert np.array_equal(np.sort(d.cell), np.sort(cells_with(i, P))), i
     arrived = P.copy()
     arrived[mover] = goal
+    decisions = _round(team, arrived, published)  # it drops its claim; the others still hold
+    published = [d.shared for d in decisions]
+    assert decisions[mover].mode == "lloyd" and published[mover].extra["relocating"] == 0.0
+    decisions = _round(team, arrived, published)
+    moving = 0
     for i, d in enumerate(decisions):
         if i == mover:
             continue
-        others = [Generator(q, 0.0) for k, q in enumerate(arrived) if k != i]
-        cell = geodesic_cell(domain, Generator(P[i], 0.0), others)
-        assert np.array_equal(np.sort(d.cell), np.sort(cell.nodes))
-    target = int(extra["claim"])  # its cell is split with the mover's point, not left whole
-    left = geodesic_cell(domain, Generator(P[target], 0.0),
-                         [Generator(q, 0.0) for k, q in enumerate(P) if k != target])
-    assert len(decisions[target].cell) < len(left.nodes)
+        assert np.array_equal(np.sort(d.cell), np.sort(cells_with(i, arrived))), i
+        if np.hypot(*(d.goal - arrived[i])) >= GeodesicParams().escape_settle:
+            moving += 1  # stood still for updates, but its cell has just changed
+            assert d.shared.extra["settled"] == 0.0 and d.shared.extra["claim"] < 0, i
+    assert moving >= 1
+
+
+def test_held_counts_a_relocating_robot_where_it_was_first_heard_and_says_when_it_arrived():
+    """:func:`~coverage_ros.core.strategies.handover.published.held`: the first position heard
+    with ``relocating`` stands for the whole way; arriving away from it is reported once, and
+    arriving where it stood (the offline runner's robots reach their point in one update, so
+    the first position heard is the point) is not."""
+    def heard(x, relocating):
+        return Neighbour(3, SharedState(position=np.array([x, 1.0]), weight=0.0, mass=1.0,
+                                        extra={"relocating": relocating, "to_x": 5.0,
+                                               "to_y": 1.0}))
+
+    origins: dict = {}
+    assert held(heard(1.0, 1.0), origins, 0.1)[0].tolist() == [1.0, 1.0]
+    for x in (2.0, 4.9):
+        at, arrived = held(heard(x, 1.0), origins, 0.1)
+        assert at.tolist() == [1.0, 1.0] and not arrived
+    at, arrived = held(heard(5.0, 0.0), origins, 0.1)
+    assert at.tolist() == [5.0, 1.0] and arrived and not origins
+    assert held(heard(5.0, 0.0), origins, 0.1)[1] is False  # once
+    held(heard(5.0, 1.0), origins, 0.1)  # first heard relocating at its point
+    assert held(heard(5.0, 0.0), origins, 0.1)[1] is False
 
 
 def test_standing_still_away_from_the_centroid_settles_only_after_a_while():

@@ -49,8 +49,8 @@ def held(n: Neighbour, origins: dict[int, np.ndarray], resolution: float
 
 
 def destination(n: Neighbour) -> np.ndarray:
-    """(2,) [m] where ``n``'s generator counts in its neighbours' cells: its relocation point
-    while it relocates (and published a finite one), else its position."""
+    """(2,) [m] where ``n`` is heading: its relocation point while it relocates (and published
+    a finite one), else its position."""
     if value(n, "relocating") > 0:
         to = np.array([value(n, "to_x", math.nan), value(n, "to_y", math.nan)])
         if np.all(np.isfinite(to)):

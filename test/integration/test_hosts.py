@@ -1,6 +1,7 @@
 """A team across hosts: network namespaces joined by veth links and a bridge stand for machines
 (world node and two robots on one, two robots on another), with simple discovery over their
-subnet and with a Fast DDS discovery server. The three-host runs against a one-host reference
+subnet and with a Fast DDS discovery server. The team runs in lock-step, so where it ends is
+exact and comparable with the plan; the real-time three-host runs against a one-host reference
 are in ``scripts/bench_faults``."""
 
 from __future__ import annotations
@@ -57,8 +58,11 @@ def test_hosts_reach_each_other_only_through_their_links():
 def test_a_team_split_over_two_hosts_covers_as_on_one(tmp_path, discovery_server):
     sandbox = shared_map("tb3_sandbox")
     plan = tmp_path / "plan.json"
-    assert plan_main(["--map", str(sandbox), "--robots", "4", "--seed", "5", "--json",
-                      str(plan), "--quiet"]) == 0
+    # (without the closet escape, here and on the team: the test is of the transport, and a
+    # settled team's pricing of moves, none of which pays here, is nine tenths of its CPU)
+    no_escape = ["--strategy-params", "{escape: false}"]
+    assert plan_main(["--map", str(sandbox), "--robots", "4", "--seed", "5", *no_escape,
+                      "--json", str(plan), "--quiet"]) == 0
     planned = json.loads(plan.read_text())["H"]
     out = tmp_path / "team"
     # With the discovery server the hosts have no multicast route at all: simple discovery
@@ -66,23 +70,24 @@ def test_a_team_split_over_two_hosts_covers_as_on_one(tmp_path, discovery_server
     with hosts_network(2, multicast=not discovery_server) as hosts:
         run = run_across_hosts(hosts, out, [
             "--world", str(sandbox), "--robots", "4", "--duration", "60", "--seed", "5",
-            "--no-markers",
+            "--no-markers", "--lockstep", *no_escape,
             "--domain-id", str(domain_id(24 if discovery_server else 25))],
             remote={2: 1, 3: 1}, discovery_server=discovery_server)
     m = run.summary["metrics"]
     print(f"{'server' if discovery_server else 'simple'}: H {m['H']:.2f} (start "
           f"{m['H_start']:.2f}, plan {planned:.2f}), packets {run.packets}")
     assert run.placement[2] == run.placement[3] == hosts[1].namespace
-    # Spread out as on one host. Where a real-time team settles among the sandbox's pillars
-    # varies from run to run, so the bound is on the spread, not on the best optimum (the
-    # comparison with a one-host reference is scripts/bench_faults).
-    assert m["H"] <= 0.45 * m["H_start"] and m["H"] <= 1.7 * planned, (m, planned)
+    # Spread out as on one host: the lock-step team ends at 1.009x the plan (H 14.669 against
+    # 14.541, settled at 45 s of the 60), the same on one host and on two.
+    assert m["H"] <= 1.03 * planned, (m, planned)
     assert all(r["collisions"] == 0 for r in run.summary["robots"]), run.summary["robots"]
-    # Each side found the robots of the other host, and that traffic crossed the links.
-    logs = {i: (out / "logs" / f"robot_{i}.log").read_text() for i in range(4)}
-    for i, others in ((0, (2, 3)), (3, (0, 1))):
-        for j in others:
-            assert f"neighbour {j} found" in logs[i], logs[i][-2000:]
+    # Each side heard the robots of the other host at every tick (a robot's tick waits for
+    # every robot's state of the tick before), and that traffic crossed the links.
+    world = (out / "logs" / "world.log").read_text()
+    assert "first tick with robots [0, 1, 2, 3]" in world, world[-2000:]
+    for i in range(4):
+        log = (out / "logs" / f"robot_{i}.log").read_text()
+        assert "lock-step: answered 601 robot ticks" in log, log[-2000:]
     assert min(run.packets.values()) > 500, run.packets
     script = (out / "remote" / "robot_3.sh").read_text()
     assert "ros2 run coverage_ros robot_node --ros-args -r __ns:=/robot_3" in script

@@ -80,11 +80,14 @@ def test_geodesic_team_spreads_out_and_reaches_the_planned_cost(tmp_path):
 
 @pytest.mark.lockstep
 def test_a_lost_robots_area_is_absorbed_by_the_others(tmp_path):
-    # Robot 1 killed at 25 s of sim time, at an exact tick: H of the four jumps (670 -> 840 in
-    # the run of the seed) and the three survivors bring it down to 1.00x the best plan of
-    # three by 50 s.
+    # Robot 1 killed at 25 s of sim time, at an exact tick: H of the four jumps (649 -> 889 in
+    # the run of the seed) and the three survivors bring it down to 1.02x the best plan of
+    # three by 50 s, 1.001x by 60 s. (Without the closet escape: the test is of the others
+    # spreading into the lost robot's cell, and a settled team's pricing of moves is most of
+    # its CPU.)
     summary = run_team(tmp_path, "--robots", "4", "--duration", "60", "--seed", "2",
-                       "--kill", "1@25", "--lockstep", offset=13)
+                       "--kill", "1@25", "--lockstep", "--strategy-params", "{escape: false}",
+                       offset=13)
     robots = {r["id"]: r for r in summary["robots"]}
     assert robots[1]["lost_at"] == pytest.approx(25.0, abs=0.2)
     assert all("lost_at" not in robots[i] for i in (0, 2, 3))

@@ -79,7 +79,7 @@ def test_a_team_split_over_two_hosts_covers_as_on_one(tmp_path, discovery_server
           f"{m['H_start']:.2f}, plan {planned:.2f}), packets {run.packets}")
     assert run.placement[2] == run.placement[3] == hosts[1].namespace
     # Spread out as on one host: the lock-step team ends at 1.009x the plan (H 14.669 against
-    # 14.541, settled at 45 s of the 60), the same on one host and on two.
+    # 14.541, at that H from 45 s of the 60), the same on one host and on two.
     assert m["H"] <= 1.03 * planned, (m, planned)
     assert all(r["collisions"] == 0 for r in run.summary["robots"]), run.summary["robots"]
     # Each side heard the robots of the other host at every tick (a robot's tick waits for

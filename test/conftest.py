@@ -19,6 +19,10 @@ TESTS = Path(__file__).resolve().parent
 REPO = TESTS.parent
 SHARED_MAPS = REPO.parent / "shared" / "maps"
 WORLDS = REPO / "config" / "worlds"
+#: The team options of a geodesic team without its closet escape, for tests of something else: a
+#: settled team prices moves at nearly every update (about 15x the CPU on tb3_sandbox), while
+#: the escape has its own tests (test_handover.py, test_team.py's geodesic team).
+NO_ESCAPE = ("--strategy-params", "{escape: false}")
 
 # Every DDS process started by a test stays on this machine.
 os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")

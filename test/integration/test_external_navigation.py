@@ -10,7 +10,7 @@ import sys
 
 import numpy as np
 import pytest
-from conftest import REPO, entry_point
+from conftest import NO_ESCAPE, REPO, entry_point
 from rosutil import NodeProcess, domain_id
 from teamdiag import team_diagnosis
 
@@ -34,7 +34,7 @@ def test_a_team_with_its_own_navigation_and_localization_converges(tmp_path):
             [entry_point("coverage-team"), "--quiet", "--world", "empty",
              "--robots", "3", "--duration", "45", "--seed", "2", "--rtf", "2", "--out", str(out),
              "--domain-id", str(domain), "--robot-param", "drive:=false",
-             "--robot-param", "pose_source:=tf", "--strategy-params", "{escape: false}"],
+             "--robot-param", "pose_source:=tf", *NO_ESCAPE],
             capture_output=True, text=True, timeout=300)
         assert proc.returncode == 0, proc.stderr[-3000:]
         assert nav.stop() == 0, nav.output()[-2000:]

@@ -12,7 +12,7 @@ import subprocess
 import sys
 
 import pytest
-from conftest import shared_map
+from conftest import NO_ESCAPE, shared_map
 from rosutil import domain_id
 
 from coverage_ros.bench.environment import have_tools
@@ -61,8 +61,7 @@ def test_a_team_split_over_two_hosts_covers_as_on_one(tmp_path, discovery_server
     plan = tmp_path / "plan.json"
     # (without the closet escape, here and on the team: the test is of the transport, and a
     # settled team's pricing of moves, none of which pays here, is nine tenths of its CPU)
-    no_escape = ["--strategy-params", "{escape: false}"]
-    assert plan_main(["--map", str(sandbox), "--robots", "4", "--seed", "5", *no_escape,
+    assert plan_main(["--map", str(sandbox), "--robots", "4", "--seed", "5", *NO_ESCAPE,
                       "--json", str(plan), "--quiet"]) == 0
     planned = json.loads(plan.read_text())["H"]
     out = tmp_path / "team"
@@ -71,7 +70,7 @@ def test_a_team_split_over_two_hosts_covers_as_on_one(tmp_path, discovery_server
     with hosts_network(2, multicast=not discovery_server) as hosts:
         run = run_across_hosts(hosts, out, [
             "--world", str(sandbox), "--robots", "4", "--duration", "60", "--seed", "5",
-            "--no-markers", "--lockstep", *no_escape,
+            "--no-markers", "--lockstep", *NO_ESCAPE,
             "--domain-id", str(domain_id(24 if discovery_server else 25))],
             remote={2: 1, 3: 1}, discovery_server=discovery_server)
     m = run.summary["metrics"]

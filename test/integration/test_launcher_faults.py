@@ -15,7 +15,7 @@ import time
 
 import psutil
 import pytest
-from conftest import entry_point
+from conftest import NO_ESCAPE, entry_point
 from rosutil import NodeProcess, domain_id, ros_env
 from teamdiag import team_diagnosis
 
@@ -293,7 +293,7 @@ def test_a_restarted_robot_rejoins_and_the_team_reconverges(tmp_path):
     proc = subprocess.run(
         [entry_point("coverage-team"), "--quiet", "--world", "empty", "--lockstep",
          "--robots", "3", "--duration", "45", "--seed", "2", "--restart", "1@15",
-         "--no-markers", "--strategy-params", "{escape: false}",  # (as in test_team.py)
+         "--no-markers", *NO_ESCAPE,
          "--out", str(out), "--domain-id", str(domain_id(29))],
         capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr[-3000:]

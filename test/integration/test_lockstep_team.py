@@ -11,7 +11,7 @@ import sys
 import time
 
 import pytest
-from conftest import entry_point, shared_map
+from conftest import NO_ESCAPE, entry_point, shared_map
 from rosutil import NodeProcess, RosClient, domain_id
 
 from coverage_ros.bench.lockstep import cpu_hogs, differences
@@ -122,7 +122,7 @@ def test_a_team_run_until_settled_ends_once_h_has_stood_still(tmp_path):
     proc = subprocess.run(team_cmd("--out", str(out), "--domain-id", str(domain_id(25)),
                                    "--world", "l_shape", "--robots", "3", "--seed", "0",
                                    "--duration", "400", "--until-settled", "20",
-                                   "--strategy-params", "{escape: false}"),
+                                   *NO_ESCAPE),
                           capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stderr[-3000:]
     summary = json.loads((out / "summary.json").read_text())

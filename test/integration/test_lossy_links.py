@@ -9,7 +9,7 @@ import subprocess
 import sys
 
 import pytest
-from conftest import shared_map
+from conftest import NO_ESCAPE, shared_map
 from rosutil import domain_id
 
 from coverage_ros.bench.environment import (
@@ -54,14 +54,13 @@ def test_a_team_still_covers_when_a_fifth_of_its_packets_are_lost(tmp_path):
     plan = tmp_path / "plan.json"
     # (without the closet escape, here and on the team: the test is of the links, and a
     # settled team's pricing of moves would take the robots' update budget)
-    no_escape = ["--strategy-params", "{escape: false}"]
-    assert plan_main(["--map", str(sandbox), "--robots", "4", "--seed", "5", *no_escape,
+    assert plan_main(["--map", str(sandbox), "--robots", "4", "--seed", "5", *NO_ESCAPE,
                       "--json", str(plan), "--quiet"]) == 0
     planned = json.loads(plan.read_text())["H"]
     with lossy_namespace(20) as ns:
         summary = run_team_in(ns, tmp_path / "team", [
             "--world", str(sandbox), "--robots", "4", "--duration", "60", "--rtf", "2",
-            "--seed", "5", "--no-markers", *no_escape, "--domain-id", str(domain_id(8))])
+            "--seed", "5", "--no-markers", *NO_ESCAPE, "--domain-id", str(domain_id(8))])
     m = summary["metrics"]
     print(f"20 % loss: H {m['H']:.2f} (start {m['H_start']:.2f}, plan {planned:.2f})")
     assert m["H"] <= 1.3 * planned, (m, planned)

@@ -9,7 +9,7 @@ import sys
 import time
 
 import pytest
-from conftest import entry_point
+from conftest import NO_ESCAPE, entry_point
 from rosutil import NodeProcess, RosClient, domain_id, spin_until_exit
 
 from coverage_ros.nodes import conversions as conv
@@ -28,7 +28,7 @@ def test_a_team_shows_in_rviz_markers_and_a_robot_that_leaves_is_cleared(tmp_pat
     proc = subprocess.Popen(
         [entry_point("coverage-team"), "--quiet", "--world", "empty",
          "--robots", "3", "--duration", "30", "--seed", "1", "--kill", "2@12", "--lockstep",
-         "--rtf", "2", "--strategy-params", "{escape: false}",  # (as in test_team.py)
+         "--rtf", "2", *NO_ESCAPE,
          "--out", str(out), "--domain-id", str(domain)],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
     try:

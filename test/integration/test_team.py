@@ -7,7 +7,7 @@ import subprocess
 
 import numpy as np
 import pytest
-from conftest import WORLDS, entry_point
+from conftest import NO_ESCAPE, WORLDS, entry_point
 from rosutil import domain_id
 from teamdiag import team_diagnosis
 
@@ -86,7 +86,7 @@ def test_a_lost_robots_area_is_absorbed_by_the_others(tmp_path):
     # spreading into the lost robot's cell, and a settled team's pricing of moves is most of
     # its CPU.)
     summary = run_team(tmp_path, "--robots", "4", "--duration", "60", "--seed", "2",
-                       "--kill", "1@25", "--lockstep", "--strategy-params", "{escape: false}",
+                       "--kill", "1@25", "--lockstep", *NO_ESCAPE,
                        offset=13)
     robots = {r["id"]: r for r in summary["robots"]}
     assert robots[1]["lost_at"] == pytest.approx(25.0, abs=0.2)

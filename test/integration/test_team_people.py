@@ -9,7 +9,7 @@ import subprocess
 
 import numpy as np
 import pytest
-from conftest import WORLDS, entry_point
+from conftest import NO_ESCAPE, WORLDS, entry_point
 from rosutil import RosClient, domain_id, ros_env
 
 from coverage_ros.core.geodesic.domain import CoverageDomain
@@ -91,7 +91,7 @@ def test_a_human_driven_robot_is_covered_around_and_rejoins(tmp_path):
     team = subprocess.Popen(
         [entry_point("coverage-team"), "--world", str(OFFICE), "--quiet",
          "--robots", "4", "--human", "0", "--starts", STARTS, "--duration", str(DURATION),
-         "--rtf", str(RTF), "--strategy-params", "{escape: false}",
+         "--rtf", str(RTF), *NO_ESCAPE,
          "--out", str(out), "--domain-id", str(domain)],
         env=ros_env(domain), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
         start_new_session=True)

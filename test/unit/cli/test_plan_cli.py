@@ -7,7 +7,7 @@ import subprocess
 
 import numpy as np
 import pytest
-from conftest import REPO, WORLDS, entry_point, shared_map
+from conftest import NO_ESCAPE, REPO, WORLDS, entry_point, shared_map
 
 from coverage_ros.cli.arguments import attach_values
 from coverage_ros.cli.plan import main
@@ -21,7 +21,7 @@ def plan(tmp_path_factory):
     # (the outputs of the default strategy; without its closet escape, which test_handover
     # checks and which would take most of the time here)
     code = main(["--map", str(WORLDS / "l_shape.yaml"), "--robots", "3", "--seed", "4",
-                 "--strategy-params", "{escape: false}",
+                 *NO_ESCAPE,
                  "--json", str(out / "p.json"), "--png", str(out / "p.png"),
                  "--record", str(out / "p.rrd"), "--quiet"])
     assert code == 0

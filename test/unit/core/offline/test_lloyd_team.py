@@ -7,7 +7,7 @@ import json
 
 import numpy as np
 import pytest
-from conftest import WORLDS
+from conftest import NO_ESCAPE, WORLDS
 
 from coverage_ros.cli.plan import main
 from coverage_ros.core.geodesic.domain import CoverageDomain
@@ -175,7 +175,7 @@ def test_geodesic_team_solver_reaches_the_decentralized_runs_cost(tmp_path):
     runs = {}
     for solver in ("decentralized", "lloyd", "accelerated"):
         out = tmp_path / f"{solver}.json"
-        params = ["--strategy-params", "{escape: false}"] if solver == "decentralized" else []
+        params = list(NO_ESCAPE) if solver == "decentralized" else []
         assert main(["--map", "l_shape", "--robots", "4", "--strategy", "geodesic", "--solver",
                      solver, *params, "--json", str(out), "--quiet"]) == 0
         runs[solver] = json.loads(out.read_text())

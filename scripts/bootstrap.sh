@@ -38,6 +38,17 @@ _stamp_ok() { [ -f "$STAMPS/$1" ] && [ "$(cat "$STAMPS/$1")" = "$2" ]; }
 
 _stamp_set() { mkdir -p "$STAMPS" && printf '%s' "$2" > "$STAMPS/$1"; }
 
+# The installer of the pinned dependencies, pinned too; COVERAGE_ROS_NO_UV=1: pip alone.
+UV_VERSION="0.13.9"
+
+_uv_ready() {  # uv in the venv (installed with pip), unless turned off or not to be had
+    [ -z "${COVERAGE_ROS_NO_UV:-}" ] || return 1
+    [ -x "$VENV/bin/uv" ] && [ "$("$VENV/bin/uv" --version 2>/dev/null)" = "uv $UV_VERSION" ] &&
+        return 0
+    "$VENV/bin/python" -m pip install --disable-pip-version-check -q "uv==$UV_VERSION" \
+        >"$VENV/uv-bootstrap.log" 2>&1 && [ -x "$VENV/bin/uv" ]
+}
+
 bootstrap_venv() {
     # Runtime and test/lint tools together: one requirement set, so no script ever reinstalls
     # another's (the dev tools are small).
@@ -59,16 +70,32 @@ bootstrap_venv() {
     local want
     want="$(_hash_of "${reqs[@]}")"
     if ! _stamp_ok requirements "$want"; then
-        _say "installing pinned dependencies from PyPI (first run: about 2 minutes)"
         local args=()
         local r
         for r in "${reqs[@]}"; do args+=(-r "$r"); done
-        # pip's output goes to a log: some machines' pip.conf makes it print many harmless warnings.
-        if ! "$VENV/bin/python" -m pip install --disable-pip-version-check "${args[@]}" \
-            >"$VENV/pip-install.log" 2>&1; then
-            tail -n 25 "$VENV/pip-install.log" >&2
-            _say "error: pip install failed (network? full log: $VENV/pip-install.log)"
-            return 1
+        # uv installs the same pinned set as pip, about five times faster (it links wheels from
+        # its cache and compiles byte-code in parallel); pip where uv cannot be had or fails
+        # (uv reads no pip.conf: a machine that reaches PyPI only through a mirror set there).
+        # The installers' output goes to logs: some machines' pip.conf makes pip print many
+        # harmless warnings.
+        local installed=""
+        if _uv_ready; then
+            _say "installing pinned dependencies from PyPI with uv (first run: about 30 s)"
+            if "$VENV/bin/uv" pip install --python "$VENV/bin/python" --compile-bytecode \
+                "${args[@]}" >"$VENV/uv-install.log" 2>&1; then
+                installed=uv
+            else
+                _say "uv could not install them (log: $VENV/uv-install.log); trying pip"
+            fi
+        fi
+        if [ -z "$installed" ]; then
+            _say "installing pinned dependencies from PyPI with pip (first run: about 2 minutes)"
+            if ! "$VENV/bin/python" -m pip install --disable-pip-version-check "${args[@]}" \
+                >"$VENV/pip-install.log" 2>&1; then
+                tail -n 25 "$VENV/pip-install.log" >&2
+                _say "error: pip install failed (network? full log: $VENV/pip-install.log)"
+                return 1
+            fi
         fi
         _stamp_set requirements "$want"
     fi

@@ -41,6 +41,30 @@ _stamp_set() { mkdir -p "$STAMPS" && printf '%s' "$2" > "$STAMPS/$1"; }
 # The installer of the pinned dependencies, pinned too; COVERAGE_ROS_NO_UV=1: pip alone.
 UV_VERSION="0.13.9"
 
+# Installs the pinned requirement files given into the venv: with uv, which installs the same
+# set as pip about five times faster (it links wheels from its cache and compiles byte-code in
+# parallel), else or where uv fails with pip (uv reads no pip.conf: a machine that reaches PyPI
+# only through a mirror set there). The installers' output goes to $VENV/uv-NAME.log and
+# pip-NAME.log: some machines' pip.conf makes pip print many harmless warnings.
+_install_requirements() {  # _install_requirements NAME FILE...
+    local name="$1"; shift
+    local args=() r
+    for r in "$@"; do args+=(-r "$r"); done
+    if _uv_ready; then
+        if "$VENV/bin/uv" pip install --python "$VENV/bin/python" --compile-bytecode \
+            "${args[@]}" >"$VENV/uv-$name.log" 2>&1; then
+            return 0
+        fi
+        _say "uv could not install them (log: $VENV/uv-$name.log); trying pip"
+    fi
+    if ! "$VENV/bin/python" -m pip install --disable-pip-version-check "${args[@]}" \
+        >"$VENV/pip-$name.log" 2>&1; then
+        tail -n 25 "$VENV/pip-$name.log" >&2
+        _say "error: pip install failed (network? full log: $VENV/pip-$name.log)"
+        return 1
+    fi
+}
+
 _uv_ready() {  # uv in the venv (installed with pip), unless turned off or not to be had
     [ -z "${COVERAGE_ROS_NO_UV:-}" ] || return 1
     [ -x "$VENV/bin/uv" ] && [ "$("$VENV/bin/uv" --version 2>/dev/null)" = "uv $UV_VERSION" ] &&
@@ -70,33 +94,9 @@ bootstrap_venv() {
     local want
     want="$(_hash_of "${reqs[@]}")"
     if ! _stamp_ok requirements "$want"; then
-        local args=()
-        local r
-        for r in "${reqs[@]}"; do args+=(-r "$r"); done
-        # uv installs the same pinned set as pip, about five times faster (it links wheels from
-        # its cache and compiles byte-code in parallel); pip where uv cannot be had or fails
-        # (uv reads no pip.conf: a machine that reaches PyPI only through a mirror set there).
-        # The installers' output goes to logs: some machines' pip.conf makes pip print many
-        # harmless warnings.
-        local installed=""
-        if _uv_ready; then
-            _say "installing pinned dependencies from PyPI with uv (first run: about 30 s)"
-            if "$VENV/bin/uv" pip install --python "$VENV/bin/python" --compile-bytecode \
-                "${args[@]}" >"$VENV/uv-install.log" 2>&1; then
-                installed=uv
-            else
-                _say "uv could not install them (log: $VENV/uv-install.log); trying pip"
-            fi
-        fi
-        if [ -z "$installed" ]; then
-            _say "installing pinned dependencies from PyPI with pip (first run: about 2 minutes)"
-            if ! "$VENV/bin/python" -m pip install --disable-pip-version-check "${args[@]}" \
-                >"$VENV/pip-install.log" 2>&1; then
-                tail -n 25 "$VENV/pip-install.log" >&2
-                _say "error: pip install failed (network? full log: $VENV/pip-install.log)"
-                return 1
-            fi
-        fi
+        _say "installing pinned dependencies from PyPI (first run: about 30 s with uv, 2 minutes" \
+             "with pip)"
+        _install_requirements install "${reqs[@]}" || return 1
         _stamp_set requirements "$want"
     fi
     # Editable install: console scripts in .venv/bin, sources used in place.
@@ -259,9 +259,9 @@ bootstrap_interfaces() {
         fi
     fi
     _say "building coverage_msgs and tf2_msgs into .venv (first run: about a minute)"
-    if ! "$VENV/bin/python" -m pip install --disable-pip-version-check -q \
-        -r "$COVERAGE_ROS_ROOT/requirements-interfaces.txt"; then
-        _say "error: installing the interface build tools failed (network?)"
+    if ! _install_requirements interface-tools "$COVERAGE_ROS_ROOT/requirements-interfaces.txt"
+    then
+        _say "error: installing the interface build tools failed"
         return 1
     fi
     if ! _build_interface coverage_msgs; then

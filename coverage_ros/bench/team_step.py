@@ -36,6 +36,7 @@ from coverage_ros.core.strategies import (
     SharedState,
     StrategyContext,
     make_strategy,
+    strategy_choice,
 )
 from coverage_ros.core.world import load_world
 from coverage_ros.worlds import resolve_world_path
@@ -97,7 +98,10 @@ def bench_team_step(rounds: int, per_round: int, say) -> dict:
         say(f"  {name} Lloyd: {r.steps} steps, H {r.cost:.5g}, within 0.1 % of the plain H after "
             f"{r.steps_within(ref_H)} steps, {walls[solver]:.2f} s")
     path = runs["lloyd"].positions
-    robots = [make_strategy("geodesic", StrategyContext(domain=domain, robot_id=i))
+    # The robots' own updates compute what the team step does (cell and control): without the
+    # closet escape, which once a robot settles also prices moves into its neighbours' cells.
+    plain = strategy_choice("geodesic", {"escape": False})
+    robots = [make_strategy(plain, StrategyContext(domain=domain, robot_id=i))
               for i in range(len(starts))]
     geo_team = GeodesicTeam(domain)
     drift = itertools.count(1)

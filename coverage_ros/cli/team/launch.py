@@ -3,10 +3,11 @@
     coverage-team --robots 6 --world office --strategy geodesic --duration 60 --record
 
 Starts ``world_node``, the robots' processes, ``marker_node`` (RViz markers; ``--no-markers``)
-and ``rerun_bridge`` (when recording or viewing) as separate processes, exactly as ``ros2 run``
-would, with discovery limited to this machine and a fresh ``ROS_DOMAIN_ID``; shows progress
-(sim time, coverage cost); stops everything in order at the end or on Ctrl-C; writes
-``<out>/summary.json`` and prints a table.
+and ``rerun_bridge`` (when recording or viewing) as separate processes running what ``ros2 run``
+would (the robots forked from a preloaded interpreter: :mod:`.forkserver`), with discovery
+limited to this machine and a fresh ``ROS_DOMAIN_ID``; shows progress (sim time, coverage
+cost); stops everything in order at the end or on Ctrl-C; writes ``<out>/summary.json`` and
+prints a table.
 """
 
 from __future__ import annotations
@@ -107,7 +108,7 @@ def run(plan: RunPlan) -> int:
     for note in plan.notes:
         print(f"coverage-team: {note}", file=sys.stderr, flush=True)
 
-    procs = ProcessSet(env, out / "logs")
+    procs = ProcessSet(env, out / "logs", fork_server=True)
     interrupted = False
     failure = None
     monitor = None

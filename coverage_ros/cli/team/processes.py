@@ -1,10 +1,13 @@
-"""Child processes of the team launcher: one per node, exactly what ``ros2 run`` would start.
+"""Child processes of the team launcher: one per node, what ``ros2 run`` would start.
 
-Every child runs in its own process group (so a Ctrl-C in the terminal reaches only the
-launcher, which then stops the children in order), asks the kernel to SIGTERM it if the
-launcher dies (Linux ``PR_SET_PDEATHSIG``; a child whose launcher died before it asked ends at
-once), and writes its output to a log file. Processes are
-stopped by PID/process group only: SIGINT (a clean rclpy shutdown), then SIGTERM, then SIGKILL.
+Robot processes (``robot_node``, ``robot_container``) come from the launcher's fork server
+(:mod:`.forkserver`) when one is asked for: the same executable with the same arguments and
+environment, forked from an interpreter with their code loaded. Every child runs in its own
+process group (so a Ctrl-C in the terminal reaches only the launcher, which then stops the
+children in order), asks the kernel to SIGTERM it if the launcher dies (Linux
+``PR_SET_PDEATHSIG``; a child whose launcher died before it asked ends at once), and writes its
+output to a log file. Processes are stopped by PID/process group only: SIGINT (a clean rclpy
+shutdown), then SIGTERM, then SIGKILL.
 """
 
 from __future__ import annotations
@@ -24,6 +27,8 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from coverage_ros.cli.team.forkserver import ForkedProcess, ForkServer, become_subreaper
+from coverage_ros.nodes.preloaded import MODULES as SERVED
 from coverage_ros.nodes.shm_ports import held_broken_ports, restarted_env
 
 PACKAGE = "coverage_ros"
@@ -91,7 +96,7 @@ def parameter_text(value) -> str:
 @dataclass
 class Child:
     name: str
-    popen: subprocess.Popen
+    popen: subprocess.Popen | ForkedProcess
     log: Path
     cmd: list[str]
     extra_env: dict[str, str] | None = None
@@ -104,10 +109,15 @@ class Child:
 class ProcessSet:
     """The launcher's children, started and stopped together."""
 
-    def __init__(self, env: dict[str, str], log_dir: Path) -> None:
+    def __init__(self, env: dict[str, str], log_dir: Path, fork_server: bool = False) -> None:
+        """``fork_server``: robot processes come from a fork server (:mod:`.forkserver`; this
+        process becomes a child subreaper for it, for good - the launcher's own process)."""
         self.env = env
         self.log_dir = log_dir
         self.children: dict[str, Child] = {}
+        self.server: ForkServer | None = None
+        if fork_server and become_subreaper():
+            self.server = ForkServer(env, log_dir / "forkserver.log", _child_setup(os.getpid()))
 
     def start(self, name: str, cmd: list[str], append: bool = False,
               extra_env: dict[str, str] | None = None) -> Child:
@@ -116,6 +126,14 @@ class ProcessSet:
         ``extra_env`` is added to the set's environment for this child only."""
         log = self.log_dir / f"{name}.log"
         env = {**self.env, **(extra_env or {})}
+        served = _served(cmd)
+        if self.server is not None and served is not None:
+            log.open("ab" if append else "wb").close()  # (there at once, as for the others)
+            forked = self.server.spawn(served[0], served[1], env, log)
+            if forked is not None:
+                child = Child(name, forked, log, list(cmd), extra_env)
+                self.children[name] = child
+                return child
         with open(log, "ab" if append else "wb") as fh:
             popen = subprocess.Popen(cmd, env=env, stdout=fh, stderr=subprocess.STDOUT,
                                      stdin=subprocess.DEVNULL, start_new_session=True,
@@ -190,6 +208,8 @@ class ProcessSet:
         for n in names:
             with contextlib.suppress(subprocess.TimeoutExpired):
                 self.children[n].popen.wait(timeout=1.0)
+        if self.server is not None and not any(c.alive for c in self.children.values()):
+            self.server.close()  # all stopped: the run is over (later ones would start anew)
 
     def failed(self) -> list[Child]:
         """Children that exited on their own with a non-zero code."""
@@ -202,6 +222,15 @@ class ProcessSet:
         except OSError:
             return ""
         return "\n".join(text[-lines:])
+
+
+def _served(cmd: list[str]) -> tuple[str, list[str]] | None:
+    """``(executable, sys.argv)`` of a command the fork server runs, else None."""
+    for name in SERVED:
+        prefix = executable(name)
+        if cmd[:len(prefix)] == prefix:
+            return name, [prefix[-1] if len(prefix) == 1 else name, *cmd[len(prefix):]]
+    return None
 
 
 class ProcessStats:

@@ -19,7 +19,8 @@ RESULTS = REPO / "docs" / "results"
 SCRIPTS = {"lockstep": "scripts/bench_lockstep", "team": "scripts/bench_team",
            "core": "scripts/bench_core", "explore": "scripts/bench_explore",
            "faults": "scripts/bench_faults", "papers": "scripts/bench_papers",
-           "planner": "scripts/bench_planner", "closets": "scripts/bench_closets"}
+           "planner": "scripts/bench_planner", "closets": "scripts/bench_closets",
+           "startup": "scripts/bench_startup"}
 PROVENANCE = ("machine", "cores", "python", "date", "commit", "command")
 #: Keys that say where a figure came from, not what it is: shown in the note under a table.
 QUIET = set(PROVENANCE) | {"note", "settings"}

@@ -108,7 +108,7 @@ def run(plan: RunPlan) -> int:
     for note in plan.notes:
         print(f"coverage-team: {note}", file=sys.stderr, flush=True)
 
-    procs = ProcessSet(env, out / "logs", fork_server=True)
+    procs = ProcessSet(env, out / "logs", fork_server=config.fork_server)
     interrupted = False
     failure = None
     monitor = None

@@ -97,6 +97,10 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--robots-per-process", type=int, default=None, metavar="K",
                     help="robots sharing one process (robot_container; default: 1 up to "
                     "8 robots per core, beyond that as many as make 2 processes per core)")
+    ap.add_argument("--no-fork-server", action="store_true",
+                    help="start every robot process as a new interpreter, as ros2 run does "
+                    "(default: forked from one that has loaded their code, which saves about "
+                    "1.2 s of CPU per robot process)")
     ap.add_argument("--kill", action="append", default=[], metavar="ID@SECONDS",
                     help="kill robot ID's process at that sim time (robot loss experiments)")
     ap.add_argument("--region", action="append", default=[], metavar="x,y;x,y;...",
@@ -164,6 +168,7 @@ class RunConfig:
     sensor_radius: float | None = None  # [m]
     robot_params: Mapping[str, object] = field(default_factory=lambda: MappingProxyType({}))
     robots_per_process: int | None = None
+    fork_server: bool = True  # robot processes forked from a preloaded interpreter
     kills: tuple[str, ...] = ()
     restarts: tuple[str, ...] = ()
     regions: tuple[str, ...] = ()  # region of interest polygons as given, "x,y;x,y;..."
@@ -267,7 +272,8 @@ def config_from_args(args: argparse.Namespace) -> RunConfig:
         state_rate=args.state_rate, clock_rate=clock_rate, odom_rate=odom_rate,
         sensor_radius=args.sensor_radius,
         robot_params=MappingProxyType(params),
-        robots_per_process=args.robots_per_process, kills=tuple(args.kill),
+        robots_per_process=args.robots_per_process, fork_server=not args.no_fork_server,
+        kills=tuple(args.kill),
         restarts=tuple(args.restart), regions=tuple(args.region), region=region,
         markers=not args.no_markers, stats=args.stats, remote_robots=args.remote_robots,
         discovery=discovery,

@@ -4,15 +4,15 @@ fork server (:mod:`coverage_ros.cli.team.forkserver` starts it and talks to it).
     python -m coverage_ros.nodes.preloaded LAUNCHER_PID
 
 loads :data:`MODULES`, then reads one JSON request per line on stdin - ``{"executable":
-"robot_node", "argv": [...], "env": {...}, "log": path}`` - and answers each with
-``{"pid": N}`` (or ``{"error": text}``) on stdout. The process started is what ``ros2 run
-coverage_ros <executable>`` would run - the module's ``main()`` with that ``sys.argv`` and
+"robot_node", "argv": [...], "env": {...}, "log": path, "name": "robot_3"}`` - and answers
+each with ``{"pid": N}`` (or ``{"error": text}``) on stdout. The process started is what ``ros2
+run coverage_ros <executable>`` would run - the module's ``main()`` with that ``sys.argv`` and
 environment - without an interpreter of its own to start and numpy, scipy and rclpy to import
 again (about 1.2 s of CPU per robot process). Forked twice, it is reparented to the launcher
 (a child subreaper), which waits for it as for its other children; like those it runs in a
 session of its own, asks for SIGTERM when the launcher dies (Linux ``PR_SET_PDEATHSIG``) and
-appends its output to its log file. This process only imports modules (no ROS context, no
-threads of its own), so forking it is safe.
+appends its output to its log file; ``name`` is what ``top`` shows for it. This process only
+imports modules (no ROS context, no threads of its own), so forking it is safe.
 """
 
 from __future__ import annotations
@@ -32,12 +32,12 @@ from typing import IO
 #: The executables served, by the module whose ``main()`` each one runs.
 MODULES = {"robot_node": "coverage_ros.nodes.robot_node",
            "robot_container": "coverage_ros.nodes.robot_container"}
-PR_SET_PDEATHSIG, PR_SET_CHILD_SUBREAPER = 1, 36  # linux/prctl.h
+PR_SET_PDEATHSIG, PR_SET_NAME, PR_SET_CHILD_SUBREAPER = 1, 15, 36  # linux/prctl.h
 #: [s] a forked process waits this long at most to be reparented to the launcher
 REPARENT_WAIT = 5.0
 
 
-def prctl(option: int, value: int) -> bool:
+def prctl(option: int, value: int | bytes) -> bool:
     with contextlib.suppress(Exception):
         return ctypes.CDLL("libc.so.6", use_errno=True).prctl(option, value) == 0
     return False
@@ -99,6 +99,8 @@ def _become(request: dict, launcher: int) -> None:
                 os._exit(0)
             time.sleep(0.001)
         prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
+        # its name in top and ps -o comm (its command line stays the server's)
+        prctl(PR_SET_NAME, str(request.get("name", request["executable"])).encode()[:15])
         if os.getppid() != launcher:  # the launcher died before the request: no signal comes
             os._exit(0)
         log = os.open(request["log"], os.O_WRONLY | os.O_CREAT | os.O_APPEND, 0o644)

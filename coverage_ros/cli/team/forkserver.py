@@ -69,14 +69,15 @@ class ForkServer:
                 start_new_session=True, preexec_fn=setup)
         self.broken = False
 
-    def spawn(self, executable: str, argv: list[str], env: dict[str, str], log: Path
-              ) -> ForkedProcess | None:
-        """A process running ``executable`` with ``argv`` (its ``sys.argv``) and ``env``,
-        output appended to ``log``; None if the server cannot start it (the caller starts it
-        anew)."""
+    def spawn(self, name: str, executable: str, argv: list[str], env: dict[str, str],
+              log: Path) -> ForkedProcess | None:
+        """Process ``name`` (as ``top`` shows it) running ``executable`` with ``argv`` (its
+        ``sys.argv``) and ``env``, output appended to ``log``; None if the server cannot start
+        it (the caller starts it anew)."""
         if self.broken or self.popen.poll() is not None:
             return None
-        request = {"executable": executable, "argv": argv, "env": env, "log": str(log)}
+        request = {"executable": executable, "argv": argv, "env": env, "log": str(log),
+                   "name": name}
         stdin, stdout = self.popen.stdin, self.popen.stdout
         assert stdin is not None and stdout is not None
         try:

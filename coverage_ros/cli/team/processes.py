@@ -129,7 +129,7 @@ class ProcessSet:
         served = _served(cmd)
         if self.server is not None and served is not None:
             log.open("ab" if append else "wb").close()  # (there at once, as for the others)
-            forked = self.server.spawn(served[0], served[1], env, log)
+            forked = self.server.spawn(name, served[0], served[1], env, log)
             if forked is not None:
                 child = Child(name, forked, log, list(cmd), extra_env)
                 self.children[name] = child

@@ -45,6 +45,7 @@ for served in (True, False):
         "refused_log": bad.log.read_text().strip().splitlines(),
         "parent_is_launcher": Path(f"/proc/{pid}/stat").read_text().split()[3] == str(os.getpid()),
         "own_session": os.getsid(pid) == pid,
+        "name": Path(f"/proc/{pid}/comm").read_text().strip(),
         "env": "executor: single" in robot.log.read_text(),
         "started": "robot 0: strategy" in robot.log.read_text(), "alive": robot.alive}
     procs.stop()
@@ -63,6 +64,7 @@ def test_a_forked_robot_process_is_what_the_launcher_would_have_started(tmp_path
     runs = json.loads(proc.stdout.strip().splitlines()[-1])
     served, started = runs["served"], runs["exec"]
     assert served["forked"] and not started["forked"]
+    assert served["name"] == "robot_0"  # (what top shows; a new interpreter's is "python")
     for run in (served, started):
         assert run["parent_is_launcher"] and run["own_session"] and run["env"], run
         assert run["started"] and run["alive"], run

@@ -36,7 +36,9 @@ RECOVERY = 120.0  # [s] sim time for H to come back after a restart
 SAMPLE_PERIOD = 5.0  # [s] wall
 
 
-def _process_name(cmdline: list[str]) -> str | None:
+def _process_name(cmdline: list[str], comm: str = "") -> str | None:
+    if comm.startswith(("robot_", "robots_")):  # forked by the launcher's fork server: its name
+        return comm
     text = " ".join(cmdline)
     for key in ("robot_node", "world_node", "rerun_bridge", "marker_node", "coverage-team"):
         if key in text:
@@ -93,7 +95,7 @@ def soak_section(duration: float, folder: Path, say, robots: int = 8, world: str
         with contextlib.suppress(psutil.Error):
             for proc in [parent, *parent.children(recursive=True)]:
                 with contextlib.suppress(psutil.Error):
-                    name = _process_name(proc.cmdline())
+                    name = _process_name(proc.cmdline(), proc.name())
                     if name is not None:
                         samples.setdefault((proc.pid, name), []).append(
                             (now - t0, proc.memory_info().rss / 2**20))

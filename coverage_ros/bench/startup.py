@@ -6,7 +6,8 @@ and started as new interpreters (``--no-fork-server``), in turn, ``--repeats`` t
 reports per setting the median CPU time of the launcher and everything it started [s] (the
 children's rusage: every process is reaped inside the launcher's tree), the median wall time
 of the whole command, their ratios, and whether the two ways gave the same summary
-(:func:`~coverage_ros.cli.team.summary.deterministic_part`). The last stdout line is JSON;
+(:func:`~coverage_ros.cli.team.summary.deterministic_part`), and how many robot processes
+were forked each way (the fork server's log). The last stdout line is JSON;
 the rows replace ``docs/results/startup.json``'s rows of the same setting.
 """
 
@@ -38,8 +39,10 @@ def children_cpu() -> float:
     return usage.ru_utime + usage.ru_stime
 
 
-def run(world: str, robots: int, forked: bool, out: Path) -> tuple[float, float, dict]:
-    """One launcher run: (CPU s, wall s, summary)."""
+def run(world: str, robots: int, forked: bool, out: Path
+        ) -> tuple[float, float, dict, int]:
+    """One launcher run: (CPU s, wall s, summary, how many robot processes the fork server
+    says it started)."""
     cmd = TEAM + ["--quiet", "--lockstep", "--no-markers", "--world", world, "--robots",
                   str(robots), "--duration", "1", "--out", str(out)]
     cmd += [] if forked else ["--no-fork-server"]
@@ -48,7 +51,9 @@ def run(world: str, robots: int, forked: bool, out: Path) -> tuple[float, float,
     wall, cpu = time.monotonic() - wall0, children_cpu() - cpu0
     if proc.returncode != 0:
         raise RuntimeError(f"{' '.join(cmd)} failed:\n{proc.stderr[-2000:]}")
-    return cpu, wall, json.loads((out / "summary.json").read_text())
+    log = out / "logs" / "forkserver.log"
+    return cpu, wall, json.loads((out / "summary.json").read_text()), \
+        log.read_text().count(" is process ") if log.exists() else 0
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -64,7 +69,7 @@ def main(argv: list[str] | None = None) -> int:
         for k, (world, robots) in enumerate(SETTINGS):
             if args.only and k not in args.only:
                 continue
-            runs: dict[bool, list[tuple[float, float, dict]]] = {True: [], False: []}
+            runs: dict[bool, list[tuple[float, float, dict, int]]] = {True: [], False: []}
             for r in range(args.repeats):
                 for forked in (True, False):
                     out = Path(tmp) / f"{k}-{r}-{int(forked)}"
@@ -73,8 +78,8 @@ def main(argv: list[str] | None = None) -> int:
                           f"{'forked' if forked else 'new interpreters'}: "
                           f"{runs[forked][-1][0]:.2f} CPU-s, {runs[forked][-1][1]:.2f} s wall",
                           file=sys.stderr, flush=True)
-            cpu = {f: statistics.median(c for c, _, _ in runs[f]) for f in runs}
-            wall = {f: statistics.median(w for _, w, _ in runs[f]) for f in runs}
+            cpu = {f: statistics.median(r[0] for r in runs[f]) for f in runs}
+            wall = {f: statistics.median(r[1] for r in runs[f]) for f in runs}
             diff = differences(deterministic_part(runs[True][0][2]),
                                deterministic_part(runs[False][0][2]))
             rows.append({"world": Path(world).stem, "robots": robots,
@@ -84,7 +89,8 @@ def main(argv: list[str] | None = None) -> int:
                          "wall_s_forked": round(wall[True], 2),
                          "wall_s_new_interpreters": round(wall[False], 2),
                          "wall_ratio": round(wall[True] / wall[False], 3),
-                         "same_summary": not diff, "repeats": args.repeats})
+                         "same_summary": not diff, "repeats": args.repeats,
+                         "forked_processes": [runs[f][0][3] for f in (True, False)]})
             print(f"[bench_startup] {Path(world).stem} x {robots}: CPU "
                   f"{rows[-1]['cpu_ratio']:.2f}x, wall {rows[-1]['wall_ratio']:.2f}x of new "
                   f"interpreters; same summary: {diff or 'yes'}",

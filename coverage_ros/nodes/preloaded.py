@@ -11,8 +11,18 @@ environment - without an interpreter of its own to start and numpy, scipy and rc
 again (about 1.2 s of CPU per robot process). Forked twice, it is reparented to the launcher
 (a child subreaper), which waits for it as for its other children; like those it runs in a
 session of its own, asks for SIGTERM when the launcher dies (Linux ``PR_SET_PDEATHSIG``) and
-appends its output to its log file; ``name`` is what ``top`` shows for it. This process only
-imports modules (no ROS context, no threads of its own), so forking it is safe.
+appends its output to its log file; ``name`` is what ``top`` shows for it, and this server's
+output (``forkserver.log`` in the run's logs) names each process it started.
+
+This process has no ROS context and runs no code between requests. What its imports leave
+running is idle when it forks: OpenBLAS stops its thread pools around a fork (its own
+``pthread_atfork`` handlers), and the two native threads that loading rclpy's libraries
+starts wait on a condition (a forked process has only the thread that forked it). A forked
+process reads the environment it is given wherever rcl, Fast DDS and the nodes read theirs (at
+start-up, after the fork); only what the interpreter and the imports read at their start
+(``PYTHON*``, ``OPENBLAS_NUM_THREADS``) is the server's - the launcher's. It ends as the
+interpreter would, with the exit functions run and the output flushed, but without waiting
+for non-daemon threads (the nodes' threads are daemons).
 """
 
 from __future__ import annotations
@@ -60,8 +70,9 @@ def serve(launcher: int, requests: IO[bytes], replies: IO[bytes]) -> int:
 
 
 def _spawn(request: dict, launcher: int) -> int:
-    """Fork twice: the grandchild becomes the process asked for, the child exits at once (so
-    the grandchild is reparented to the launcher); the grandchild's PID."""
+    """Fork twice: the grandchild becomes the process asked for and sends its PID once it
+    leads a session of its own (a signal to its process group reaches it from then on); the
+    child exits at once, so that the grandchild is reparented to the launcher. The PID."""
     if request["executable"] not in MODULES:
         raise KeyError(f"not served here: {request['executable']}")
     sys.stdout.flush()
@@ -71,20 +82,26 @@ def _spawn(request: dict, launcher: int) -> int:
     if middle == 0:
         try:
             os.close(read)
-            pid = os.fork()
-            if pid == 0:
-                os.close(write)
-                _become(request, launcher)
-            os.write(write, str(pid).encode())
+            if os.fork() == 0:
+                try:
+                    os.setsid()
+                    os.write(write, str(os.getpid()).encode())
+                    os.close(write)
+                    _become(request, launcher)
+                finally:
+                    os._exit(1)  # (what _become's own handling let through)
         finally:
             os._exit(0)
     os.close(write)
     with os.fdopen(read, "rb") as fh:
-        text = fh.read()
+        text = fh.read()  # (until the grandchild has closed its end)
     os.waitpid(middle, 0)
     if not text:
         raise OSError("fork failed")
-    return int(text)
+    pid = int(text)
+    print(f"preloaded: {request.get('name', request['executable'])} is process {pid}",
+          file=sys.stderr, flush=True)
+    return pid
 
 
 def _become(request: dict, launcher: int) -> None:
@@ -92,7 +109,6 @@ def _become(request: dict, launcher: int) -> None:
     executable's ``main()`` and exit as the interpreter would (never returns)."""
     code: int = 1
     try:
-        os.setsid()
         deadline = time.monotonic() + REPARENT_WAIT
         while os.getppid() != launcher:
             if time.monotonic() > deadline:

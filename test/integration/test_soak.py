@@ -45,6 +45,7 @@ def test_a_team_whose_robots_restart_keeps_covering_with_flat_memory_and_logs(tm
     # Short lives: the restarted robots' and everyone's memory may still settle; a leak of a
     # megabyte per second (the size of a map copy every few seconds) would show as > 30 %.
     assert r["rss_growth"] is not None and r["rss_growth"] < 0.3, r["rss_growth_per_process"]
+    assert {k.split("[")[0] for k in r["rss_growth_per_process"]} >= {"robot_2", "robot_3"}
     # Logs: no steady stream of lines (start-up writes most; the second half adds little).
     assert r["log_bytes_second_half"] <= max(r["log_bytes_first_half"], 20_000), r
     # Each restarted robot rejoined in real time: nobody counts it lost, and its second process

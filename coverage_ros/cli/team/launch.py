@@ -108,7 +108,8 @@ def run(plan: RunPlan) -> int:
     for note in plan.notes:
         print(f"coverage-team: {note}", file=sys.stderr, flush=True)
 
-    procs = ProcessSet(env, out / "logs", fork_server=config.fork_server)
+    procs = ProcessSet(env, out / "logs", fork_server=config.fork_server and any(
+        p.ids[0] not in plan.remote for p in plan.processes))
     interrupted = False
     failure = None
     monitor = None
@@ -159,7 +160,7 @@ def run(plan: RunPlan) -> int:
         _close_viewer(procs, say, interrupted or failure is not None)
         return code
     finally:
-        procs.stop()
+        procs.close()
         if monitor is not None:
             monitor.destroy_node()
         rclpy.try_shutdown()

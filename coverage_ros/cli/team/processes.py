@@ -13,12 +13,12 @@ shutdown), then SIGTERM, then SIGKILL.
 from __future__ import annotations
 
 import contextlib
-import ctypes
 import json
 import os
 import signal
 import subprocess
 import sys
+import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -29,10 +29,10 @@ import yaml
 
 from coverage_ros.cli.team.forkserver import ForkedProcess, ForkServer, become_subreaper
 from coverage_ros.nodes.preloaded import MODULES as SERVED
+from coverage_ros.nodes.preloaded import PR_SET_PDEATHSIG, prctl
 from coverage_ros.nodes.shm_ports import held_broken_ports, restarted_env
 
 PACKAGE = "coverage_ros"
-PR_SET_PDEATHSIG = 1  # linux/prctl.h
 
 
 def _child_setup(parent: int) -> Callable[[], None]:
@@ -40,9 +40,7 @@ def _child_setup(parent: int) -> Callable[[], None]:
     ``parent`` (the launcher's PID) dies."""
 
     def setup() -> None:
-        with contextlib.suppress(Exception):
-            libc = ctypes.CDLL("libc.so.6", use_errno=True)
-            libc.prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
+        prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
         if os.getppid() != parent:  # the launcher died before the request: no signal comes
             os._exit(0)
 
@@ -58,9 +56,7 @@ def executable(name: str) -> list[str]:
         path = Path(get_package_prefix(PACKAGE)) / "lib" / PACKAGE / name
         if path.is_file() and os.access(path, os.X_OK):
             return [str(path)]
-    modules = {"world_node": "coverage_ros.nodes.world_node",
-               "robot_node": "coverage_ros.nodes.robot_node",
-               "robot_container": "coverage_ros.nodes.robot_container",
+    modules = {**SERVED, "world_node": "coverage_ros.nodes.world_node",
                "rerun_bridge": "coverage_ros.nodes.rerun_bridge",
                "marker_node": "coverage_ros.nodes.marker_node"}
     return [sys.executable, "-m", modules[name]]
@@ -111,13 +107,20 @@ class ProcessSet:
 
     def __init__(self, env: dict[str, str], log_dir: Path, fork_server: bool = False) -> None:
         """``fork_server``: robot processes come from a fork server (:mod:`.forkserver`; this
-        process becomes a child subreaper for it, for good - the launcher's own process)."""
+        process is a child subreaper until :meth:`close`), else - or if it cannot be had -
+        each from its executable."""
         self.env = env
         self.log_dir = log_dir
         self.children: dict[str, Child] = {}
         self.server: ForkServer | None = None
         if fork_server and become_subreaper():
-            self.server = ForkServer(env, log_dir / "forkserver.log", _child_setup(os.getpid()))
+            try:
+                self.server = ForkServer(env, log_dir / "forkserver.log",
+                                         _child_setup(os.getpid()))
+            except OSError as exc:
+                become_subreaper(False)
+                print(f"coverage-team: no fork server ({exc}): robot processes start as new "
+                      "interpreters", file=sys.stderr, flush=True)
 
     def start(self, name: str, cmd: list[str], append: bool = False,
               extra_env: dict[str, str] | None = None) -> Child:
@@ -129,11 +132,12 @@ class ProcessSet:
         served = _served(cmd)
         if self.server is not None and served is not None:
             log.open("ab" if append else "wb").close()  # (there at once, as for the others)
-            forked = self.server.spawn(name, served[0], served[1], env, log)
-            if forked is not None:
-                child = Child(name, forked, log, list(cmd), extra_env)
-                self.children[name] = child
-                return child
+            with _signals_held():  # (the process is known once it exists)
+                forked = self.server.spawn(name, served[0], served[1], env, log)
+                if forked is not None:
+                    child = Child(name, forked, log, list(cmd), extra_env)
+                    self.children[name] = child
+                    return child
         with open(log, "ab" if append else "wb") as fh:
             popen = subprocess.Popen(cmd, env=env, stdout=fh, stderr=subprocess.STDOUT,
                                      stdin=subprocess.DEVNULL, start_new_session=True,
@@ -208,8 +212,14 @@ class ProcessSet:
         for n in names:
             with contextlib.suppress(subprocess.TimeoutExpired):
                 self.children[n].popen.wait(timeout=1.0)
-        if self.server is not None and not any(c.alive for c in self.children.values()):
-            self.server.close()  # all stopped: the run is over (later ones would start anew)
+
+    def close(self) -> None:
+        """Stop every child, then the fork server; this process is no subreaper any more."""
+        self.stop()
+        if self.server is not None:
+            self.server.close()
+            self.server = None
+            become_subreaper(False)
 
     def failed(self) -> list[Child]:
         """Children that exited on their own with a non-zero code."""
@@ -222,6 +232,29 @@ class ProcessSet:
         except OSError:
             return ""
         return "\n".join(text[-lines:])
+
+
+@contextlib.contextmanager
+def _signals_held():
+    """SIGINT and SIGTERM handled after the block instead of within it (in the main thread,
+    where Python runs signal handlers; elsewhere the block runs as it is)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    held: list[int] = []
+    before = {sig: signal.signal(sig, lambda signum, _frame: held.append(signum))
+              for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for sig, handler in before.items():
+            signal.signal(sig, handler)
+        for signum in dict.fromkeys(held):
+            handler = before[signal.Signals(signum)]
+            if callable(handler):
+                handler(signum, None)
+            elif handler == signal.SIG_DFL:
+                os.kill(os.getpid(), signum)
 
 
 def _served(cmd: list[str]) -> tuple[str, list[str]] | None:

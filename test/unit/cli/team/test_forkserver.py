@@ -48,10 +48,13 @@ for served in (True, False):
         "name": Path(f"/proc/{pid}/comm").read_text().strip(),
         "env": "executor: single" in robot.log.read_text(),
         "started": "robot 0: strategy" in robot.log.read_text(), "alive": robot.alive}
-    procs.stop()
+    server = procs.server
+    procs.close()
+    log = folder / "forkserver.log"
     out["served" if served else "exec"].update(
-        stopped_code=robot.popen.returncode,
-        server_closed=procs.server is None or procs.server.popen.poll() is not None)
+        stopped_code=robot.popen.returncode, pid=pid,
+        server_closed=server is None or server.popen.poll() is not None,
+        server_log=log.read_text() if log.exists() else None)
 print(json.dumps(out))
 """
 
@@ -72,4 +75,5 @@ def test_a_forked_robot_process_is_what_the_launcher_would_have_started(tmp_path
         assert "strategy: unknown strategy" in run["refused_log"][0]
         assert run["stopped_code"] == 0 and run["server_closed"], run
     assert served["refused_log"] == started["refused_log"]
-    assert (tmp_path / "served" / "forkserver.log").read_text() == ""
+    assert f"robot_0 is process {served['pid']}" in served["server_log"]
+    assert "robot_5 is process" in served["server_log"] and started["server_log"] is None

@@ -80,8 +80,9 @@ class ForkServer:
         """Process ``name`` (as ``top`` shows it) running ``executable`` with ``argv`` (its
         ``sys.argv``) and ``env``, output appended to ``log``; None if the server cannot start
         it (the caller starts it anew; the server is not asked again). Call it with SIGINT and
-        SIGTERM blocked: a request answered but never read would leave a process nobody
-        knows of and the next answer out of step."""
+        SIGTERM held until the process is recorded (:class:`~.processes.ProcessSet` does): a
+        request answered but never read would leave a process nobody knows of and the next
+        answer out of step."""
         if self.broken or self.popen.poll() is not None:
             return None
         request = {"executable": executable, "argv": argv, "env": env, "log": str(log),

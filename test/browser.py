@@ -4,7 +4,9 @@ opens the rerun web viewer and hands back what the viewer holds, for tests."""
 from __future__ import annotations
 
 import base64
+import contextlib
 import shutil
+import threading
 import time
 from pathlib import Path
 
@@ -23,6 +25,10 @@ try {
   done('error: ' + e);
 }
 """
+
+
+#: [s] the browser gets this long to quit; then it and its driver are killed
+QUIT_WAIT = 30.0
 
 
 def chromium_paths() -> tuple[str, str]:
@@ -55,7 +61,23 @@ class HeadlessViewer:
         return self
 
     def __exit__(self, *exc) -> None:
-        self.driver.quit()
+        """Quit the browser; one that has not quit within :data:`QUIT_WAIT` (on a loaded
+        machine chromedriver once did not answer for ten minutes) is killed by PID with its
+        driver, which this viewer started, and every process the driver started."""
+        import psutil
+
+        tree: list[psutil.Process] = []
+        with contextlib.suppress(psutil.Error, AttributeError):
+            root = psutil.Process(self.driver.service.process.pid)
+            tree = [root, *root.children(recursive=True)]
+        quitter = threading.Thread(target=self.driver.quit, daemon=True)
+        quitter.start()
+        quitter.join(QUIT_WAIT)
+        if quitter.is_alive():
+            for proc in tree:
+                with contextlib.suppress(psutil.Error):
+                    proc.kill()
+            quitter.join(QUIT_WAIT)
 
     def wait_started(self, timeout: float = 240.0) -> None:
         """Until the wasm app runs (its handle exists), or raise with the page's last words.

@@ -20,9 +20,12 @@ def test_targets_follow_median_worst_and_gap():
     assert met["worst_case_within_0.1%_no_slower_than_plain"]  # worst 70 / 100
     assert not met["worst_case_no_slower_than_plain"]  # 110 steps to converge against 100
     assert met["never_more_than_0.1%_above_plain_H"]
+    assert summarize(rows)["above_0.1%"] == 0
     rows.append(_row(100, 90, 101, 0.0011))
-    met = summarize(rows)["targets_met"]
+    summary = summarize(rows)
+    met = summary["targets_met"]
     assert not met["never_more_than_0.1%_above_plain_H"]  # +0.11 %
+    assert summary["above_0.1%"] == 1
     assert not met["worst_case_within_0.1%_no_slower_than_plain"]
     assert not met["median_within_0.1%_in_half_plain_steps"]  # median (45 + 70) / 2 / 100
 

@@ -19,12 +19,15 @@ The cases go into the results file under ``--label`` (default ``live``) with the
 settings (the duration); a live end lower than every restart's is the best known H (a
 configuration's H does not depend on how it was found). A run's folder (world
 file, node logs, summary) is deleted once its map is done unless ``--keep DIR`` keeps it as
-``DIR/<map>/seed-<k>``, with ``--record`` also a recording to watch in the rerun viewer.
+``DIR/<map>/seed-<k>``, with ``--record`` also a recording to watch in the rerun viewer; the
+folder of a run that fails is kept either way (the error names it: the world's and the robots'
+logs say why).
 """
 
 from __future__ import annotations
 
 import json
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -87,8 +90,9 @@ def run_case(name: str, seed: int, args, folder: Path, duration: float) -> dict:
     t0 = time.perf_counter()
     proc = subprocess.run(TEAM + cmd, capture_output=True, text=True, timeout=duration / MIN_RTF)
     if proc.returncode != 0:
-        raise RuntimeError(f"coverage-team {' '.join(cmd)} failed ({proc.returncode}):\n"
-                           f"{proc.stderr[-2000:]}")
+        kept = folder if getattr(args, "keep", None) is not None else keep_failed(folder)
+        raise RuntimeError(f"coverage-team {' '.join(cmd)} failed ({proc.returncode}); its "
+                           f"world file and logs are in {kept}:\n{proc.stderr[-2000:]}")
     summary = json.loads((out / "summary.json").read_text())
     specs = [world.robot_spec(i) for i in range(args.robots)]
     domain = world_domain(world, max(s.radius for s in specs))
@@ -103,6 +107,14 @@ def run_case(name: str, seed: int, args, folder: Path, duration: float) -> dict:
             "collisions": int(sum(r["collisions"] for r in summary["robots"])),
             "masses": np.round(masses, 4).tolist(), "positions": np.round(final, 3).tolist(),
             "all_free": bool(all(domain.is_free_point(p) for p in final))}
+
+
+def keep_failed(folder: Path) -> Path:
+    """A copy of a failed run's ``folder`` outside the benchmark's temporary folder, which is
+    deleted when the benchmark ends."""
+    kept = Path(tempfile.mkdtemp(prefix=f"bench-closets-failed-{folder.parent.name}-"))
+    shutil.copytree(folder, kept / folder.name)
+    return kept / folder.name
 
 
 def within_at(series: list, H_best: float, share: float = TARGET - 1.0) -> float | None:

@@ -3,9 +3,14 @@
 from __future__ import annotations
 
 import json
+import shutil
+import sys
 from collections import Counter
+from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
+import pytest
 import yaml
 
 from coverage_ros.bench.closet_maps import (
@@ -214,3 +219,26 @@ def test_a_wrong_option_is_refused_in_one_line_before_anything_runs(tmp_path, ca
     assert main(["--label", "x", "--live", "--record", "--json", str(out)]) == 2
     assert "--record" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_a_failed_live_run_keeps_its_folder_and_names_it(tmp_path, monkeypatch):
+    """The benchmark's temporary folder goes when it ends; a failed run's world file and logs
+    stay where the error says."""
+    from coverage_ros.bench import closets_live
+
+    fail = "import pathlib, sys; a = sys.argv; o = pathlib.Path(a[a.index('--out') + 1]); " \
+        "(o / 'logs').mkdir(parents=True); (o / 'logs' / 'world.log').write_text('stuck'); " \
+        "sys.exit('no tick')"
+    monkeypatch.setattr(closets_live, "TEAM", [sys.executable, "-c", fail])
+    args = SimpleNamespace(robots=2, resolution=RESOLUTION, until_settled=0, params=None,
+                           keep=None)
+    folder = tmp_path / "ward" / "seed-1"
+    with pytest.raises(RuntimeError, match="no tick") as failed:
+        closets_live.run_case("ward", 1, args, folder, 10.0)
+    kept = Path(str(failed.value).split(" are in ")[1].split(":\n")[0])
+    try:
+        assert not kept.is_relative_to(tmp_path)
+        assert (kept / "ward-1" / "logs" / "world.log").read_text() == "stuck"
+        assert (kept / "ward.yaml").is_file()
+    finally:
+        shutil.rmtree(kept.parent)

@@ -43,6 +43,9 @@ def value_text(value: object) -> str:
     if isinstance(value, float):
         return f"{value:.0f}" if abs(value) >= 1000 else f"{value:.4g}"
     if isinstance(value, list):
+        if len(value) > 3 and all(type(v) is int for v in value) and \
+                value == list(range(value[0], value[0] + len(value))):
+            return f"{value[0]} to {value[-1]} ({len(value)})"  # (a sweep's seeds)
         return ", ".join(value_text(v) for v in value) if value else "-"
     if isinstance(value, dict):
         return "; ".join(f"{k} {value_text(v)}" for k, v in value.items())

@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 
 from coverage_ros.bench import results
+from coverage_ros.docgen.results import value_text
 
 
 def test_a_row_replaces_the_same_settings_row_and_keeps_the_others(tmp_path, monkeypatch):
@@ -29,3 +30,10 @@ def test_a_harness_run_by_a_test_writes_no_results_file(tmp_path, monkeypatch):
     results.write_results("t", {"x": 1}, [])
     results.update_rows("u", [{"x": 1}], ("x",), [])
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_table_shows_a_run_of_consecutive_seeds_as_its_ends():
+    assert value_text(list(range(5000, 5300))) == "5000 to 5299 (300)"
+    assert value_text([1, 2, 3]) == "1, 2, 3"
+    assert value_text([1000, 1001, 1003, 1004]) == "1000, 1001, 1003, 1004"
+    assert value_text([0.5, 1.5]) == "0.5, 1.5"

@@ -32,6 +32,9 @@ from coverage_ros.nodes.qos import REPORT_QOS, TICK_QOS
 RESEND = 1.0
 #: [s] wall time between looks at the barrier (timeouts, the start, pacing).
 POLL = 0.01
+#: [s] wall time a tick waits for members still working before the log says which, and again
+#: every as long after (a coverage update that long is waited for, its robot is not silent).
+HELD_LOG = 60.0
 
 
 @dataclass(frozen=True)
@@ -85,6 +88,7 @@ class WorldLockstep:
         self._scanned: set[int] = set()
         self._anchor: tuple[float, float] | None = None  # (wall, sim) once started
         self._said_waiting = 0.0
+        self._said_held = 0.0  # [s] wall time of the last line on a held tick
         node.create_timer(POLL, self._poll, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self._publish_tick(TickPlan(0, (), (), ()), status=True)
 
@@ -134,6 +138,13 @@ class WorldLockstep:
             self._log(text, warn=True)
         if not self._try_advance(now) and (now - self.sent.at >= RESEND or self._forgotten()):
             self._resend(now)
+            self._say_held(now)
+
+    def _say_held(self, now: float) -> None:
+        b = self.barrier
+        if b.started and now - b.opened >= HELD_LOG and now - self._said_held >= HELD_LOG:
+            self._said_held = now
+            self._log(b.held(now))
 
     def _forgotten(self) -> bool:
         """Whether a member dropped since the tick went out had answered the tick before (the

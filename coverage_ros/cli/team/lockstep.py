@@ -17,7 +17,7 @@ from functools import partial
 from coverage_msgs.msg import LockstepReport, LockstepTick, RobotState
 
 from coverage_ros.core.lockstep import Inbox, Tick
-from coverage_ros.core.lockstep.barrier import DONE, JOIN, WORKING
+from coverage_ros.core.lockstep.barrier import DONE, JOIN, LEAVE, WORKING
 from coverage_ros.nodes import conversions as conv
 from coverage_ros.nodes.qos import LOCKSTEP_STATE_QOS, REPORT_QOS, TICK_QOS, quiet_subscription
 from coverage_ros.nodes.shm_ports import startup_hint
@@ -26,6 +26,8 @@ from coverage_ros.nodes.shm_ports import startup_hint
 OBSERVER = "coverage_team"
 #: [s] wall time between the monitor's JOIN or WORKING reports.
 BEAT = 0.5
+#: [s] wall time a robot's WORKING report counts as news (robots send one every second).
+WORKING_FRESH = 5.0
 
 
 class LockstepObserver:
@@ -39,6 +41,12 @@ class LockstepObserver:
         self.report_pub = node.create_publisher(LockstepReport, "/world/tick_report",
                                                 REPORT_QOS)
         node.create_subscription(LockstepTick, "/world/tick", self._on_tick, TICK_QOS)
+        # the robots' reports: which of them a tick that does not come waits for
+        node.create_subscription(LockstepReport, "/world/tick_report", self._on_report,
+                                 REPORT_QOS)
+        #: robot id -> (tick, wall time [s]) of its newest WORKING report not yet followed
+        #: by its DONE
+        self.working: dict[int, tuple[int, float]] = {}
         self._pending: deque[Tick] = deque()
         self.handled = -1  # newest tick answered
         self.listed = False  # the world lists the monitor
@@ -79,6 +87,21 @@ class LockstepObserver:
 
     def _report(self, kind: int, tick: int) -> None:
         self.report_pub.publish(conv.report_msg(kind, tick, observer=OBSERVER))
+
+    def _on_report(self, msg: LockstepReport) -> None:
+        rid = int(msg.robot_id)
+        if rid < 0:
+            return
+        if msg.kind == WORKING:
+            self.working[rid] = (int(msg.tick), time.monotonic())
+        elif msg.kind in (DONE, LEAVE):
+            self.working.pop(rid, None)
+
+    def working_on(self, now: float) -> list[int]:
+        """Robots that reported within :data:`WORKING_FRESH` that they still work on the tick
+        the monitor answered last (the one the world holds), sorted."""
+        return sorted(rid for rid, (tick, at) in self.working.items()
+                      if tick >= self.handled and now - at <= WORKING_FRESH)
 
     def beat(self) -> None:
         """JOIN until listed; then WORKING while a tick is held (call often)."""
@@ -129,9 +152,16 @@ EXPLORE_PERIOD = 1.0
 EVIDENCE_TIMEOUT = 10.0
 #: [s] wall time between looks at the launcher's children (whether one exited).
 CHECK_PERIOD = 0.2
-#: [s] wall time without a new tick after which a started team is given up (the world drops a
-#: silent robot after 10 s, so only a stuck world or a lost link to it gets here).
+#: [s] wall time without a new tick after which a started team is given up when no robot
+#: reports working on the tick (the world drops a silent robot after 10 s: a stuck world or a
+#: lost link to it).
 STALL_TIMEOUT = 300.0
+#: [s] wall time a tick is waited for while robots report working on it (a long coverage update:
+#: a closet escape pricing moves on a large map, on a crowded host, takes minutes); past it the
+#: team is given up, naming them.
+HELD_TIMEOUT = 3600.0
+#: [s] wall time between the lines that say which robots a held tick waits for.
+HELD_NOTICE = 60.0
 
 
 def run_lockstep(monitor, observer: LockstepObserver, startup_timeout: float,
@@ -147,7 +177,7 @@ def run_lockstep(monitor, observer: LockstepObserver, startup_timeout: float,
     end = next_metrics = next_explore = math.inf
     ready: float | None = None  # [s] sim time the team was ready
     last_progress = last_check = 0.0
-    last_tick = t0  # [s] wall time the last tick arrived
+    last_tick = last_notice = t0  # [s] wall time the last tick arrived, the last held line
     while True:
         rclpy.spin_once(monitor, timeout_sec=0.02)
         observer.beat()
@@ -166,10 +196,8 @@ def run_lockstep(monitor, observer: LockstepObserver, startup_timeout: float,
                 raise RuntimeError(f"the world's lock-step did not list robots "
                                    f"{sorted(set(monitor.alive()))} within "
                                    f"{startup_timeout:g} s (see their logs){startup_hint()}")
-            if ready is not None and now - last_tick > STALL_TIMEOUT:
-                raise RuntimeError(f"the world's lock-step made no tick for "
-                                   f"{STALL_TIMEOUT:g} s of wall time after sim time "
-                                   f"{log.sim_time:.2f} s (see the world's log)")
+            if ready is not None:
+                last_notice = _held(monitor, observer, now, now - last_tick, last_notice)
             continue
         last_tick = now
         log.sim_time = max(log.sim_time, tick.time)
@@ -211,6 +239,29 @@ def run_lockstep(monitor, observer: LockstepObserver, startup_timeout: float,
         if now - last_progress >= progress_period:
             last_progress = now
             monitor.progress()
+
+
+def _held(monitor, observer: LockstepObserver, now: float, held: float,
+          last_notice: float) -> float:
+    """A tick that has not come for ``held`` [s] of wall time: a line every
+    :data:`HELD_NOTICE` naming the robots it waits for, RuntimeError once it is given up
+    (:data:`STALL_TIMEOUT`, :data:`HELD_TIMEOUT`); returns when the last line was said."""
+    working = observer.working_on(now)
+    sim = monitor.log.sim_time
+    if held > STALL_TIMEOUT and not working:
+        raise RuntimeError(f"the world's lock-step made no tick for {STALL_TIMEOUT:g} s of "
+                           f"wall time after sim time {sim:.2f} s, and no robot reports working "
+                           "on it (see the world's log)")
+    if held > HELD_TIMEOUT:
+        raise RuntimeError(f"the world's lock-step made no tick for {HELD_TIMEOUT:g} s of "
+                           f"wall time after sim time {sim:.2f} s while robots {working} "
+                           "reported working on their update (see their logs)")
+    if held >= HELD_NOTICE and now - last_notice >= HELD_NOTICE:
+        who = f"robots {working}" if working else "no robot"
+        monitor.say(f"\n  sim time {sim:.2f} s: no tick for {held:.0f} s of wall time; "
+                    f"{who} reported working on it")
+        return now
+    return last_notice
 
 
 def _wait_states(monitor, observer: LockstepObserver, tick: Tick) -> None:

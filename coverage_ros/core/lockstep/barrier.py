@@ -109,6 +109,15 @@ class Barrier:
         """Members that have not answered the current tick, sorted."""
         return sorted(m for m, s in self._members.items() if s.answer is None)
 
+    def held(self, now: float, shown: int = 5) -> str:
+        """A line on how long the current tick has waited at wall time ``now`` [s] and for
+        whom (the first ``shown`` members owing)."""
+        owing = self.owing()
+        names = ", ".join(describe(m) for m in owing[:shown]) or "no member"
+        more = f" and {len(owing) - shown} more" if len(owing) > shown else ""
+        return (f"tick {self.tick} has waited {now - self.opened:.0f} s of wall time for "
+                f"{names}{more}, still reporting: working on it")
+
     def is_member(self, member: Member) -> bool:
         return member in self._members
 

@@ -91,6 +91,9 @@ class StallingObserver:
     def answer(self, tick: Tick) -> None:
         self.answered.append(tick.index)
 
+    def working_on(self, now: float) -> list[int]:
+        return []
+
 
 def test_a_world_that_stops_ticking_ends_the_run_after_the_stall_timeout(monkeypatch):
     import rclpy
@@ -99,7 +102,72 @@ def test_a_world_that_stops_ticking_ends_the_run_after_the_stall_timeout(monkeyp
     monkeypatch.setattr(lockstep, "STALL_TIMEOUT", 0.3)
     observer = StallingObserver()
     with pytest.raises(RuntimeError, match=r"made no tick for 0.3 s of wall time after sim "
-                                           r"time 0.00 s"):
+                                           r"time 0.00 s, and no robot reports working"):
         lockstep.run_lockstep(StallingMonitor(), observer, startup_timeout=0.2,
                               progress_period=1.0)
     assert observer.answered == [0, 1]
+
+
+class WorkingObserver(StallingObserver):
+    """Tick 1, then robot 2 reports working on it for ever (a long coverage update)."""
+
+    def next_tick(self) -> Tick | None:
+        assert time.monotonic() - self.t0 < 5.0, "the launcher waits for ever"
+        return self.ticks.pop(0) if self.ticks else None
+
+    def working_on(self, now: float) -> list[int]:
+        return [2]
+
+
+def test_a_tick_held_by_a_working_robot_is_waited_for_past_the_stall_timeout_and_named(
+        monkeypatch):
+    """A robot still working is not a stuck world: the launcher says every HELD_NOTICE whom the
+    tick waits for, and gives up only after HELD_TIMEOUT, naming the robot."""
+    import rclpy
+
+    monkeypatch.setattr(rclpy, "spin_once", lambda node, timeout_sec=None: time.sleep(0.01))
+    monkeypatch.setattr(lockstep, "STALL_TIMEOUT", 0.1)
+    monkeypatch.setattr(lockstep, "HELD_NOTICE", 0.2)
+    monkeypatch.setattr(lockstep, "HELD_TIMEOUT", 0.9)
+    monitor = StallingMonitor()
+    t0 = time.monotonic()
+    with pytest.raises(RuntimeError, match=r"made no tick for 0.9 s of wall time after sim time "
+                                           r"0.00 s while robots \[2\] reported working"):
+        lockstep.run_lockstep(monitor, WorkingObserver(), startup_timeout=0.2,
+                              progress_period=1.0)
+    assert time.monotonic() - t0 >= 0.9
+    held = [line for line in monitor.said if "reported working on it" in line]
+    assert 3 <= len(held) <= 5 and all("robots [2]" in line for line in held)
+
+
+class Node:
+    """Stands for the monitor node: keeps the subscriptions' callbacks by topic."""
+
+    def __init__(self) -> None:
+        self.callbacks: dict[str, list] = {}
+
+    def create_publisher(self, *args, **kwargs):
+        return None
+
+    def create_subscription(self, msg_type, topic, callback, qos, **kwargs):
+        self.callbacks.setdefault(topic, []).append(callback)
+
+
+def test_the_observer_knows_which_robots_work_on_the_tick_it_answered():
+    from coverage_ros.core.lockstep.barrier import DONE, LEAVE, WORKING
+    from coverage_ros.nodes import conversions as conv
+
+    node = Node()
+    observer = lockstep.LockstepObserver(node, [0, 1, 2])
+    report = node.callbacks["/world/tick_report"][0]
+    observer.handled = 7
+    report(conv.report_msg(WORKING, 7, 0))
+    report(conv.report_msg(WORKING, 7, 1))
+    report(conv.report_msg(WORKING, 6, 2))  # an older tick's, late
+    report(conv.report_msg(WORKING, 7, observer="someone"))
+    now = time.monotonic()
+    assert observer.working_on(now) == [0, 1]
+    report(conv.report_msg(DONE, 7, 1))
+    report(conv.report_msg(LEAVE, 7, 2))
+    assert observer.working_on(now) == [0]
+    assert observer.working_on(now + lockstep.WORKING_FRESH + 1.0) == []  # gone quiet

@@ -111,6 +111,26 @@ def test_a_silent_member_is_dropped_after_the_timeout_counted_from_the_tick_or_i
     assert b.ready(38.5) and b.advance(38.5).answered == (0,)
 
 
+def test_a_member_that_keeps_reporting_working_holds_the_tick_and_the_line_names_it():
+    """A long coverage update: heartbeats keep robot 1 listed past any silence timeout, and the
+    world's line on the held tick names whom it waits for."""
+    b = started(0, 1, 2, 3, 4, 5, 6, now=0.0)
+    for r in (0, 2):
+        b.report(robot(r), DONE, 1, 0.1)
+    for t in range(5, 400, 5):
+        b.report(robot(1), WORKING, 1, float(t))
+        for r in (3, 4, 5, 6):
+            b.report(robot(r), WORKING, 1, float(t))
+        assert b.expire(float(t) + 1.0) == []
+    assert not b.ready(400.0) and b.tick == 1
+    assert b.held(400.0, shown=3) == ("tick 1 has waited 400 s of wall time for robot 1, "
+                                      "robot 3, robot 4 and 2 more, still reporting: working "
+                                      "on it")
+    for r in (1, 3, 4, 5, 6):
+        b.report(robot(r), DONE, 1, 401.0)
+    assert b.ready(401.0) and b.advance(401.0).tick == 2
+
+
 def test_a_member_dropped_after_answering_is_no_longer_waited_for_by_the_others():
     """Robot 1 answered tick 1 and died: tick 2 lists it among the robots whose states are due,
     but it may have died before its state went out - once it is dropped, the tick goes out

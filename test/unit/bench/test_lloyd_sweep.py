@@ -25,7 +25,8 @@ def test_targets_follow_median_worst_and_gap():
     summary = summarize(rows)
     met = summary["targets_met"]
     assert not met["never_more_than_0.1%_above_plain_H"]  # +0.11 %
-    assert summary["above_0.1%"] == 1
+    assert summary["above_0.1%"] == 1 and summary["below_0.1%"] == 1  # +0.11 %, -0.2 %
+    assert abs(summary["mean_gap_percent"] - (0.0 - 0.1 - 0.2 + 0.11) / 4) < 1e-12
     assert not met["worst_case_within_0.1%_no_slower_than_plain"]
     assert not met["median_within_0.1%_in_half_plain_steps"]  # median (45 + 70) / 2 / 100
 
@@ -37,6 +38,8 @@ def test_plain_nudged_spread_counts_gaps_above_a_tenth_of_a_percent_and_slower_r
     spread = summarize(rows)["plain_nudged"]
     assert spread["max_gap_percent"] == 0.2 and spread["min_gap_percent"] == -1.0
     assert spread["above_0.1%"] == 1 and spread["slower"] == 1
+    assert spread["below_0.1%"] == 1 and abs(spread["mean_gap_percent"] - (0.2 - 1.0 + 0.04)
+                                              / 3) < 1e-12
     assert spread["worst_ratio_steps"] == 1.3
 
 

@@ -26,8 +26,9 @@ from coverage_ros.nodes.shm_ports import startup_hint
 OBSERVER = "coverage_team"
 #: [s] wall time between the monitor's JOIN or WORKING reports.
 BEAT = 0.5
-#: [s] wall time a robot's WORKING report counts as news (robots send one every second).
-WORKING_FRESH = 5.0
+#: [s] wall time a robot's WORKING report counts as news (robots send one every second; a
+#: starved process may send them late).
+WORKING_FRESH = 30.0
 
 
 class LockstepObserver:

@@ -48,6 +48,7 @@ class LockstepObserver:
         #: robot id -> (tick, wall time [s]) of its newest WORKING report not yet followed
         #: by its DONE
         self.working: dict[int, tuple[int, float]] = {}
+        self.last_working = -math.inf  # [s] wall time of the newest robot's WORKING report
         self._pending: deque[Tick] = deque()
         self.handled = -1  # newest tick answered
         self.listed = False  # the world lists the monitor
@@ -95,6 +96,8 @@ class LockstepObserver:
             return
         if msg.kind == WORKING:
             self.working[rid] = (int(msg.tick), time.monotonic())
+            if int(msg.tick) >= self.handled:
+                self.last_working = self.working[rid][1]
         elif msg.kind in (DONE, LEAVE):
             self.working.pop(rid, None)
 
@@ -153,9 +156,10 @@ EXPLORE_PERIOD = 1.0
 EVIDENCE_TIMEOUT = 10.0
 #: [s] wall time between looks at the launcher's children (whether one exited).
 CHECK_PERIOD = 0.2
-#: [s] wall time without a new tick after which a started team is given up when no robot
-#: reports working on the tick (the world drops a silent robot after 10 s: a stuck world or a
-#: lost link to it).
+#: [s] wall time without a new tick, and without a robot's report that it works on the tick,
+#: after which a started team is given up (the world drops a silent robot after 10 s: a stuck
+#: world or a lost link to it; counted from the last such report, as the world takes a moment
+#: to step once the last robot is done).
 STALL_TIMEOUT = 300.0
 #: [s] wall time a tick is waited for while robots report working on it (a long coverage update:
 #: a closet escape pricing moves on a large map, on a crowded host, takes minutes); past it the
@@ -249,10 +253,10 @@ def _held(monitor, observer: LockstepObserver, now: float, held: float,
     (:data:`STALL_TIMEOUT`, :data:`HELD_TIMEOUT`); returns when the last line was said."""
     working = observer.working_on(now)
     sim = monitor.log.sim_time
-    if held > STALL_TIMEOUT and not working:
-        raise RuntimeError(f"the world's lock-step made no tick for {STALL_TIMEOUT:g} s of "
-                           f"wall time after sim time {sim:.2f} s, and no robot reports working "
-                           "on it (see the world's log)")
+    if min(held, now - observer.last_working) > STALL_TIMEOUT:
+        raise RuntimeError(f"the world's lock-step made no tick for {held:.0f} s of wall time "
+                           f"after sim time {sim:.2f} s, and no robot has reported working on "
+                           f"it for {STALL_TIMEOUT:g} s (see the world's log)")
     if held > HELD_TIMEOUT:
         raise RuntimeError(f"the world's lock-step made no tick for {HELD_TIMEOUT:g} s of "
                            f"wall time after sim time {sim:.2f} s while robots {working} "

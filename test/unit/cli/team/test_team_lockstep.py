@@ -94,6 +94,8 @@ class StallingObserver:
     def working_on(self, now: float) -> list[int]:
         return []
 
+    last_working = -float("inf")
+
 
 def test_a_world_that_stops_ticking_ends_the_run_after_the_stall_timeout(monkeypatch):
     import rclpy
@@ -101,8 +103,9 @@ def test_a_world_that_stops_ticking_ends_the_run_after_the_stall_timeout(monkeyp
     monkeypatch.setattr(rclpy, "spin_once", lambda node, timeout_sec=None: None)
     monkeypatch.setattr(lockstep, "STALL_TIMEOUT", 0.3)
     observer = StallingObserver()
-    with pytest.raises(RuntimeError, match=r"made no tick for 0.3 s of wall time after sim "
-                                           r"time 0.00 s, and no robot reports working"):
+    with pytest.raises(RuntimeError, match=r"made no tick for 0 s of wall time after sim "
+                                           r"time 0.00 s, and no robot has reported working on "
+                                           r"it for 0.3 s"):
         lockstep.run_lockstep(StallingMonitor(), observer, startup_timeout=0.2,
                               progress_period=1.0)
     assert observer.answered == [0, 1]
@@ -117,6 +120,10 @@ class WorkingObserver(StallingObserver):
 
     def working_on(self, now: float) -> list[int]:
         return [2]
+
+    @property
+    def last_working(self) -> float:
+        return time.monotonic()
 
 
 def test_a_tick_held_by_a_working_robot_is_waited_for_past_the_stall_timeout_and_named(
@@ -138,6 +145,33 @@ def test_a_tick_held_by_a_working_robot_is_waited_for_past_the_stall_timeout_and
     assert time.monotonic() - t0 >= 0.9
     held = [line for line in monitor.said if "reported working on it" in line]
     assert 3 <= len(held) <= 5 and all("robots [2]" in line for line in held)
+
+
+class FinishingObserver(StallingObserver):
+    """Robot 2 reports working on tick 1 until 0.5 s after the start, then is done: the world
+    steps to the next tick (which, here, never comes)."""
+
+    def working_on(self, now: float) -> list[int]:
+        return [2] if now - self.t0 < 0.5 else []
+
+    @property
+    def last_working(self) -> float:
+        return min(time.monotonic(), self.t0 + 0.5)
+
+
+def test_the_stall_timeout_counts_from_the_last_robot_working_not_from_the_tick(monkeypatch):
+    """The last robot done with a tick held past the stall timeout: the world needs a moment
+    to step, which must not look like a stuck world (a warehouse team was given up so, after
+    its robots had worked on one tick for five minutes)."""
+    import rclpy
+
+    monkeypatch.setattr(rclpy, "spin_once", lambda node, timeout_sec=None: time.sleep(0.01))
+    monkeypatch.setattr(lockstep, "STALL_TIMEOUT", 0.3)
+    observer = FinishingObserver()
+    with pytest.raises(RuntimeError, match=r"no robot has reported working on it for 0.3 s"):
+        lockstep.run_lockstep(StallingMonitor(), observer, startup_timeout=0.2,
+                              progress_period=1.0)
+    assert time.monotonic() - observer.t0 >= 0.8
 
 
 class Node:
@@ -167,6 +201,7 @@ def test_the_observer_knows_which_robots_work_on_the_tick_it_answered():
     report(conv.report_msg(WORKING, 7, observer="someone"))
     now = time.monotonic()
     assert observer.working_on(now) == [0, 1]
+    assert now - 1.0 < observer.last_working <= now
     report(conv.report_msg(DONE, 7, 1))
     report(conv.report_msg(LEAVE, 7, 2))
     assert observer.working_on(now) == [0]

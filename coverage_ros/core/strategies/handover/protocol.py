@@ -53,9 +53,14 @@ a pair's cost (:mod:`.bounds`), and the cooldown keeps a robot from moving back 
 The team's own steps need not reach that configuration (live robots less still: where they
 stop is not exactly where Lloyd's steps end), so a robot keeps what its moves left: the
 robots it heard, their H over the cells of those robots (:meth:`.pricing.Prices.heard_cost`)
-and the saving the move had to beat. It claims again, hearing the same robots, only from a
-configuration whose H is below each of those by that saving: a team that came back to where
-a robot left from, or to no better, does not send it again, and each robot's moves end.
+and the saving the move had to beat. Its neighbours keep the same of every move they hear
+made: when a robot they hear claims, they price where it claims from (their own H of what they
+hear and the saving its claim had to beat, ``escape_gain`` of the claimer's and the target's
+cells in their own tessellation), and keep it once they hear the claimer relocating. A robot
+claims again, hearing the same robots, only from a configuration whose H is below each move
+it kept by that move's saving: a team that came back to where a move left from, or to no
+better (the same configuration with other robots in the places, as a team whose steps do not
+follow the descent that priced the move reaches), sends nobody again, and the team's moves end.
 What a robot uses is its own cell, the generators and published values of the robots it
 hears (its bordering neighbours' cells, and for the joint bound the target's and those that
 touch either, are tessellated from them), nothing else; the protocol is deterministic.
@@ -156,6 +161,10 @@ class Handover:
     #: (ids heard, their H, the saving to beat) where the claim was made / moves were made
     _claimed_from: Departure | None = field(default=None, repr=False)
     _departures: list[Departure] = field(default_factory=list, repr=False)
+    #: claims heard, by claimer id: (where the claimer stood [m], its target, where it claims
+    #: from) - kept as a departure once it is heard relocating
+    _heard_claims: dict[int, tuple[np.ndarray, int, Departure]] = field(
+        default_factory=dict, repr=False)
     prices: Prices = field(init=False, repr=False)  # what it priced, per configuration
 
     def __post_init__(self) -> None:
@@ -185,6 +194,7 @@ class Handover:
         settle = s.settle_below(self.domain.area_of(cell.nodes))
         settled = step < settle or self._still >= STILL_UPDATES
         key = config_key(position, neighbours)
+        self._hear_moves(key, position, weight, neighbours)
         offers: list[SplitOffer] = []  # the own (published)
         if settled and self.claim < 0:
             offers = self.prices.offers(key, cell, weight)
@@ -243,6 +253,33 @@ class Handover:
         """Published while relocating: where to (:func:`.published.destination`)."""
         assert self.target is not None  # set with the claim, kept while relocating
         return {"relocating": 1.0, "to_x": float(self.target[0]), "to_y": float(self.target[1])}
+
+    def _hear_moves(self, key: np.ndarray, position: np.ndarray, weight: float,
+                    neighbours: Sequence[Neighbour]) -> None:
+        """Where the moves of the robots it hears leave from (module docstring): a claim heard
+        is priced where it is made, and kept as a departure once its claimer relocates (heard
+        relocating, or gone from where it claimed when its claim ends between two updates)."""
+        arrive = ARRIVAL_CELLS * self.domain.resolution
+        for n in neighbours:
+            rid, target = n.robot_id, int(value(n, "claim", NONE))
+            heard = self._heard_claims.get(rid)
+            if value(n, "relocating") > 0 or (
+                    heard is not None and target != heard[1]
+                    and float(np.hypot(*(n.position - heard[0]))) > arrive):
+                if heard is not None:
+                    self._heard_claims.pop(rid)
+                    self._departures = [*self._departures, heard[2]][-DEPARTURES:]
+            elif target < 0:
+                self._heard_claims.pop(rid, None)
+            elif heard is None or heard[1] != target:
+                cells = self.prices.cell_costs(key, position, neighbours, weight,
+                                               self.robot_id)
+                if rid in cells and target in cells:
+                    self._heard_claims[rid] = (
+                        np.array(n.position, dtype=np.float64), target,
+                        Departure(tuple(sorted(m.robot_id for m in neighbours)),
+                                  self.prices.heard_cost(key, position, neighbours, weight),
+                                  self.settings.gain * (cells[rid] + cells[target])))
 
     def _follow_claim(self, by_id: dict[int, Neighbour]) -> None:
         """A claim made earlier: relocate once granted, drop it when refused, stale or

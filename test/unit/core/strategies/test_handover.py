@@ -583,7 +583,9 @@ def test_a_robot_claims_no_more_where_the_team_came_back_after_its_move():
     configuration the descent named), or near it (every other robot 0.3 m off, as live robots
     stop) at an H no lower, robot 1 does not claim from there again, where a robot that did
     not move from there claims; from an H lower by more than its move had to save, it claims
-    again."""
+    again. The robots that heard the move keep it too: at the same configuration with robot 1
+    and robot 0 in each other's places, robot 0 does not make the move robot 1 made, where a
+    robot 0 that never heard it does (a team going round a cycle of moves, each robot once)."""
     domain, P = _drawn_plan(2), PLAN2_SETTLED
 
     def robot(k):
@@ -609,15 +611,21 @@ def test_a_robot_claims_no_more_where_the_team_came_back_after_its_move():
     published = [d.shared for d in _round(team, arrived, published)]
     assert team[1].handover.cooldown > 0  # arrived: its claim dropped
 
-    def claims(strategy, Q=P) -> list[float]:  # robot 1's claims at Q, hearing the same
-        nbrs = [Neighbour(j, dataclasses.replace(heard[j], position=Q[j]))
-                for j in range(len(Q)) if j != 1]
+    def claims(strategy, Q=P, i=1, places=None) -> list[float]:
+        """Robot i's claims at Q, hearing what was published from each place (``places[j]``:
+        the robot whose published values robot j at Q[j] repeats; the same by default)."""
+        places = list(range(len(Q))) if places is None else places
+        nbrs = [Neighbour(j, dataclasses.replace(heard[places[j]], position=Q[j]))
+                for j in range(len(Q)) if j != i]
         rounds = GeodesicParams().escape_cooldown + STILL_UPDATES + 2
-        return [strategy.update(Observation(1, np.array([*Q[1], 0.0]), 0.0), nbrs)
+        return [strategy.update(Observation(i, np.array([*Q[i], 0.0]), 0.0), nbrs)
                 .shared.extra["claim"] for _ in range(rounds)]
 
     assert max(claims(team[1])) < 0
     assert max(claims(robot(1))) == 7
+    swapped = [1, 0, *range(2, len(P))]  # robot 0 where robot 1 stood and the other way round
+    assert max(claims(team[0], P[swapped], 0, swapped)) < 0
+    assert max(claims(robot(0), P[swapped], 0, swapped)) == 7
     left = team[1].handover._departures[-1]
     near = P.copy()
     for j in range(len(P)):

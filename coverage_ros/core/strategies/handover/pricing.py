@@ -45,8 +45,6 @@ class Prices:
         default=None, repr=False)
     #: room offers (:func:`.split.room_offers`) per robot id, of the configuration of ``_joint``
     _rooms: dict[int, list[Offer]] = field(default_factory=dict, repr=False)
-    #: each cell's cost by robot id, of the configuration of ``_joint``
-    _costs: dict[int, float] | None = field(default=None, repr=False)
 
     def offers(self, key: np.ndarray, cell: CellResult, weight: float
                ) -> list[SplitOffer]:
@@ -63,7 +61,7 @@ class Prices:
         if self._joint is None or not same_config(self._joint[0], key, self.domain.resolution):
             gens = np.vstack([position[None], [n.position for n in neighbours]])
             self._joint = (key, known_cells(self.domain, gens, self.method), {})
-            self._rooms, self._costs = {}, None
+            self._rooms = {}
         return self._joint[1], self._joint[2]
 
     def heard_cost(self, key: np.ndarray, position: np.ndarray,
@@ -78,22 +76,6 @@ class Prices:
             wdA = self.domain.mass_element.ravel()
             values[memo] = float(((d[reached] ** 2 - weight ** 2) * wdA[reached]).sum())
         return values[memo]
-
-    def cell_costs(self, key: np.ndarray, position: np.ndarray,
-                   neighbours: Sequence[Neighbour], weight: float, own_id: int
-                   ) -> dict[int, float]:
-        """Each cell's cost in the tessellation of all it hears and its own (``own_id``), by
-        robot id (units of H)."""
-        known, _ = self.known(key, position, neighbours)
-        if self._costs is None:
-            ids = [own_id] + [n.robot_id for n in neighbours]
-            d = known.distances
-            reached = np.isfinite(d)
-            per = np.bincount(known.labels[reached], minlength=len(ids),
-                              weights=(d[reached] ** 2 - weight ** 2)
-                              * self.domain.mass_element.ravel()[reached])
-            self._costs = {rid: float(c) for rid, c in zip(ids, per, strict=True)}
-        return self._costs
 
     def rooms(self, key: np.ndarray, position: np.ndarray, weight: float,
               neighbours: Sequence[Neighbour], target: int, offers: Sequence[Offer]

@@ -53,14 +53,15 @@ a pair's cost (:mod:`.bounds`), and the cooldown keeps a robot from moving back 
 The team's own steps need not reach that configuration (live robots less still: where they
 stop is not exactly where Lloyd's steps end), so a robot keeps what its moves left: the
 robots it heard, their H over the cells of those robots (:meth:`.pricing.Prices.heard_cost`)
-and the saving the move had to beat. Its neighbours keep the same of every move they hear
-made: when a robot they hear claims, they price where it claims from (their own H of what they
-hear and the saving its claim had to beat, ``escape_gain`` of the claimer's and the target's
-cells in their own tessellation), and keep it once they hear the claimer relocating. A robot
-claims again, hearing the same robots, only from a configuration whose H is below each move
-it kept by that move's saving: a team that came back to where a move left from, or to no
-better (the same configuration with other robots in the places, as a team whose steps do not
-follow the descent that priced the move reaches), sends nobody again, and the team's moves end.
+and the saving the move had to beat. It claims again, hearing the same robots, only from a
+configuration whose H is below each of those by that saving: a team that came back to where
+a robot left from, or to no better, does not send it again, and each robot's moves end. A
+team may also come back with other robots in the places (live robots descend along their own
+paths, not the steps that priced a move), and the robot now where the mover stood would make
+the same move: so every robot keeps where the team stood when it heard a claim whose claimer
+then relocated (:class:`Places`), and claims nothing while the team stands there again, each
+robot within :data:`SAME_PLACE_SHARE` of its cell's radius of one of those places, whichever
+robot stands where.
 What a robot uses is its own cell, the generators and published values of the robots it
 hears (its bordering neighbours' cells, and for the joint bound the target's and those that
 touch either, are tessellated from them), nothing else; the protocol is deterministic.
@@ -73,6 +74,9 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import maximum_bipartite_matching
+from scipy.spatial.distance import cdist
 
 from coverage_ros.core.geodesic.cell import CellResult
 from coverage_ros.core.geodesic.domain import CoverageDomain
@@ -94,6 +98,9 @@ STILL_UPDATES = 4
 ARRIVAL_TOLERANCES, ARRIVAL_CELLS = 3.0, 2.0
 #: [configurations] relocated from, remembered per robot (the latest)
 DEPARTURES = 8
+#: Places of two teams within this share of the own cell's radius sqrt(area / pi) of each
+#: other are the same configuration (another local optimum lies at least a room away).
+SAME_PLACE_SHARE = 0.25
 
 
 @dataclass(frozen=True)
@@ -138,6 +145,30 @@ class Departure:
     saving: float  # what the move had to save (units of H)
 
 
+@dataclass(frozen=True)
+class Places:
+    """Where the robots of a team stood, whichever robot stood where."""
+
+    ids: tuple[int, ...]  # every robot, sorted
+    points: np.ndarray  # (n, 2) [m] their positions, in any order
+
+    @classmethod
+    def of(cls, robot_id: int, position: np.ndarray, neighbours: Sequence[Neighbour]
+           ) -> Places:
+        """The places of a robot at ``position`` [m] and the robots it hears."""
+        ids = tuple(sorted([robot_id, *(n.robot_id for n in neighbours)]))
+        return cls(ids, np.vstack([np.asarray(position, dtype=np.float64).reshape(1, 2),
+                                   *(np.reshape(n.position, (1, 2)) for n in neighbours)]))
+
+    def same(self, other: Places, near: float) -> bool:
+        """The same robots, and a way to pair each place of one with its own place of the
+        other within ``near`` [m] (a perfect matching of the pairs that near)."""
+        if self.ids != other.ids:
+            return False
+        close = csr_matrix(cdist(self.points, other.points) <= near)
+        return bool(np.all(maximum_bipartite_matching(close, perm_type="column") >= 0))
+
+
 @dataclass
 class Handover:
     """One robot's side of the protocol (module docstring)."""
@@ -161,10 +192,11 @@ class Handover:
     #: (ids heard, their H, the saving to beat) where the claim was made / moves were made
     _claimed_from: Departure | None = field(default=None, repr=False)
     _departures: list[Departure] = field(default_factory=list, repr=False)
-    #: claims heard, by claimer id: (where the claimer stood [m], its target, where it claims
-    #: from) - kept as a departure once it is heard relocating
-    _heard_claims: dict[int, tuple[np.ndarray, int, Departure]] = field(
+    #: claims heard, by claimer id: (where the claimer stood [m], its target, the team's
+    #: places then), kept in ``_places`` once the claimer is heard relocating
+    _heard_claims: dict[int, tuple[np.ndarray, int, Places]] = field(
         default_factory=dict, repr=False)
+    _places: list[Places] = field(default_factory=list, repr=False)
     prices: Prices = field(init=False, repr=False)  # what it priced, per configuration
 
     def __post_init__(self) -> None:
@@ -194,7 +226,7 @@ class Handover:
         settle = s.settle_below(self.domain.area_of(cell.nodes))
         settled = step < settle or self._still >= STILL_UPDATES
         key = config_key(position, neighbours)
-        self._hear_moves(key, position, weight, neighbours)
+        self._hear_moves(position, neighbours)
         offers: list[SplitOffer] = []  # the own (published)
         if settled and self.claim < 0:
             offers = self.prices.offers(key, cell, weight)
@@ -254,11 +286,10 @@ class Handover:
         assert self.target is not None  # set with the claim, kept while relocating
         return {"relocating": 1.0, "to_x": float(self.target[0]), "to_y": float(self.target[1])}
 
-    def _hear_moves(self, key: np.ndarray, position: np.ndarray, weight: float,
-                    neighbours: Sequence[Neighbour]) -> None:
-        """Where the moves of the robots it hears leave from (module docstring): a claim heard
-        is priced where it is made, and kept as a departure once its claimer relocates (heard
-        relocating, or gone from where it claimed when its claim ends between two updates)."""
+    def _hear_moves(self, position: np.ndarray, neighbours: Sequence[Neighbour]) -> None:
+        """Where the moves of the robots it hears leave from (module docstring): the places of
+        the team a claim heard is made at, kept once its claimer relocates (heard relocating,
+        or gone from where it claimed when its claim ends between two updates)."""
         arrive = ARRIVAL_CELLS * self.domain.resolution
         for n in neighbours:
             rid, target = n.robot_id, int(value(n, "claim", NONE))
@@ -268,18 +299,12 @@ class Handover:
                     and float(np.hypot(*(n.position - heard[0]))) > arrive):
                 if heard is not None:
                     self._heard_claims.pop(rid)
-                    self._departures = [*self._departures, heard[2]][-DEPARTURES:]
+                    self._places = [*self._places, heard[2]][-DEPARTURES:]
             elif target < 0:
                 self._heard_claims.pop(rid, None)
             elif heard is None or heard[1] != target:
-                cells = self.prices.cell_costs(key, position, neighbours, weight,
-                                               self.robot_id)
-                if rid in cells and target in cells:
-                    self._heard_claims[rid] = (
-                        np.array(n.position, dtype=np.float64), target,
-                        Departure(tuple(sorted(m.robot_id for m in neighbours)),
-                                  self.prices.heard_cost(key, position, neighbours, weight),
-                                  self.settings.gain * (cells[rid] + cells[target])))
+                self._heard_claims[rid] = (np.array(n.position, dtype=np.float64), target,
+                                           Places.of(self.robot_id, position, neighbours))
 
     def _follow_claim(self, by_id: dict[int, Neighbour]) -> None:
         """A claim made earlier: relocate once granted, drop it when refused, stale or
@@ -306,6 +331,10 @@ class Handover:
         saves most, with one ring of cells re-spreading, else with the next ring too."""
         if any(value(n, "claim", NONE) >= 0 for n in neighbours):
             return  # one move at a time (module docstring)
+        here = Places.of(self.robot_id, position, neighbours)
+        near = SAME_PLACE_SHARE * math.sqrt(self.domain.area_of(cell.nodes) / math.pi)
+        if any(here.same(p, near) for p in self._places):
+            return  # the team came back to where a move it heard left from (module docstring)
         offers = [o for n in neighbours for o in offers_of(n)
                   if value(n, "claim", NONE) < 0 and value(n, "grant", NONE) == NONE
                   and abs(n.state.weight - weight) < WEIGHT_MATCH

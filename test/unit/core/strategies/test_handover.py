@@ -37,7 +37,7 @@ from coverage_ros.core.strategies.handover import (
     split_offer,
     split_offers,
 )
-from coverage_ros.core.strategies.handover.protocol import STILL_UPDATES, Handover
+from coverage_ros.core.strategies.handover.protocol import STILL_UPDATES, Handover, Places
 from coverage_ros.core.strategies.handover.published import held
 from coverage_ros.core.world import parse_world
 from coverage_ros.core.world.placement import largest_free_region, team_starts
@@ -583,9 +583,10 @@ def test_a_robot_claims_no_more_where_the_team_came_back_after_its_move():
     configuration the descent named), or near it (every other robot 0.3 m off, as live robots
     stop) at an H no lower, robot 1 does not claim from there again, where a robot that did
     not move from there claims; from an H lower by more than its move had to save, it claims
-    again. The robots that heard the move keep it too: at the same configuration with robot 1
-    and robot 0 in each other's places, robot 0 does not make the move robot 1 made, where a
-    robot 0 that never heard it does (a team going round a cycle of moves, each robot once)."""
+    again. The robots that heard the move keep where the team stood: at the same places with
+    robot 1 and robot 0 in each other's, robot 0 does not make the move robot 1 made, where a
+    robot 0 that never heard it does (a team going round a cycle of moves, each robot once),
+    nor does it with the others 0.3 m off; with the places it kept a room away, it does."""
     domain, P = _drawn_plan(2), PLAN2_SETTLED
 
     def robot(k):
@@ -636,8 +637,33 @@ def test_a_robot_claims_no_more_where_the_team_came_back_after_its_move():
     assert H_near >= left.cost - left.saving
     assert max(claims(team[1], near)) < 0
     assert max(claims(robot(1), near)) == 7
+    assert max(claims(team[0], near[swapped], 0, swapped)) < 0
+    kept = team[0].handover._places[-1]
+    team[0].handover._places = [dataclasses.replace(kept, points=kept.points + [4.0, 0.0])]
+    assert max(claims(team[0], P[swapped], 0, swapped)) == 7
     team[1].handover._departures = [dataclasses.replace(left, cost=H_near + 2 * left.saving)]
     assert max(claims(team[1], near)) == 7
+
+
+def test_places_are_the_same_whichever_robot_stands_where():
+    """:class:`~coverage_ros.core.strategies.handover.protocol.Places`: the same robots at the
+    same points in another order are the same places, each point off by less than ``near``
+    too; one point farther off, or another robot, is not."""
+    def places(ids, points):
+        return Places(tuple(ids), np.array(points, dtype=np.float64))
+
+    a = places([0, 1, 2], [[0.0, 0.0], [5.0, 0.0], [0.0, 5.0]])
+    assert a.same(places([0, 1, 2], [[0.0, 5.0], [0.0, 0.0], [5.0, 0.0]]), 0.1)
+    assert a.same(places([0, 1, 2], [[0.0, 5.09], [0.0, 0.0], [5.0, 0.0]]), 0.1)
+    assert not a.same(places([0, 1, 2], [[0.0, 5.11], [0.0, 0.0], [5.0, 0.0]]), 0.1)
+    assert not a.same(places([0, 1, 3], [[0.0, 5.0], [0.0, 0.0], [5.0, 0.0]]), 0.1)
+    assert not a.same(places([0, 1], [[0.0, 5.0], [0.0, 0.0]]), 0.1)
+    # a pairing with every pair near, not the nearest place of each (0.4 off each here, two
+    # of them nearest to 1.0)
+    b = places([0, 1, 2], [[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]])
+    c = places([0, 1, 2], [[0.6, 0.0], [1.6, 0.0], [1.4, 0.0]])
+    assert not b.same(c, 0.45)
+    assert b.same(c, 0.61)
 
 
 def test_one_claimant_per_cell_and_claims_follow_grants():

@@ -59,9 +59,9 @@ a robot left from, or to no better, does not send it again, and each robot's mov
 team may also come back with other robots in the places (live robots descend along their own
 paths, not the steps that priced a move), and the robot now where the mover stood would make
 the same move: so every robot keeps where the team stood when it heard a claim whose claimer
-then relocated (:class:`Places`), and claims nothing while the team stands there again, each
-robot within :data:`SAME_PLACE_SHARE` of its cell's radius of one of those places, whichever
-robot stands where.
+then relocated (:class:`.places.Places`), and claims nothing while the team stands there
+again, each robot within :data:`.places.SAME_PLACE_SHARE` of its cell's radius of one of
+those places, whichever robot stands where.
 What a robot uses is its own cell, the generators and published values of the robots it
 hears (its bordering neighbours' cells, and for the joint bound the target's and those that
 touch either, are tessellated from them), nothing else; the protocol is deterministic.
@@ -74,13 +74,11 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.sparse import csr_matrix
-from scipy.sparse.csgraph import maximum_bipartite_matching
-from scipy.spatial.distance import cdist
 
 from coverage_ros.core.geodesic.cell import CellResult
 from coverage_ros.core.geodesic.domain import CoverageDomain
 from coverage_ros.core.strategies.base import Neighbour
+from coverage_ros.core.strategies.handover.places import SAME_PLACE_SHARE, Places
 from coverage_ros.core.strategies.handover.pricing import (
     WEIGHT_MATCH,
     Prices,
@@ -98,9 +96,6 @@ STILL_UPDATES = 4
 ARRIVAL_TOLERANCES, ARRIVAL_CELLS = 3.0, 2.0
 #: [configurations] relocated from, remembered per robot (the latest)
 DEPARTURES = 8
-#: Places of two teams within this share of the own cell's radius sqrt(area / pi) of each
-#: other are the same configuration (another local optimum lies at least a room away).
-SAME_PLACE_SHARE = 0.25
 
 
 @dataclass(frozen=True)
@@ -143,30 +138,6 @@ class Departure:
     ids: tuple[int, ...]  # the robots it heard, sorted
     cost: float  # H over their cells and its own (units of H)
     saving: float  # what the move had to save (units of H)
-
-
-@dataclass(frozen=True)
-class Places:
-    """Where the robots of a team stood, whichever robot stood where."""
-
-    ids: tuple[int, ...]  # every robot, sorted
-    points: np.ndarray  # (n, 2) [m] their positions, in any order
-
-    @classmethod
-    def of(cls, robot_id: int, position: np.ndarray, neighbours: Sequence[Neighbour]
-           ) -> Places:
-        """The places of a robot at ``position`` [m] and the robots it hears."""
-        ids = tuple(sorted([robot_id, *(n.robot_id for n in neighbours)]))
-        return cls(ids, np.vstack([np.asarray(position, dtype=np.float64).reshape(1, 2),
-                                   *(np.reshape(n.position, (1, 2)) for n in neighbours)]))
-
-    def same(self, other: Places, near: float) -> bool:
-        """The same robots, and a way to pair each place of one with its own place of the
-        other within ``near`` [m] (a perfect matching of the pairs that near)."""
-        if self.ids != other.ids:
-            return False
-        close = csr_matrix(cdist(self.points, other.points) <= near)
-        return bool(np.all(maximum_bipartite_matching(close, perm_type="column") >= 0))
 
 
 @dataclass

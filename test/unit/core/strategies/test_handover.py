@@ -37,7 +37,8 @@ from coverage_ros.core.strategies.handover import (
     split_offer,
     split_offers,
 )
-from coverage_ros.core.strategies.handover.protocol import STILL_UPDATES, Handover, Places
+from coverage_ros.core.strategies.handover.places import Places
+from coverage_ros.core.strategies.handover.protocol import STILL_UPDATES, Handover
 from coverage_ros.core.strategies.handover.published import held
 from coverage_ros.core.world import parse_world
 from coverage_ros.core.world.placement import largest_free_region, team_starts

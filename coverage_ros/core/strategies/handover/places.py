@@ -1,0 +1,42 @@
+"""Where the robots of a team stood, compared whichever robot stands where: the closet escape's
+memory of the configurations the moves a robot heard left from (:mod:`.protocol`)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import maximum_bipartite_matching
+from scipy.spatial.distance import cdist
+
+from coverage_ros.core.strategies.base import Neighbour
+
+#: Places of two teams within this share of the own cell's radius sqrt(area / pi) of each
+#: other are the same configuration (another local optimum lies at least a room away).
+SAME_PLACE_SHARE = 0.25
+
+
+@dataclass(frozen=True)
+class Places:
+    """Where the robots of a team stood, whichever robot stood where."""
+
+    ids: tuple[int, ...]  # every robot, sorted
+    points: np.ndarray  # (n, 2) [m] their positions, in any order
+
+    @classmethod
+    def of(cls, robot_id: int, position: np.ndarray, neighbours: Sequence[Neighbour]
+           ) -> Places:
+        """The places of a robot at ``position`` [m] and the robots it hears."""
+        ids = tuple(sorted([robot_id, *(n.robot_id for n in neighbours)]))
+        return cls(ids, np.vstack([np.asarray(position, dtype=np.float64).reshape(1, 2),
+                                   *(np.reshape(n.position, (1, 2)) for n in neighbours)]))
+
+    def same(self, other: Places, near: float) -> bool:
+        """The same robots, and a way to pair each place of one with its own place of the
+        other within ``near`` [m] (a perfect matching of the pairs that near)."""
+        if self.ids != other.ids:
+            return False
+        close = csr_matrix(cdist(self.points, other.points) <= near)
+        return bool(np.all(maximum_bipartite_matching(close, perm_type="column") >= 0))

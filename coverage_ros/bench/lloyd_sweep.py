@@ -23,6 +23,9 @@ targets: the median and the worst case of steps to within 0.1 % over plain's ste
 <= 1), the largest gap (<= 0.1 %), and, a stricter reading of the worst case, steps to converge
 (<= plain's: an accelerated run that goes on into a lower minimum than plain's counts as
 slower).
+
+``scripts/bench_planner --settled S`` runs the sweep with another switch threshold of the
+accelerated solver (:data:`~coverage_ros.core.offline.lloyd_solvers.SETTLED` by default).
 """
 
 from __future__ import annotations
@@ -34,6 +37,7 @@ import time
 import numpy as np
 
 from coverage_ros.core.geodesic.domain import CoverageDomain
+from coverage_ros.core.offline.lloyd_solvers import SETTLED
 from coverage_ros.core.offline.lloyd_team import EuclideanTeam, solve_lloyd
 from coverage_ros.core.world.density import Density, GaussianMixture, UniformDensity
 from coverage_ros.core.world.grid import OCCUPIED, GridMap
@@ -186,8 +190,9 @@ def run_sweep(seed_set: str, count: int, say, solvers=("lloyd", "accelerated"),
         {"target": "worst case steps to converge <= plain's (stricter: the accelerated run "
          "may go on into a lower minimum)", "value": summary["worst_ratio_steps"],
          "met": met["worst_case_no_slower_than_plain"]}]
+    settled = options.get("accelerated", {}).get("settled", SETTLED)
     return {"seed_set": seed_set, "seeds": [r["seed"] for r in rows], "tolerance_m": TOLERANCE,
-            "targets": targets, "summary": summary, "scenarios": rows}
+            "settled": settled, "targets": targets, "summary": summary, "scenarios": rows}
 
 
 def summarize(rows: list[dict]) -> dict:

@@ -37,6 +37,8 @@ from typing import Any
 import numpy as np
 
 from coverage_ros.bench.environment import REPO
+from coverage_ros.core.offline.lloyd_solvers import SETTLED
+from coverage_ros.errors import ConfigError
 
 WORLD = "gaussians"
 ROBOTS = 8
@@ -238,6 +240,15 @@ def write_results(part: str, figures: dict, path: Path, argv: list[str]) -> None
     path.write_text(json.dumps(data, indent=1) + "\n")
 
 
+def sweep_part(seed_set: str, settled: float | None) -> str:
+    """The results file's part for a sweep of ``seed_set`` with switch threshold ``settled``
+    (None: the solver's own)."""
+    part = f"sweep_{seed_set.replace('-', '_')}"
+    if settled is not None and settled != SETTLED:
+        part += f"_settled_{settled:g}"
+    return part
+
+
 def main(argv: list[str] | None = None) -> int:
     import argparse
 
@@ -247,9 +258,16 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--sweep", choices=("train", "held-out", "none"), default="held-out",
                     help="the accelerated solver's sweep over random scenarios on this seed set")
     ap.add_argument("--scenarios", type=int, default=24, help="sweep scenarios")
+    ap.add_argument("--settled", type=float, default=None,
+                    help="the accelerated solver's switch threshold for the sweep (share of H "
+                         "plain Lloyd's extrapolated tail must fall below; default the "
+                         "solver's own); a sweep with another than the default is written "
+                         "beside the default's, as sweep_<set>_settled_<S>")
     ap.add_argument("--no-end-to-end", action="store_true")
     ap.add_argument("--json", type=Path, default=RESULTS, help="results file to update")
     args = ap.parse_args(argv)
+    if args.settled is not None and not 0.0 < args.settled < 1.0:
+        raise ConfigError.at("--settled", "must be a share of H in (0, 1)", args.settled)
 
     def say(msg: str) -> None:
         print(msg, file=sys.stderr, flush=True)
@@ -277,8 +295,9 @@ def main(argv: list[str] | None = None) -> int:
     if args.sweep != "none":
         from coverage_ros.bench.lloyd_sweep import run_sweep
 
-        sweep = run_sweep(args.sweep, args.scenarios, say)
-        write_results(f"sweep_{args.sweep.replace('-', '_')}", sweep, args.json, argv)
+        options = {} if args.settled is None else {"accelerated": {"settled": args.settled}}
+        sweep = run_sweep(args.sweep, args.scenarios, say, **options)
+        write_results(sweep_part(args.sweep, args.settled), sweep, args.json, argv)
         out["sweep"] = sweep
     print(json.dumps(out))
     return 0

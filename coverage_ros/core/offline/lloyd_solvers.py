@@ -57,6 +57,9 @@ from coverage_ros.errors import ConfigError
 SOLVERS = ("lloyd", "accelerated")
 #: Decrements the tail estimate looks at (:func:`remaining_decrease`).
 TAIL_WINDOW = 3
+#: The accelerated solver switches once plain Lloyd's extrapolated remaining decrease is below
+#: this share of H (module docstring).
+SETTLED = 2e-3
 #: Armijo's sufficient decrease: the share of the linear prediction an L-BFGS step must reach.
 ARMIJO = 1e-4
 #: [relative] rounding allowed in a plain step's H before it counts as a rise
@@ -114,7 +117,7 @@ def remaining_decrease(energies: list[float], window: int = TAIL_WINDOW) -> floa
 
 def solve_lloyd(team: Team, starts: np.ndarray, weights: np.ndarray | None = None,
                 solver: str = "lloyd", tolerance: float = 0.02, max_steps: int = 1000,
-                memory: int = 8, settled: float = 2e-3, tail_window: int = TAIL_WINDOW,
+                memory: int = 8, settled: float = SETTLED, tail_window: int = TAIL_WINDOW,
                 progress: Callable[[int, float], None] | None = None) -> LloydSolution:
     """Lloyd from ``starts (n, 2)`` until no robot's step exceeds ``tolerance`` [m] or
     ``max_steps`` tessellations were made (module docstring)."""

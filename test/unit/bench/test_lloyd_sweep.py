@@ -49,3 +49,25 @@ def test_nudged_starts_move_by_the_nudge_and_stay_free():
     assert np.allclose(np.hypot(*(moved - starts).T), NUDGE)
     assert all(domain.is_free_point(p) for p in moved)
     assert np.array_equal(moved, nudged(domain, starts, 5003))  # drawn from the seed
+
+
+
+def test_a_sweep_with_another_switch_threshold_is_run_with_it_and_kept_beside(capsys):
+    import json
+
+    from coverage_ros.bench.planner import main, sweep_part
+    from coverage_ros.core.offline.lloyd_solvers import SETTLED
+
+    assert sweep_part("held-out", None) == sweep_part("held-out", SETTLED) == "sweep_held_out"
+    assert sweep_part("train", 1e-4) == "sweep_train_settled_0.0001"
+    # a threshold no tail gets below: the accelerated solver never switches, so it is plain Lloyd
+    assert main(["--no-end-to-end", "--sweep", "train", "--scenarios", "1", "--settled",
+                 "1e-300"]) == 0
+    sweep = json.loads(capsys.readouterr().out.strip().splitlines()[-1])["sweep"]
+    assert sweep["settled"] == 1e-300
+    row = sweep["scenarios"][0]
+    assert row["accelerated"]["steps"] == row["plain"]["steps"]
+    assert row["accelerated"]["H"] == row["plain"]["H"]
+    assert main(["--no-end-to-end", "--sweep", "train", "--scenarios", "1"]) == 0
+    row = json.loads(capsys.readouterr().out.strip().splitlines()[-1])["sweep"]["scenarios"][0]
+    assert row["accelerated"]["steps"] < row["plain"]["steps"]  # (the default switches)

@@ -3,8 +3,8 @@
 Every robot's decentralized update is run centrally, iteration after iteration, until the
 team converges (see :mod:`coverage_ros.core.offline.runner`); with ``--solver lloyd`` or
 ``accelerated`` (strategies lloyd and geodesic) the whole team's step is computed at once
-instead, plain Lloyd or Lloyd then L-BFGS on H once plain Lloyd's tail settles
-(:mod:`coverage_ros.core.offline.lloyd_solvers`). Writes a
+instead, plain Lloyd or Lloyd then L-BFGS on H once plain Lloyd's tail settles, then
+relocations (:mod:`coverage_ros.core.offline.lloyd_solvers`). Writes a
 JSON summary, a PNG picture and optionally a rerun recording; prints progress to stderr.
 
     coverage-plan --map ../shared/maps/tb3_sandbox.yaml --robots 6 --json plan.json --png plan.png
@@ -31,6 +31,7 @@ import numpy as np
 from coverage_ros.cli.arguments import attach_values
 from coverage_ros.core.geodesic.domain import CoverageDomain
 from coverage_ros.core.geodesic.world_domain import world_domain
+from coverage_ros.core.offline.lloyd_solvers import HOPS
 from coverage_ros.core.offline.lloyd_team import (
     SOLVERS,
     EuclideanTeam,
@@ -74,7 +75,12 @@ def build_parser() -> argparse.ArgumentParser:
                     choices=("decentralized",) + SOLVERS,
                     help="with --strategy lloyd or geodesic: 'lloyd' / 'accelerated' run the "
                     "whole team's step at once (plain Lloyd / Lloyd, then L-BFGS on H once "
-                    "Lloyd's tail settles) instead of every robot's own update")
+                    "Lloyd's tail settles, then relocations: --hops) instead of every "
+                    "robot's own update")
+    ap.add_argument("--hops", type=int, default=None,
+                    help=f"with --solver accelerated: relocations tried after the descent, at "
+                    f"most (default {HOPS}; 0: the descent alone, fewer steps, an end as "
+                    f"likely above plain Lloyd's as below)")
     ap.add_argument("--connectivity", type=int, default=8, choices=(8, 16))
     ap.add_argument("--explore", action="store_true",
                     help="the robots start with no map and explore it (simulated lidar)")
@@ -118,6 +124,7 @@ class Run(NamedTuple):
     iterations: int
     converged: bool
     update_seconds: list[float]  # one robot's update, or one team step
+    relocations: int = 0  # the accelerated team solver's relocations kept
 
 
 def run(args: argparse.Namespace) -> dict:
@@ -131,6 +138,10 @@ def run(args: argparse.Namespace) -> dict:
         raise ConfigError.at("--tolerance", "must be a finite number > 0", args.tolerance)
     if args.max_iterations < 1:
         raise ConfigError.at("--max-iterations", "must be >= 1", args.max_iterations)
+    if args.hops is not None and args.solver != "accelerated":
+        raise ConfigError.at("--hops", "needs --solver accelerated", args.hops)
+    if args.hops is not None and args.hops < 0:
+        raise ConfigError.at("--hops", "must be >= 0", args.hops)
     if args.duration is not None and not args.explore:
         raise ConfigError.at("--duration", "needs --explore (a plan without it runs until it "
                              "converges or --max-iterations)", args.duration)
@@ -203,8 +214,8 @@ def run(args: argparse.Namespace) -> dict:
         team = EuclideanTeam(domain) if args.strategy == "lloyd" or choice is None else \
             GeodesicTeam(domain, choice.params.method)
         if choice is not None and getattr(choice.params, "escape", False):  # (geodesic's)
-            say("  note: the team solvers run Lloyd alone; a robot left in a dead-end room stays "
-                "there (the escape runs in the robots' own updates: --solver decentralized)")
+            say("  note: the team solvers run Lloyd (the accelerated one with its relocations); "
+                "the closet escape runs in the robots' own updates: --solver decentralized")
         result, first, last = _solve_team(args, team, weights, starts, progress)
     final, H0 = _score(domain, result.positions[-1], weights, last), \
         _score(domain, result.positions[0], weights, first).cost
@@ -217,6 +228,7 @@ def run(args: argparse.Namespace) -> dict:
         "positions": result.positions[-1].round(4).tolist(),
         "H": float(final.cost), "H_start": float(H0),
         "iterations": int(result.iterations), "converged": bool(result.converged),
+        **({"relocations": result.relocations} if args.solver == "accelerated" else {}),
         "update_ms": {"median": _quantile(ms, 0.5), "p90": _quantile(ms, 0.9),
                       "max": float(ms[-1])},
         "grid": {"width": domain.shape[1], "height": domain.shape[0],
@@ -276,9 +288,10 @@ def _solve_team(args, team: EuclideanTeam | GeodesicTeam, weights: list[float],
     t0 = time.perf_counter()
     sol = solve_lloyd(team, starts[:, :2], np.array(weights), args.solver,
                       tolerance=args.tolerance, max_steps=args.max_iterations,
-                      progress=progress)
+                      hops=HOPS if args.hops is None else args.hops, progress=progress)
     step = (time.perf_counter() - t0) / sol.steps
-    return Run(sol.positions, sol.steps, sol.converged, [step] * sol.steps), sol.first, sol.last
+    return Run(sol.positions, sol.steps, sol.converged, [step] * sol.steps,
+               len(sol.hops)), sol.first, sol.last
 
 
 def record(path: Path, domain: CoverageDomain, world: WorldSpec, result, n: int,

@@ -27,6 +27,15 @@ CVTs. A team (:class:`Team`) makes one tessellation per call; every call counts 
   still differs from plain Lloyd's, and by how much, ``scripts/bench_planner`` measures on
   random scenarios (``docs/results/planner.json``).
 
+  Then relocations (:data:`HOPS` at most), as the closet escape and the adaptive CVT's
+  reinsertion move robots between cells: the robot of the cell that costs least goes into the
+  cell that costs most, it and that cell's robot half the cell's radius either side of its
+  goal, and the team descends again from there (plain Lloyd, then L-BFGS, as above). A try is
+  kept if it ends lower by :data:`HOP_GAIN` of H, and the next starts from its end; the first
+  that does not ends the tries. The end an early switch picked is as likely above plain
+  Lloyd's as below; a relocation lowers it where a robot is worth more elsewhere, and costs a
+  descent's steps where it is not.
+
 The plain step is monotone, as the offline runner's robots are: the team moves to its goals if
 H does not rise; else the robots whose cells' cost rose try half their steps (every robot, when
 no cell's cost rose), and so on, a robot whose step falls below ``tolerance`` staying where it
@@ -40,14 +49,15 @@ whole step comes first, as the cells made at the goals can gain more than such a
 and without it a robot held at an obstacle's side stayed there for good). The L-BFGS steps
 leave those robots where they are (an active set, as in projected quasi-Newton methods).
 
-Both stop when no robot's Lloyd step is longer than ``tolerance``, or when no step that long
-lowers H.
+Each descent stops when no robot's Lloyd step is longer than ``tolerance``, or when no step
+that long lowers H.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Protocol
 
 import numpy as np
@@ -60,6 +70,10 @@ TAIL_WINDOW = 3
 #: The accelerated solver switches once plain Lloyd's extrapolated remaining decrease is below
 #: this share of H (module docstring).
 SETTLED = 2e-3
+#: Relocations the accelerated solver tries after its descent, at most (module docstring).
+HOPS = 3
+#: A relocation is kept if its descent ends lower by this share of H (less: the same end).
+HOP_GAIN = 1e-4
 #: Armijo's sufficient decrease: the share of the linear prediction an L-BFGS step must reach.
 ARMIJO = 1e-4
 #: [relative] rounding allowed in a plain step's H before it counts as a rise
@@ -89,6 +103,9 @@ class LloydSolution:
     last: Any  # the team step at the final positions
     first: Any  # the team step at the start
     switched_at: int | None = None  # tessellations made when the acceleration began
+    #: indices into ``positions`` where a relocation's descent begins (H rises there: one
+    #: robot moved into another's cell)
+    hops: list[int] = field(default_factory=list)
 
     @property
     def cost(self) -> float:
@@ -118,13 +135,17 @@ def remaining_decrease(energies: list[float], window: int = TAIL_WINDOW) -> floa
 def solve_lloyd(team: Team, starts: np.ndarray, weights: np.ndarray | None = None,
                 solver: str = "lloyd", tolerance: float = 0.02, max_steps: int = 1000,
                 memory: int = 8, settled: float = SETTLED, tail_window: int = TAIL_WINDOW,
+                hops: int = HOPS,
                 progress: Callable[[int, float], None] | None = None) -> LloydSolution:
     """Lloyd from ``starts (n, 2)`` until no robot's step exceeds ``tolerance`` [m] or
-    ``max_steps`` tessellations were made (module docstring)."""
+    ``max_steps`` tessellations were made; the accelerated solver then tries at most ``hops``
+    relocations (module docstring)."""
     if solver not in SOLVERS:
         raise ConfigError.at("solver", "unknown Lloyd solver", solver, f"one of {SOLVERS}")
     if max_steps < 1:
         raise ConfigError.at("max_steps", "must be >= 1", max_steps)
+    if hops < 0:
+        raise ConfigError.at("hops", "must be >= 0", hops)
     energies: list[float] = []
 
     def evaluate(X: np.ndarray) -> Any:
@@ -134,18 +155,58 @@ def solve_lloyd(team: Team, starts: np.ndarray, weights: np.ndarray | None = Non
             progress(len(energies), s.cost)
         return s
 
-    cur = start = evaluate(np.asarray(starts, dtype=np.float64)[:, :2].copy())
-    stalled = False
+    def descend(X: np.ndarray) -> _Descent:
+        return _descend(team, evaluate(X), evaluate, solver, tolerance,
+                        lambda: len(energies), max_steps, memory, settled, tail_window)
+
+    start = np.asarray(starts, dtype=np.float64)[:, :2].copy()
+    best = descend(start)
+    first, path, hopped = best.first, list(best.path), []
+    for _ in range(hops if solver == "accelerated" else 0):
+        if len(energies) >= max_steps or not best.converged:
+            break
+        X = _relocated(best.last, team, weights)
+        if X is None:
+            break
+        trial = descend(X)
+        if not trial.last.cost < (1.0 - HOP_GAIN) * best.last.cost:
+            break  # (a try that ends no lower: the landscape around holds no better end)
+        hopped.append(len(path))
+        path += trial.path
+        best = _Descent(trial.path, trial.first, trial.last, trial.converged, best.switched_at)
+    return LloydSolution(np.array(path), energies, len(energies), best.converged, best.last,
+                         first, best.switched_at, hopped)
+
+
+@dataclass
+class _Descent:
+    path: list[np.ndarray]  # (n, 2) [m] the accepted positions, the start first
+    first: Any  # the team step at the start
+    last: Any  # the team step where it stopped
+    converged: bool
+    switched_at: int | None
+
+
+def _descend(team: Team, cur: Any, evaluate: Callable[[np.ndarray], Any], solver: str,
+             tolerance: float, made: Callable[[], int], max_steps: int, memory: int,
+             settled: float, tail_window: int) -> _Descent:
+    """Plain or accelerated Lloyd from the team step ``cur`` until no robot's step exceeds
+    ``tolerance``, no such step lowers H, or ``made()`` tessellations reach ``max_steps``."""
+
+    def left() -> int:
+        return max_steps - made()
+
+    start, stalled = cur, False
     path = [cur.positions.copy()]
     plain = [cur.cost]  # energies of the plain steps before the switch
     switched_at = None
     pairs = _Curvature(memory)
     grad = _gradient(cur)
-    while cur.step_length >= tolerance and len(energies) < max_steps:
+    while cur.step_length >= tolerance and left() > 0:
         nxt = None
         if solver == "accelerated" and switched_at is None and \
                 remaining_decrease(plain, tail_window) < settled * cur.cost:
-            switched_at = len(energies)
+            switched_at = made()
         if switched_at is not None and pairs:
             x = cur.positions.ravel()
             d = pairs.direction(grad, cur.masses)
@@ -161,11 +222,11 @@ def solve_lloyd(team: Team, starts: np.ndarray, weights: np.ndarray | None = Non
             if nxt is None:
                 pairs.clear()  # start again from the plain step
         if nxt is None:
-            if len(energies) >= max_steps:
+            if left() <= 0:
                 break
-            nxt = _monotone_step(cur, team, evaluate, tolerance, max_steps - len(energies))
+            nxt = _monotone_step(cur, team, evaluate, tolerance, left())
             if nxt is None:  # (no step of at least the tolerance lowers H, or out of steps)
-                stalled = len(energies) < max_steps
+                stalled = left() > 0
                 break
             if switched_at is None:
                 plain.append(nxt.cost)
@@ -174,8 +235,7 @@ def solve_lloyd(team: Team, starts: np.ndarray, weights: np.ndarray | None = Non
             pairs.add(nxt.positions.ravel() - cur.positions.ravel(), new - grad)
         cur, grad = nxt, new
         path.append(cur.positions.copy())
-    return LloydSolution(np.array(path), energies, len(energies),
-                         bool(stalled or cur.step_length < tolerance), cur, start, switched_at)
+    return _Descent(path, start, cur, bool(stalled or cur.step_length < tolerance), switched_at)
 
 
 def _monotone_step(cur: Any, team: Team, evaluate: Callable[[np.ndarray], Any],
@@ -222,6 +282,30 @@ def _monotone_step(cur: Any, team: Team, evaluate: Callable[[np.ndarray], Any],
         budget -= 1
         if trial.cost <= cur.cost * (1.0 + RISE) + RISE:
             return trial
+
+
+def _relocated(last: Any, team: Team, weights: np.ndarray | None) -> np.ndarray | None:
+    """The positions of ``last`` with the robot of the cheapest cell moved into the costliest
+    cell that takes it: that cell's robot and it at its goal -+ half its radius, across the
+    line from the mover (None: no cell has room for both on free cells).
+
+    A cell's radius here is that of a disc with its mean squared distance,
+    ``sqrt(2 (cost / mass + R^2))``."""
+    X: np.ndarray = np.array(last.positions, dtype=np.float64)
+    R2 = np.zeros(len(X)) if weights is None else np.asarray(weights, dtype=np.float64) ** 2
+    j = int(np.argmin(last.costs))
+    for t in np.argsort(-last.costs, kind="stable"):
+        if t == j or not last.masses[t] > 0:
+            continue
+        radius = math.sqrt(max(2.0 * (last.costs[t] / last.masses[t] + R2[t]), 0.0))
+        c = last.goals[t]
+        away = c - X[j]
+        across = np.array([-away[1], away[0]]) / max(float(np.hypot(*away)), 1e-12)
+        a, b = c + 0.5 * radius * across, c - 0.5 * radius * across
+        if team.domain.is_free_point(a) and team.domain.is_free_point(b):
+            X[j], X[t] = a, b
+            return X
+    return None
 
 
 def _free_to_move(cur: Any) -> np.ndarray:

@@ -60,14 +60,17 @@ def test_a_sweep_with_another_switch_threshold_is_run_with_it_and_kept_beside(ca
 
     assert sweep_part("held-out", None) == sweep_part("held-out", SETTLED) == "sweep_held_out"
     assert sweep_part("train", 1e-4) == "sweep_train_settled_0.0001"
-    # a threshold no tail gets below: the accelerated solver never switches, so it is plain Lloyd
+    # a threshold no tail gets below: the accelerated solver never switches, so its descent is
+    # plain Lloyd's (its relocations come after)
     assert main(["--no-end-to-end", "--sweep", "train", "--scenarios", "1", "--settled",
                  "1e-300"]) == 0
     sweep = json.loads(capsys.readouterr().out.strip().splitlines()[-1])["sweep"]
     assert sweep["settled"] == 1e-300
     row = sweep["scenarios"][0]
-    assert row["accelerated"]["steps"] == row["plain"]["steps"]
-    assert row["accelerated"]["H"] == row["plain"]["H"]
+    assert row["accelerated"]["steps_within"] == row["plain"]["steps_within"]
+    assert row["accelerated"]["steps"] >= row["plain"]["steps"]
+    assert row["accelerated"]["H"] <= row["plain"]["H"]
     assert main(["--no-end-to-end", "--sweep", "train", "--scenarios", "1"]) == 0
     row = json.loads(capsys.readouterr().out.strip().splitlines()[-1])["sweep"]["scenarios"][0]
-    assert row["accelerated"]["steps"] < row["plain"]["steps"]  # (the default switches)
+    # (the default switches)
+    assert row["accelerated"]["steps_within"] < row["plain"]["steps_within"]

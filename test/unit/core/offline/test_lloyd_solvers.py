@@ -4,14 +4,17 @@ centroidal Voronoi configuration."""
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 
 from coverage_ros.core.geodesic.domain import CoverageDomain
-from coverage_ros.core.offline.lloyd_solvers import remaining_decrease, solve_lloyd
+from coverage_ros.core.offline.lloyd_solvers import _relocated, remaining_decrease, solve_lloyd
 from coverage_ros.core.offline.lloyd_team import EuclideanTeam
 from coverage_ros.core.world.density import GaussianMixture, UniformDensity
 from coverage_ros.core.world.grid import OCCUPIED, GridMap
+from coverage_ros.errors import ConfigError
 
 TOL = 1e-4  # [m]
 
@@ -56,11 +59,22 @@ def test_accelerated_ends_within_a_tenth_of_a_percent_of_plain(runs):
     assert fast.steps_within(plain.cost) is not None
 
 
-def test_energy_of_accepted_positions_never_rises(runs):
+def test_energy_of_accepted_positions_never_rises_within_a_descent(runs):
+    """H never rises along a descent; a relocation starts a new one (H rises there), kept only
+    if it ends lower than the descent before."""
     team = runs["team"]
+    assert runs["lloyd"].hops == []
     for solver in ("lloyd", "accelerated"):
-        E = np.array([team.step(P).cost for P in runs[solver].positions])
-        assert np.all(np.diff(E) <= 1e-9 * E[:-1]), solver
+        sol = runs[solver]
+        E = np.array([team.step(P).cost for P in sol.positions])
+        bounds = [0, *sol.hops, len(E)]
+        ends = []
+        for a, b in itertools.pairwise(bounds):
+            assert np.all(np.diff(E[a:b]) <= 1e-9 * E[a:b - 1]), solver
+            ends.append(E[b - 1])
+        assert np.all(np.diff(ends) < 0), solver
+        for h in sol.hops:
+            assert E[h] > E[h - 1]  # (one robot moved into another's cell)
     fast = runs["accelerated"]
     assert len(fast.positions) <= fast.steps == len(fast.energies)
 
@@ -149,3 +163,63 @@ def test_a_euclidean_step_that_raises_h_is_followed_by_one_that_cannot():
         assert max(runs[:-1]) <= 1, (n, seed)  # (the last: the tries before the stop)
         rejected += sum(runs[:-1])
     assert rejected >= 5  # (the rule was needed)
+
+
+def test_a_relocation_lowers_the_end_an_early_switch_picked():
+    """Seven robots on a uniform square: the descent alone ends in a CVT 1 % above the one a
+    robot moved from the cheapest cell into the costliest reaches; plain Lloyd tries none."""
+    team = EuclideanTeam(_domain("uniform"))
+    starts = _corner(7, 7)
+    alone = solve_lloyd(team, starts, solver="accelerated", tolerance=TOL, max_steps=2000,
+                        hops=0)
+    hopped = solve_lloyd(team, starts, solver="accelerated", tolerance=TOL, max_steps=2000)
+    assert alone.hops == [] and len(hopped.hops) >= 1
+    assert hopped.cost < 0.995 * alone.cost
+    assert hopped.converged
+    # the path up to the first relocation is the descent alone
+    h = hopped.hops[0]
+    assert np.array_equal(hopped.positions[:h], alone.positions)
+    moved = np.flatnonzero(np.any(hopped.positions[h] != alone.positions[-1], axis=1))
+    assert len(moved) == 2  # the mover and the robot of the cell it went into
+    assert solve_lloyd(team, starts, solver="lloyd", tolerance=TOL, max_steps=2000).hops == []
+
+
+def test_relocation_moves_the_cheapest_cells_robot_into_the_costliest_cell():
+    team = EuclideanTeam(_domain("uniform"))
+    P = np.array([[1.0, 1.0], [1.6, 1.2], [5.0, 5.0], [2.0, 6.5]])
+    step = team.step(P)
+    j, t = int(np.argmin(step.costs)), int(np.argmax(step.costs))
+    X = _relocated(step, team, None)
+    assert X is not None
+    assert np.array_equal(np.delete(X, [j, t], axis=0), np.delete(P, [j, t], axis=0))
+    radius = np.sqrt(2.0 * step.costs[t] / step.masses[t])
+    for k in (j, t):
+        assert np.hypot(*(X[k] - step.goals[t])) == pytest.approx(radius / 2)
+    assert np.hypot(*(X[j] - X[t])) == pytest.approx(radius)
+    # across the line from where the mover stood
+    assert abs(np.dot(X[j] - X[t], step.goals[t] - P[j])) < 1e-9
+    # a power weight widens the cell's radius: sqrt(2 (cost / mass + R^2))
+    R = np.array([0.0, 0.0, 0.3, 0.0])
+    weighted = team.step(P, R)
+    t = int(np.argmax(weighted.costs))
+    Xw = _relocated(weighted, team, R)
+    assert Xw is not None
+    wide = np.sqrt(2.0 * (weighted.costs[t] / weighted.masses[t] + R[t] ** 2))
+    assert np.hypot(*(Xw[t] - weighted.goals[t])) == pytest.approx(wide / 2)
+
+
+def test_no_relocation_where_no_cell_has_room_and_bad_counts_are_refused():
+    team = EuclideanTeam(_domain("uniform"))
+    step = team.step(_corner(4, 1))
+
+    class Walled:
+        overshoots = False
+
+        class domain:  # noqa: N801 (stands in for a domain with every point blocked)
+            @staticmethod
+            def is_free_point(p):
+                return False
+
+    assert _relocated(step, Walled(), None) is None
+    with pytest.raises(ConfigError, match="hops"):
+        solve_lloyd(team, _corner(4, 1), solver="accelerated", hops=-1)

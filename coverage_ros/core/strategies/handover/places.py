@@ -1,5 +1,5 @@
 """Where the robots of a team stood, compared whichever robot stands where: the closet escape's
-memory of the configurations the moves a robot heard left from (:mod:`.protocol`)."""
+memory of the moves a robot heard and the configurations they left from (:mod:`.protocol`)."""
 
 from __future__ import annotations
 
@@ -40,3 +40,21 @@ class Places:
             return False
         close = csr_matrix(cdist(self.points, other.points) <= near)
         return bool(np.all(maximum_bipartite_matching(close, perm_type="column") >= 0))
+
+
+@dataclass(frozen=True)
+class HeardMove:
+    """A move a robot heard another make: where the team stood, where the mover left from and
+    where it went [m]."""
+
+    places: Places
+    start: np.ndarray  # (2,) [m]
+    end: np.ndarray  # (2,) [m]
+
+    def again(self, here: Places, position: np.ndarray, point: np.ndarray, near: float
+              ) -> bool:
+        """A robot at ``position`` with the team at ``here`` moving to ``point`` makes this
+        move again: the same places, from its start to its end, each within ``near`` [m]."""
+        return bool(np.hypot(*(np.asarray(position) - self.start)) <= near
+                    and np.hypot(*(np.asarray(point) - self.end)) <= near
+                    and here.same(self.places, near))

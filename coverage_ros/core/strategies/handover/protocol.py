@@ -58,10 +58,12 @@ configuration whose H is below each of those by that saving: a team that came ba
 a robot left from, or to no better, does not send it again, and each robot's moves end. A
 team may also come back with other robots in the places (live robots descend along their own
 paths, not the steps that priced a move), and the robot now where the mover stood would make
-the same move: so every robot keeps where the team stood when it heard a claim whose claimer
-then relocated (:class:`.places.Places`), and claims nothing while the team stands there
-again, each robot within :data:`.places.SAME_PLACE_SHARE` of its cell's radius of one of
-those places, whichever robot stands where.
+the same move: so every robot keeps the moves it heard (:class:`.places.HeardMove`: where the
+team stood when the claim was heard, where the claimer left from and where it went) and does
+not make one of them again from the same places - each robot within
+:data:`.places.SAME_PLACE_SHARE` of its cell's radius of one of them, whichever robot stands
+where, itself where the mover left from and the offered point where the mover went. Other
+moves from there stay open (a team may need several moves from one configuration).
 What a robot uses is its own cell, the generators and published values of the robots it
 hears (its bordering neighbours' cells, and for the joint bound the target's and those that
 touch either, are tessellated from them), nothing else; the protocol is deterministic.
@@ -78,14 +80,21 @@ import numpy as np
 from coverage_ros.core.geodesic.cell import CellResult
 from coverage_ros.core.geodesic.domain import CoverageDomain
 from coverage_ros.core.strategies.base import Neighbour
-from coverage_ros.core.strategies.handover.places import SAME_PLACE_SHARE, Places
+from coverage_ros.core.strategies.handover.places import SAME_PLACE_SHARE, HeardMove, Places
 from coverage_ros.core.strategies.handover.pricing import (
     WEIGHT_MATCH,
     Prices,
     config_key,
     same_config,
 )
-from coverage_ros.core.strategies.handover.published import NONE, Offer, idle, offers_of, value
+from coverage_ros.core.strategies.handover.published import (
+    NONE,
+    Offer,
+    destination,
+    idle,
+    offers_of,
+    value,
+)
 from coverage_ros.core.strategies.handover.split import SplitOffer
 
 #: [updates] standing still this long counts as settled: a robot turning towards a new goal
@@ -164,10 +173,10 @@ class Handover:
     _claimed_from: Departure | None = field(default=None, repr=False)
     _departures: list[Departure] = field(default_factory=list, repr=False)
     #: claims heard, by claimer id: (where the claimer stood [m], its target, the team's
-    #: places then), kept in ``_places`` once the claimer is heard relocating
+    #: places then), kept in ``_moves`` once the claimer is heard relocating
     _heard_claims: dict[int, tuple[np.ndarray, int, Places]] = field(
         default_factory=dict, repr=False)
-    _places: list[Places] = field(default_factory=list, repr=False)
+    _moves: list[HeardMove] = field(default_factory=list, repr=False)
     prices: Prices = field(init=False, repr=False)  # what it priced, per configuration
 
     def __post_init__(self) -> None:
@@ -265,12 +274,14 @@ class Handover:
         for n in neighbours:
             rid, target = n.robot_id, int(value(n, "claim", NONE))
             heard = self._heard_claims.get(rid)
-            if value(n, "relocating") > 0 or (
-                    heard is not None and target != heard[1]
-                    and float(np.hypot(*(n.position - heard[0]))) > arrive):
+            going = value(n, "relocating") > 0
+            if going or (heard is not None and target != heard[1]
+                         and float(np.hypot(*(n.position - heard[0]))) > arrive):
                 if heard is not None:
                     self._heard_claims.pop(rid)
-                    self._places = [*self._places, heard[2]][-DEPARTURES:]
+                    move = HeardMove(heard[2], heard[0],
+                                     np.array(destination(n), dtype=np.float64))
+                    self._moves = [*self._moves, move][-DEPARTURES:]
             elif target < 0:
                 self._heard_claims.pop(rid, None)
             elif heard is None or heard[1] != target:
@@ -304,12 +315,14 @@ class Handover:
             return  # one move at a time (module docstring)
         here = Places.of(self.robot_id, position, neighbours)
         near = SAME_PLACE_SHARE * math.sqrt(self.domain.area_of(cell.nodes) / math.pi)
-        if any(here.same(p, near) for p in self._places):
-            return  # the team came back to where a move it heard left from (module docstring)
+
+        def made(o: Offer) -> bool:  # (a move heard from these places: module docstring)
+            return any(m.again(here, position, o.point, near) for m in self._moves)
+
         offers = [o for n in neighbours for o in offers_of(n)
                   if value(n, "claim", NONE) < 0 and value(n, "grant", NONE) == NONE
                   and abs(n.state.weight - weight) < WEIGHT_MATCH
-                  and self.domain.is_free_point(o.point)]
+                  and self.domain.is_free_point(o.point) and not made(o)]
         if not offers:
             return
         # the removal bound per target: one held fixed when it borders the own cell
@@ -345,7 +358,7 @@ class Handover:
                 # none of them pays: a point in every other room of the cells they split
                 rooms = [o for j in dict.fromkeys(o.robot_id for o in largest)
                          for o in self.prices.rooms(key, position, weight, neighbours, j,
-                                                    offers)]
+                                                    offers) if not made(o)]
                 if rooms:
                     best, saving = self._best(rooms, cell.cost, {
                         o.key: -self.prices.descent(key, position, weight, neighbours, o,

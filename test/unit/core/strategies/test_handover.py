@@ -37,7 +37,7 @@ from coverage_ros.core.strategies.handover import (
     split_offer,
     split_offers,
 )
-from coverage_ros.core.strategies.handover.places import Places
+from coverage_ros.core.strategies.handover.places import HeardMove, Places
 from coverage_ros.core.strategies.handover.protocol import STILL_UPDATES, Handover
 from coverage_ros.core.strategies.handover.published import held
 from coverage_ros.core.world import parse_world
@@ -639,8 +639,10 @@ def test_a_robot_claims_no_more_where_the_team_came_back_after_its_move():
     assert max(claims(team[1], near)) < 0
     assert max(claims(robot(1), near)) == 7
     assert max(claims(team[0], near[swapped], 0, swapped)) < 0
-    kept = team[0].handover._places[-1]
-    team[0].handover._places = [dataclasses.replace(kept, points=kept.points + [4.0, 0.0])]
+    kept = team[0].handover._moves[-1]
+    assert np.array_equal(kept.start, P[1]) and np.hypot(*(kept.end - target)) < 1e-9
+    team[0].handover._moves = [dataclasses.replace(kept, places=dataclasses.replace(
+        kept.places, points=kept.places.points + [4.0, 0.0]))]
     assert max(claims(team[0], P[swapped], 0, swapped)) == 7
     team[1].handover._departures = [dataclasses.replace(left, cost=H_near + 2 * left.saving)]
     assert max(claims(team[1], near)) == 7
@@ -665,6 +667,14 @@ def test_places_are_the_same_whichever_robot_stands_where():
     c = places([0, 1, 2], [[0.6, 0.0], [1.6, 0.0], [1.4, 0.0]])
     assert not b.same(c, 0.45)
     assert b.same(c, 0.61)
+    # a move heard from places a: made again from them only by a robot where the mover
+    # stood, to where it went; other moves from there stay open
+    move = HeardMove(a, np.array([5.0, 0.0]), np.array([9.0, 9.0]))
+    here = places([0, 1, 2], [[0.0, 5.0], [0.05, 0.0], [5.0, 0.0]])
+    assert move.again(here, np.array([5.0, 0.0]), np.array([9.05, 9.0]), 0.1)
+    assert not move.again(here, np.array([5.0, 0.0]), np.array([9.0, 9.2]), 0.1)
+    assert not move.again(here, np.array([0.0, 5.0]), np.array([9.0, 9.0]), 0.1)
+    assert not move.again(c, np.array([5.0, 0.0]), np.array([9.0, 9.0]), 0.1)
 
 
 def test_one_claimant_per_cell_and_claims_follow_grants():

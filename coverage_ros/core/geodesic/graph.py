@@ -21,9 +21,9 @@ across a cordoned-off pole of a sphere (section 4.1).
 from __future__ import annotations
 
 import math
-from collections.abc import Hashable
+from collections.abc import Callable, Hashable
 from dataclasses import dataclass, field
-from functools import cached_property
+from functools import cached_property, partial
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -92,12 +92,19 @@ class GridGraph:
     free: np.ndarray  # (H, W) bool
     resolution: float  # chart units (m) per cell
     offsets: np.ndarray  # (K, 2) int (drow, dcol)
-    cost: np.ndarray  # (H, W, K) float64 edge lengths; inf where there is no edge
+    #: makes :attr:`cost` on first use: a Euclidean Lloyd team never searches the graph, and
+    #: the (H, W, K) array is most of a large domain's set-up
+    costs: Callable[[], np.ndarray]
     wrap: tuple[bool, bool] = (False, False)
     extra_edges: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None  # (u, v, cost) undirected
     area: np.ndarray | None = None  # (H, W) cell volume element sqrt(det eta) * res^2; None=res^2
     euclidean: bool = True  # True when the metric is the plain Euclidean one
     _cache: dict[Hashable, Any] = field(default_factory=dict, repr=False)
+
+    @cached_property
+    def cost(self) -> np.ndarray:
+        """``(H, W, K)`` float64 edge lengths; inf where there is no edge."""
+        return self.costs()
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -243,6 +250,28 @@ def build_grid_graph(free: np.ndarray, resolution: float, connectivity: int = 8,
         det = tensor[..., 0, 0] * tensor[..., 1, 1] - tensor[..., 0, 1] * tensor[..., 1, 0]
         if np.any(det <= 0) or np.any(tensor[..., 0, 0] <= 0):
             raise ConfigError("tensor: every metric tensor must be positive definite")
+    area = None
+    euclidean = zeta is None and tensor is None
+    if tensor is not None:
+        det = tensor[..., 0, 0] * tensor[..., 1, 1] - tensor[..., 0, 1] * tensor[..., 1, 0]
+        area = np.sqrt(det) * resolution ** 2
+    elif zeta is not None:
+        area = zeta * resolution ** 2
+    if extra_edges is not None:
+        u, v, w = (np.asarray(a) for a in extra_edges)
+        extra_edges = (u.astype(np.int64), v.astype(np.int64), w.astype(np.float64))
+    return GridGraph(free=free, resolution=float(resolution), offsets=offsets,
+                     costs=partial(_edge_costs, free, float(resolution), offsets, wrap,
+                                   sqrt_zeta, tensor),
+                     wrap=wrap, extra_edges=extra_edges, area=area, euclidean=euclidean)
+
+
+def _edge_costs(free: np.ndarray, resolution: float, offsets: np.ndarray,
+                wrap: tuple[bool, bool], sqrt_zeta: np.ndarray | None,
+                tensor: np.ndarray | None) -> np.ndarray:
+    """``(H, W, K)`` the metric length of every edge of :func:`build_grid_graph` (module
+    docstring), inf where there is none."""
+    H, W = free.shape
     cost = np.full((H, W, len(offsets)), np.inf)
     for k, (dr, dc) in enumerate(offsets):
         ok = free & shift(free, dr, dc, wrap, False)
@@ -258,18 +287,7 @@ def build_grid_graph(free: np.ndarray, resolution: float, connectivity: int = 8,
         else:
             c = np.full((H, W), length)
         cost[..., k] = np.where(ok, c, np.inf)
-    area = None
-    euclidean = zeta is None and tensor is None
-    if tensor is not None:
-        det = tensor[..., 0, 0] * tensor[..., 1, 1] - tensor[..., 0, 1] * tensor[..., 1, 0]
-        area = np.sqrt(det) * resolution ** 2
-    elif zeta is not None:
-        area = zeta * resolution ** 2
-    if extra_edges is not None:
-        u, v, w = (np.asarray(a) for a in extra_edges)
-        extra_edges = (u.astype(np.int64), v.astype(np.int64), w.astype(np.float64))
-    return GridGraph(free=free, resolution=float(resolution), offsets=offsets, cost=cost,
-                     wrap=wrap, extra_edges=extra_edges, area=area, euclidean=euclidean)
+    return cost
 
 
 def octile_bound(connectivity: int) -> float:

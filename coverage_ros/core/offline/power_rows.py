@@ -158,7 +158,11 @@ class RowSums:
         H, W = w.shape
         self._w, self._cx, self._cy = w, cx, cy
         q = np.zeros((H, W + 1, 4))  # the four sums of one cell side by side: one gather each
-        q[:, 1:, :] = self.cell_values().transpose(1, 2, 0)
+        v, x, y = q[:, 1:, :], cx[None, :], cy[:, None]  # (the values of cell_values, in place)
+        v[..., 0] = w
+        np.multiply(w, x, out=v[..., 1])
+        np.multiply(w, y, out=v[..., 2])
+        np.multiply(w, x * x + y * y, out=v[..., 3])
         np.cumsum(q, axis=1, out=q)
         self._q = q
         self._rows = np.arange(H)[None, :]

@@ -10,6 +10,9 @@ import yaml
 
 from coverage_ros.errors import ConfigError, MapError
 
+#: libyaml's safe loader where PyYAML has it (the same documents, parsed about twice as fast)
+SAFE_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+
 
 def read_yaml_mapping(path: Path) -> dict[str, Any]:
     """Load a YAML file that must contain a mapping; errors name the file."""
@@ -23,7 +26,7 @@ def read_yaml_mapping(path: Path) -> dict[str, Any]:
     except OSError as exc:
         raise MapError(f"{path}: cannot read ({exc.strerror})") from None
     try:
-        data = yaml.safe_load(text)
+        data = yaml.load(text, Loader=SAFE_LOADER)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f"{path}:{mark.line + 1}" if mark is not None else str(path)

@@ -9,6 +9,10 @@ density, zero on the cells the robot radius keeps free of) and the same starts; 
 venv under the cache folder (made on first use: ``pip install coverage-control``), by
 :mod:`coverage_ros.bench.coveragecontrol_lloyd`.
 
+The same comparison then runs on random scenarios of that kind
+(:mod:`coverage_ros.bench.cc_scenarios`, ``--e2e-scenarios``), each with its process's fixed
+cost and the steps a run needs to pay it back.
+
 Timed in rounds, each round one run of every kind back to back, so a change in the machine's
 load hits all alike; the ratios are medians over rounds of the round's own ratio:
 
@@ -35,7 +39,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import yaml
 
+from coverage_ros.bench import cc_scenarios
 from coverage_ros.bench.environment import REPO
 from coverage_ros.core.offline.lloyd_solvers import SETTLED
 from coverage_ros.errors import ConfigError
@@ -96,14 +102,14 @@ def _timed(cmd: list[str], stdin: str = "") -> tuple[subprocess.CompletedProcess
     return out, wall, cpu
 
 
-def scenario(tmp: Path) -> dict:
+def scenario(tmp: Path, world_name: str = WORLD, robots: int = ROBOTS) -> dict:
     """The scenario's density grid for CoverageControl (an ``.npy``: the world's bounds, rows
-    along y), its starts in that grid's frame and our domain's resolution."""
+    along y), its first ``robots`` starts in that grid's frame and our domain's resolution."""
     from coverage_ros.core.geodesic.world_domain import world_domain
     from coverage_ros.core.world import load_world
     from coverage_ros.worlds import resolve_world_path
 
-    world = load_world(resolve_world_path(WORLD))
+    world = load_world(resolve_world_path(world_name))
     domain = world_domain(world, world.robot_spec(0).radius)
     res = domain.resolution
     assert world.bounds is not None  # (the scenario's world is walled)
@@ -116,33 +122,34 @@ def scenario(tmp: Path) -> dict:
     density = np.where(domain.free, domain.density, 0.0)[r0:r0 + n, c0:c0 + n]
     path = tmp / "density.npy"
     np.save(path, density)
-    starts = [[s.x - x0, s.y - y0] for s in world.starts[:ROBOTS]]
+    starts = [[s.x - x0, s.y - y0] for s in world.starts[:robots]]
     return {"density": str(path), "resolution": res, "starts": starts, "max_steps": 2000}
 
 
-def plan_command(out: Path) -> list[str]:
+def plan_command(out: Path, world: str = WORLD, robots: int = ROBOTS) -> list[str]:
     exe = Path(sys.executable).with_name("coverage-plan")
     head = [str(exe)] if exe.exists() else [sys.executable, "-m", "coverage_ros.cli.plan"]
-    return head + ["--map", WORLD, "--robots", str(ROBOTS), "--strategy", "lloyd",
+    return head + ["--map", world, "--robots", str(robots), "--strategy", "lloyd",
                    "--solver", "lloyd", "--tolerance", str(TOLERANCE), "--max-iterations",
                    "2000", "--json", str(out)]
 
 
-def bench_end_to_end(rounds: int, say) -> dict:
+def bench_end_to_end(rounds: int, say, world: str = WORLD, robots: int = ROBOTS) -> dict:
     """Rounds of: our ``coverage-plan`` process, CoverageControl's run, CoverageControl's run
-    with the objective every step (module docstring)."""
+    with the objective every step (module docstring), on ``world`` (a name or a path) with its
+    first ``robots`` starts."""
     cc_py, why = coveragecontrol_python(say)
     load_before = os.getloadavg()[0]
     with tempfile.TemporaryDirectory() as tmpdir:
         tmp = Path(tmpdir)
-        req = scenario(tmp)
+        req = scenario(tmp, world, robots)
         runner = str(Path(__file__).with_name("coveragecontrol_lloyd.py"))
         ours: list[dict] = []
         cc: list[dict] = []
         ratios: dict[str, list[float]] = {"step": [], "controller_step": [], "end_to_end": [],
                                           "cpu": []}
         for r in range(rounds):
-            _, wall, cpu = _timed(plan_command(tmp / "plan.json"))
+            _, wall, cpu = _timed(plan_command(tmp / "plan.json", world, robots))
             plan = json.loads((tmp / "plan.json").read_text())
             mine = {"steps": plan["iterations"], "H": plan["H"],
                     "end_to_end_ms_per_step": 1e3 * wall / plan["iterations"],
@@ -178,9 +185,9 @@ def bench_end_to_end(rounds: int, say) -> dict:
                          f"{theirs['end_to_end_ms_per_step']:.2f} ms/step")
             say(line)
     result: dict[str, Any]
-    result = {"scenario": {"world": WORLD, "robots": ROBOTS, "tolerance_m": TOLERANCE,
-                           "command": " ".join(["coverage-plan", *plan_command(Path("plan.json"))[
-                               -14:]])},
+    result = {"scenario": {"world": world, "robots": robots, "tolerance_m": TOLERANCE,
+                           "command": " ".join(["coverage-plan", *plan_command(
+                               Path("plan.json"), world, robots)[-14:]])},
               "rounds": rounds, "load_average_1min": [round(load_before, 2),
                                                       round(os.getloadavg()[0], 2)],
               "coverage_plan": _medians(ours)}
@@ -211,6 +218,30 @@ def bench_end_to_end(rounds: int, say) -> dict:
         result["ratio_end_to_end_over"] = {"step": round(
             result["coverage_plan"]["end_to_end_ms_per_step"] / max(CC_RECORDED["step_ms"]), 3)}
     return result
+
+
+def bench_sweep(count: int, rounds: int, say) -> dict:
+    """``count`` random scenarios of CoverageControl's kind (seeds from
+    :data:`~coverage_ros.bench.cc_scenarios.SEEDS_FROM`), each in ``rounds`` rounds side by
+    side with CoverageControl; the rows and a summary (:mod:`coverage_ros.bench.cc_scenarios`)."""
+    rows = []
+    with tempfile.TemporaryDirectory() as tmpdir:
+        for i in range(count):
+            seed = cc_scenarios.SEEDS_FROM + i
+            world, robots, cells = cc_scenarios.draw(seed, i)
+            path = Path(tmpdir) / f"{world['name']}.yaml"
+            path.write_text(yaml.safe_dump(world))
+            say(f"scenario {i + 1}/{count} (seed {seed}): {robots} robots, {cells} x {cells} "
+                f"cells, {len(world['density']['components'])} Gaussians")
+            result = bench_end_to_end(rounds, say, world=str(path), robots=robots)
+            rows.append(cc_scenarios.row(seed, cells, world, robots, result))
+            if "ratio" in rows[-1]:
+                r = rows[-1]
+                say(f"  end to end / CoverageControl's step: {r['ratio']:.2f} ({r['steps']} "
+                    f"steps; fixed cost {r['fixed_ms']:.0f} ms: break-even at "
+                    f"{r['break_even_steps']} steps)")
+    return {"seeds": [cc_scenarios.SEEDS_FROM + i for i in range(count)], "rounds": rounds,
+            "summary": cc_scenarios.summarize(rows), "rows": rows}
 
 
 def _medians(rows: list[dict]) -> dict:
@@ -263,9 +294,16 @@ def main(argv: list[str] | None = None) -> int:
                          "plain Lloyd's extrapolated tail must fall below; default the "
                          "solver's own); a sweep with another than the default is written "
                          "beside the default's, as sweep_<set>_settled_<S>")
+    ap.add_argument("--e2e-scenarios", type=int, default=9,
+                    help="random scenarios of CoverageControl's kind timed end to end after "
+                         "gaussians (coverage_ros.bench.cc_scenarios; 0: none)")
+    ap.add_argument("--e2e-rounds", type=int, default=3, help="rounds per random scenario")
     ap.add_argument("--no-end-to-end", action="store_true")
     ap.add_argument("--json", type=Path, default=RESULTS, help="results file to update")
     args = ap.parse_args(argv)
+    if args.e2e_scenarios < 0 or args.e2e_rounds < 1:
+        raise ConfigError.at("--e2e-scenarios / --e2e-rounds", "must be >= 0 / >= 1",
+                             f"{args.e2e_scenarios} / {args.e2e_rounds}")
     if args.settled is not None and not 0.0 < args.settled < 1.0:
         raise ConfigError.at("--settled", "must be a share of H in (0, 1)", args.settled)
 
@@ -292,6 +330,18 @@ def main(argv: list[str] | None = None) -> int:
             f"{k} {v:.2f}" for k, v in e2e["ratio_end_to_end_over"].items()))
         write_results("end_to_end", e2e, args.json, argv)
         out["end_to_end"] = e2e
+    if not args.no_end_to_end and args.e2e_scenarios > 0:
+        say(f"coverage-plan end to end against CoverageControl on {args.e2e_scenarios} random "
+            f"scenarios of its kind ({args.e2e_rounds} rounds each)")
+        e2e_sweep = bench_sweep(args.e2e_scenarios, args.e2e_rounds, say)
+        summary = e2e_sweep["summary"]
+        if summary["compared"]:
+            say(f"  end to end <= CoverageControl's step in {summary['met']} of "
+                f"{summary['compared']}: ratio median {summary['median_ratio']:.2f}, worst "
+                f"{summary['worst_ratio']:.2f}; fixed cost median "
+                f"{summary['median_fixed_ms']:.0f} ms")
+        write_results("end_to_end_sweep", e2e_sweep, args.json, argv)
+        out["end_to_end_sweep"] = e2e_sweep
     if args.sweep != "none":
         from coverage_ros.bench.lloyd_sweep import run_sweep
 

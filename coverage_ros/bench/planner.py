@@ -240,8 +240,9 @@ def bench_sweep(count: int, rounds: int, say) -> dict:
                 say(f"  end to end / CoverageControl's step: {r['ratio']:.2f} ({r['steps']} "
                     f"steps; fixed cost {r['fixed_ms']:.0f} ms: break-even at "
                     f"{r['break_even_steps']} steps)")
+    summary = cc_scenarios.summarize(rows)
     return {"seeds": [cc_scenarios.SEEDS_FROM + i for i in range(count)], "rounds": rounds,
-            "summary": cc_scenarios.summarize(rows), "rows": rows}
+            "targets": cc_scenarios.targets(summary), "summary": summary, "rows": rows}
 
 
 def _medians(rows: list[dict]) -> dict:

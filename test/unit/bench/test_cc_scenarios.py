@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from coverage_ros.bench.cc_scenarios import SIDE, SPACING, TEAMS, draw, summarize
+from coverage_ros.bench.cc_scenarios import SIDE, SPACING, TEAMS, draw, summarize, targets
 from coverage_ros.bench.cc_scenarios import row as scenario_row
 from coverage_ros.core.geodesic.world_domain import world_domain
 from coverage_ros.core.world.loading import parse_world
@@ -56,6 +56,9 @@ def test_rows_give_the_fixed_cost_and_the_steps_a_run_needs_to_meet_the_target()
     assert summary["met"] == 1 and summary["compared"] == 3
     assert summary["worst_ratio"] == pytest.approx(1.75)
     assert summary["fewest_steps_met"] == 100 and summary["most_steps_not_met"] == 100
+    (target,) = targets(summary)
+    assert not target["met"] and target["value"].startswith("1 of 3")
+    assert targets(summarize([row]))[0]["met"]
 
 
 def test_without_coveragecontrol_rows_keep_our_figures_and_nothing_is_judged():
@@ -64,3 +67,4 @@ def test_without_coveragecontrol_rows_keep_our_figures_and_nothing_is_judged():
     row = scenario_row(1, 402, {"density": {"components": [{}]}}, 8, result)
     assert "ratio" not in row and "met" not in row
     assert summarize([row]) == {"scenarios": 1, "compared": 0}
+    assert targets(summarize([row])) == []

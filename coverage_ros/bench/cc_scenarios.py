@@ -9,12 +9,12 @@ them the large grid (each team size gets it in turn).
 The seeds (from :data:`SEEDS_FROM`) were never used to tune anything.
 
 Per scenario, :func:`coverage_ros.bench.planner.bench_end_to_end` in rounds side by side
-(:func:`coverage_ros.bench.planner.bench_sweep`). A
-process's fixed cost (start-up, imports, reading the world, building the domain, the JSON) is
-what its wall time leaves beside its steps; ``break_even_steps`` is how many steps a run needs
-before its end-to-end time per step is at most CoverageControl's step: a run that converges in
-fewer (a team already near its cells) cannot meet the target, whatever the step costs, since
-the Python interpreter and numpy alone start in about 80 ms.
+(:func:`coverage_ros.bench.planner.bench_sweep`). A process's fixed cost (start-up, imports,
+reading the world, building the domain, the JSON) is what its wall time leaves beside its steps;
+``break_even_steps`` is how many steps a run needs before its end-to-end time per step is at most
+CoverageControl's step: a run that converges in fewer (a team already near its cells) cannot
+meet the target, whatever the step costs, since the Python interpreter and numpy alone start in
+about 80 ms.
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ import numpy as np
 SEEDS_FROM = 7000
 SIDE = 20.0  # [m]
 TEAMS = (8, 16, 32)
-#: [cells] the grid sides, walls included: the issue scenario's 5 cm and CoverageControl's 1024
+#: [cells] the grid sides, walls included: world gaussians' 5 cm and CoverageControl's 1024
 CELLS = (402, 1024)
 #: [m] least distance between two starts of a cluster (two robot radii and a gap)
 SPACING = 0.35
@@ -67,8 +67,10 @@ def draw(seed: int, index: int) -> tuple[dict[str, Any], int, int]:
 
 
 def row(seed: int, cells: int, world: dict, robots: int, result: dict) -> dict:
+    """A scenario's row from :func:`coverage_ros.bench.planner.bench_end_to_end`'s ``result``:
+    our figures, CoverageControl's step, the ratio, the fixed cost and the break-even steps."""
     ours = result["coverage_plan"]
-    row: dict[str, Any] = {
+    out: dict[str, Any] = {
         "seed": seed, "cells": cells, "robots": robots,
         "gaussians": len(world["density"]["components"]), "steps": ours["steps"],
         "end_to_end_ms_per_step": ours["end_to_end_ms_per_step"], "step_ms": ours["step_ms"],
@@ -76,13 +78,13 @@ def row(seed: int, cells: int, world: dict, robots: int, result: dict) -> dict:
         "fixed_ms": round(ours["wall_s"] * 1e3 - ours["steps"] * ours["step_ms"], 1)}
     theirs = result["coveragecontrol"]
     if "not_installed" in theirs:
-        return row
-    row.update({"cc_steps": theirs["steps"], "cc_step_ms": theirs["step_ms"],
+        return out
+    out.update({"cc_steps": theirs["steps"], "cc_step_ms": theirs["step_ms"],
                 "ratio": result["ratio_end_to_end_over"]["step"]})
     gain = theirs["step_ms"] - ours["step_ms"]  # [ms] per step
-    row["break_even_steps"] = math.ceil(row["fixed_ms"] / gain) if gain > 0 else None
-    row["met"] = row["ratio"] <= 1.0
-    return row
+    out["break_even_steps"] = math.ceil(out["fixed_ms"] / gain) if gain > 0 else None
+    out["met"] = out["ratio"] <= 1.0
+    return out
 
 
 def targets(summary: dict) -> list[dict]:

@@ -15,8 +15,8 @@ A second table shows how the update time follows the robot's own cell area: k x 
 n x n grids; equal n/k means equal cell area. First of all, the offline team step
 (:mod:`coverage_ros.bench.team_step`): lloyd and geodesic per step, plain against accelerated
 Lloyd, and the geodesic step at scale and among obstacles
-(:mod:`coverage_ros.bench.geodesic_scale`: 32 robots on 1024 x 1024 cells, 8 on depot); before
-that, a robot's cold update in the largest cell of 16 robots on depot
+(:mod:`coverage_ros.bench.geodesic_scale`: 32 robots on 1024 x 1024 cells, 8 on three maps);
+before that, a robot's cold update in the largest cell of 16 robots on depot
 (:mod:`coverage_ros.bench.cold_update`).
 
 Progress goes to stderr; the last stdout line is JSON. A whole run (not ``--cold-only`` or

@@ -8,9 +8,12 @@ update over the whole domain, what the team step replaces) at the run's first po
   (1024 x 1024 cells with its wall ring), 32 robots from seeded random free points along a
   plain Lloyd run (:class:`~coverage_ros.core.offline.lloyd_team.EuclideanTeam`); target
   100 ms.
-* ``depot`` - ``../shared/maps/depot.yaml`` (read where it lies, 307 x 604 cells: shelves and
-  walls, a few more cells than 400 x 400), 8 robots from the launcher's start cluster along a
-  geodesic Lloyd run; target 10 ms, as for 8 robots on 400 x 400 cells.
+* maps with obstacles, 8 robots from the launcher's start cluster along a geodesic Lloyd run,
+  target 10 ms as for 8 robots on 400 x 400 cells: ``depot`` (``../shared/maps``, read where
+  it lies: 307 x 604 cells of shelves and walls, a few more cells than 400 x 400),
+  ``tb3_sandbox`` (``../shared/maps``: 384 x 384 cells, a SLAM map whose free space fills a
+  tenth of its window) and the shipped ``office`` (162 x 242 cells of rooms off a corridor,
+  most cells out of sight of every robot).
 
 A new search every step: the positions drift by a tenth of a millimetre between steps, as
 robots do between updates. ``geodesic_ms`` is wall time (the target's measure); ``cpu_ms``,
@@ -40,7 +43,7 @@ from coverage_ros.worlds import resolve_world_path
 #: one-cell wall ring on each side
 LARGE_CELLS = 1024
 LARGE_ROBOTS = 32
-DEPOT_ROBOTS = 8
+MAP_ROBOTS = 8
 #: [m] drift of every robot between two timed steps (a new search each time)
 DRIFT = 1e-4
 SEED = 0
@@ -55,17 +58,19 @@ def bench_geodesic_scale(rounds: int, say, depot: Path = DEPOT) -> list[dict]:
     path = solve_lloyd(EuclideanTeam(domain), start, tolerance=0.005, max_steps=60).positions
     rows.append(_row(f"{LARGE_ROBOTS} robots, gaussians rasterized finer", domain, path,
                      rounds, 100.0, say))
-    if depot.exists():
-        world = load_world(depot)
-        specs = [world.robot_spec(i) for i in range(DEPOT_ROBOTS)]
+    for name, where in (("depot", depot), ("tb3_sandbox", depot.with_name("tb3_sandbox.yaml")),
+                        ("office", resolve_world_path("office"))):
+        if not where.exists():
+            say(f"  {where} not found: the {name} row left out")
+            continue
+        world = load_world(where)
+        specs = [world.robot_spec(i) for i in range(MAP_ROBOTS)]
         domain = world_domain(world, max(s.radius for s in specs))
         start = team_starts(world, specs, None, SEED)[:, :2]
         path = solve_lloyd(GeodesicTeam(domain), start, tolerance=0.05,
                            max_steps=30).positions
-        rows.append(_row(f"{DEPOT_ROBOTS} robots, depot (obstacles)", domain, path, rounds,
+        rows.append(_row(f"{MAP_ROBOTS} robots, {name} (obstacles)", domain, path, rounds,
                          10.0, say))
-    else:
-        say(f"  {depot} not found: the depot row left out")
     return rows
 
 

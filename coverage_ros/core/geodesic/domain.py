@@ -56,6 +56,10 @@ class CoverageDomain(LineOfSight):
     zeta: np.ndarray | None = None  # (H, W) isotropic metric weight, or None
     robot_radius: float = 0.0  # [m] the free space is inflated by this (maps)
     unknown_is_free: bool = False  # unknown map cells count as free (exploration)
+    #: the grid this one was cut from (:mod:`~coverage_ros.core.geodesic.crop`) and the
+    #: (column, row) there of this one's first cell: points and tie biases are taken in its
+    #: coordinates less the offset, so a cut domain computes as the whole one does
+    cut_from: tuple[GridMap, tuple[int, int]] | None = None
     _cache: dict[Hashable, Any] = field(default_factory=dict, repr=False)
 
     # ------------------------------------------------------------------ construction
@@ -123,7 +127,8 @@ class CoverageDomain(LineOfSight):
         if w.shape != self.shape or np.any(w < 0) or not np.all(np.isfinite(w)):
             raise ConfigError.at("density", "must be a finite (H, W) array >= 0", w.shape)
         return CoverageDomain(self.geometry, self.graph, np.where(self.free, w, 0.0),
-                              self.tensor, self.zeta, self.robot_radius, self.unknown_is_free)
+                              self.tensor, self.zeta, self.robot_radius, self.unknown_is_free,
+                              self.cut_from)
 
     @property
     def metric_lower_bound(self) -> float:
@@ -143,13 +148,24 @@ class CoverageDomain(LineOfSight):
         bound: float = self._cache[key]
         return bound
 
+    def bias(self, grid_xy: np.ndarray) -> float:
+        """:func:`tie_bias` of a source at ``grid_xy`` [cells], taken in the grid this one was
+        cut from."""
+        off = (0, 0) if self.cut_from is None else self.cut_from[1]
+        return tie_bias(np.asarray(grid_xy, dtype=np.float64).ravel()[:2] + off)
+
     # ------------------------------------------------------------------ coordinates
     def to_grid(self, points: np.ndarray) -> np.ndarray:
         """Map-frame ``(N, 2)`` [m] -> grid coordinates ``(N, 2)`` [cells]."""
-        return self.geometry.world_to_grid(np.asarray(points, dtype=np.float64).reshape(-1, 2))
+        pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+        if self.cut_from is None:
+            return self.geometry.world_to_grid(pts)
+        return self.cut_from[0].world_to_grid(pts) - self.cut_from[1]  # (whole cells: exact)
 
     def to_map(self, grid_xy: np.ndarray) -> np.ndarray:
-        return self.geometry.grid_to_world(np.asarray(grid_xy, dtype=np.float64).reshape(-1, 2))
+        g = np.asarray(grid_xy, dtype=np.float64).reshape(-1, 2)
+        frame, off = self.cut_from or (self.geometry, (0, 0))
+        return frame.grid_to_world(g + off)
 
     def grid_vector_to_map(self, v: np.ndarray) -> np.ndarray:
         """Rotate chart/grid-axis vectors ``(..., 2)`` into the map frame."""
@@ -245,7 +261,7 @@ class CoverageDomain(LineOfSight):
         disp = self.chart_displacement(g[None], centers)
         metric = self.metric_at(g[None])[0]
         costs = np.sqrt(np.einsum("ni,ij,nj->n", disp, metric, disp))
-        return nodes_arr, costs + tie_bias(g), g
+        return nodes_arr, costs + self.bias(g), g
 
     def free_at_grid(self, g: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Rows, columns and free flags (False outside the grid) of the cells containing the
@@ -287,7 +303,7 @@ class CoverageDomain(LineOfSight):
                 out.append(self.snap(pts[i]))
                 continue
             keep = has[i]
-            out.append((nodes[i, keep], costs[i, keep] + tie_bias(g[i]), g[i]))
+            out.append((nodes[i, keep], costs[i, keep] + self.bias(g[i]), g[i]))
         return out
 
     def seeds(self, point_map: np.ndarray, nodes: np.ndarray, centers: np.ndarray,
@@ -308,7 +324,7 @@ class CoverageDomain(LineOfSight):
         vis = near[self.visible_mask(g, centers[near], reach)]
         all_nodes = np.concatenate([snap_nodes, nodes[vis]])
         all_costs = np.concatenate([snap_costs,
-                                    np.sqrt(d2[vis]) * self.resolution + tie_bias(g)])
+                                    np.sqrt(d2[vis]) * self.resolution + self.bias(g)])
         return all_nodes, all_costs, g
 
     def _offset_index(self, dr: int, dc: int) -> int | None:

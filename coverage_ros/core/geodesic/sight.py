@@ -68,7 +68,11 @@ class LineOfSight:
     def depth_bins(self) -> int:
         """Angular bins of every line-of-sight depth map on this domain (fixed per domain, so
         that every computation of "visible" agrees): enough to resolve one cell at the far
-        side of the grid."""
+        side of the grid. A domain cut from a larger one keeps the larger one's, set in its
+        cache (:func:`~coverage_ros.core.geodesic.crop.cropped`): the same answers."""
+        kept: int | None = self._cache.get("depth_bins")
+        if kept is not None:
+            return kept
         H, W = self.shape
         bins: int = 2 ** math.ceil(math.log2(2.0 * math.pi * math.hypot(H, W)))
         return min(max(bins, 1024), 16384)

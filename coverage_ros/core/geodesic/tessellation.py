@@ -29,7 +29,7 @@ import numpy as np
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
 
-from coverage_ros.core.geodesic.domain import CoverageDomain, Snap, tie_bias
+from coverage_ros.core.geodesic.domain import CoverageDomain, Snap
 from coverage_ros.core.geodesic.local_search import LocalGraph, local_graph_for
 from coverage_ros.core.geodesic.visible_first import visible_first_search
 
@@ -110,7 +110,7 @@ def source_row_with_reach(domain: CoverageDomain, local: LocalGraph, snap: Snap,
     reach = math.sqrt(float(d2[near].max())) if len(near) else 0.0
     vis = near[domain.visible_mask(g, c[near], reach)]
     return (np.concatenate([lid[keep], vis + band.start + 1]),
-            np.concatenate([costs[keep], np.sqrt(d2[vis]) * domain.resolution + tie_bias(g)]),
+            np.concatenate([costs[keep], np.sqrt(d2[vis]) * domain.resolution + domain.bias(g)]),
             np.concatenate([np.full(int(keep.sum()), -1.0), d2[vis]]))
 
 

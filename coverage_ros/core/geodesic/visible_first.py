@@ -22,7 +22,7 @@ import numpy as np
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
 
-from coverage_ros.core.geodesic.domain import CoverageDomain, Snap, tie_bias
+from coverage_ros.core.geodesic.domain import CoverageDomain, Snap
 from coverage_ros.core.geodesic.local_search import LocalGraph
 from coverage_ros.core.geodesic.sight import TILED_FROM, DepthMaps
 from coverage_ros.core.geodesic.straight_winner import grow_boxes, straight_winner
@@ -44,7 +44,7 @@ def visible_first_search(domain: CoverageDomain, local: LocalGraph,
     # generator's own and adjacent cells, or the nearest free cell when it stands on a blocked
     # one) are seeds too, at their own cost.
     grids = np.array([s[2] for s in snaps])
-    biases = np.array([tie_bias(g) for g in grids])
+    biases = np.array([domain.bias(g) for g in grids])
     H, W = domain.shape  # the whole-domain graph's local ids are node ids + 1 (row-major)
     best, winner, boxes = straight_winner(grids, biases, (H, W), res)
     best[~free] = np.inf

@@ -193,7 +193,9 @@ class GeodesicTeam:
     from one tessellation (:func:`coverage_ros.core.offline.geodesic_team.team_cells`: one
     search, sums over the labels); :meth:`reference_step` runs the robots' own updates, for
     the parity tests. ``centroids`` are the virtual centroids (position + control), ``goals``
-    their reachable part."""
+    their reachable part. On a grid whose free space fills a small part of it (wide unknown
+    margins), a step whose robots all stand on free cells runs on the window that holds the
+    free space (:mod:`coverage_ros.core.geodesic.crop`: the same cells and sums)."""
 
     overshoots = True  # (a generalized Lloyd step is a gradient step of size 1 / m_i)
 
@@ -201,13 +203,32 @@ class GeodesicTeam:
         self.domain = domain
         self.method = method
 
+    @cached_property
+    def _window(self) -> tuple[CoverageDomain, tuple[slice, slice]] | None:
+        from coverage_ros.core.geodesic.crop import cropped, free_window
+
+        window = free_window(self.domain)
+        return None if window is None else (cropped(self.domain, window), window)
+
     def step(self, positions: np.ndarray, weights: np.ndarray | None = None) -> TeamStep:
         P, R = EuclideanTeam._inputs(positions, weights)
         from coverage_ros.core.offline.geodesic_team import team_cells  # graph searches: scipy
 
-        cells = team_cells(self.domain, P, R, self.method)
-        return TeamStep(P, cells.masses, cells.costs, P + cells.controls, cells.goals,
-                        cells.cells)
+        cut = self._window
+        if cut is None or not self.domain.free_at_grid(self.domain.to_grid(P))[2].all():
+            cells = team_cells(self.domain, P, R, self.method)
+            return TeamStep(P, cells.masses, cells.costs, P + cells.controls, cells.goals,
+                            cells.cells)
+        inner, window = cut
+        cells = team_cells(inner, P, R, self.method)
+        shape = self.domain.shape
+
+        def labels() -> np.ndarray:
+            whole = np.full(shape, -1, dtype=np.int32)
+            whole[window] = cells.cells()
+            return whole
+
+        return TeamStep(P, cells.masses, cells.costs, P + cells.controls, cells.goals, labels)
 
     def reference_step(self, positions: np.ndarray,
                        weights: np.ndarray | None = None) -> TeamStep:

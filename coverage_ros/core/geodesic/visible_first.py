@@ -57,6 +57,19 @@ def visible_first_search(domain: CoverageDomain, local: LocalGraph,
         for i, c in zip(lid[keep] - 1, costs[keep], strict=True):
             if c < best[i]:
                 best[i], winner[i] = c, k
+    first_free = first + k_gens
+    dist = np.full(first_free, np.inf)
+    pred = np.full(first_free, -9999, dtype=np.int32)
+    label = np.full(first_free, -1, dtype=np.int64)
+    rect = domain.free_rectangle
+    if rect is not None and ((grids[:, 0] >= rect[0]) & (grids[:, 0] <= rect[2])
+                             & (grids[:, 1] >= rect[1]) & (grids[:, 1] <= rect[3])).all():
+        # (free cells filling a rectangle with every generator in it: each sees them all, so
+        # every free cell is settled by its winner and nothing is hidden)
+        dist[1:first] = best
+        label[1:first] = winner
+        pred[1:first] = np.where(winner >= 0, first + winner, -9999)
+        return dist, pred, label
     # Settled: in line of sight of the winner (snap seeds of the winner count as seen). Cells
     # in a tile seen (hidden) whole from their winner are settled (not) by the tile's answer,
     # the others one by one (the same answers), each generator's from a depth map of the
@@ -88,10 +101,6 @@ def visible_first_search(domain: CoverageDomain, local: LocalGraph,
             settled[cells] = domain.visible_each(grids[k], centers[cells], depths)
         own_snap = snap_best[k][0]
         settled[own_snap[winner[own_snap] == k]] = True
-    first_free = first + k_gens
-    dist = np.full(first_free, np.inf)
-    pred = np.full(first_free, -9999, dtype=np.int32)
-    label = np.full(first_free, -1, dtype=np.int64)
     dist[1:first] = np.where(settled, best, np.inf)
     pred[1:first] = np.where(settled, first + winner, -9999)
     label[1:first] = np.where(settled, winner, -1)

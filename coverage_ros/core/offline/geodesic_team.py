@@ -188,9 +188,9 @@ def _covectors(domain: CoverageDomain, forest: _Forest, bins: np.ndarray, grids:
     label = forest.label
     # the chord of every node to its owner's generator (cells, grid axes) ...
     ext = np.append(grids, [[0.0, 0.0]], axis=0)  # (nobody's nodes: index -1)
-    dx = (np.arange(W) + 0.5)[None, :] - np.take(ext[:, 0], label).reshape(H, W)
-    dy = (np.arange(H) + 0.5)[:, None] - np.take(ext[:, 1], label).reshape(H, W)
-    dx, dy = dx.ravel(), dy.ravel()
+    dx, dy = np.take(ext[:, 0], label), np.take(ext[:, 1], label)  # (then in place)
+    np.subtract((np.arange(W) + 0.5)[None, :], dx.reshape(H, W), out=dx.reshape(H, W))
+    np.subtract((np.arange(H) + 0.5)[:, None], dy.reshape(H, W), out=dy.reshape(H, W))
     # ... aimed at its anchor instead where that is an ancestor
     deep, anchor = _deep_anchors(domain, forest, method, N)
     if len(deep):
@@ -210,15 +210,18 @@ def _covectors(domain: CoverageDomain, forest: _Forest, bins: np.ndarray, grids:
     norm = dx * mx
     norm += dy * my
     np.sqrt(norm, out=norm)
-    with np.errstate(invalid="ignore", divide="ignore"):  # (nobody's: inf, into bin 0)
-        coef = gw / norm
     # no chord (a cell centre or an anchor at its generator): no direction, left out - only
     # where a generator's own cell or an anchor lies
     own = (np.floor(grids[:, 1]) * W + np.floor(grids[:, 0])).astype(np.int64)
     maybe = np.concatenate([own[(own >= 0) & (own < N)], deep])
-    coef[maybe[norm[maybe] <= 1e-12]] = 0.0
-    return np.stack([np.bincount(bins, weights=coef * mx, minlength=n + 1),
-                     np.bincount(bins, weights=coef * my, minlength=n + 1)], axis=1)[1:]
+    none = maybe[norm[maybe] <= 1e-12]
+    with np.errstate(invalid="ignore", divide="ignore"):  # (nobody's: inf, into bin 0)
+        coef = np.divide(gw, norm, out=norm)
+    coef[none] = 0.0
+    mx *= coef  # (this step's own arrays, whichever branch made them)
+    my *= coef
+    return np.stack([np.bincount(bins, weights=mx, minlength=n + 1),
+                     np.bincount(bins, weights=my, minlength=n + 1)], axis=1)[1:]
 
 
 def _deep_anchors(domain: CoverageDomain, forest: _Forest, method: str,

@@ -55,6 +55,7 @@ def test_one_search_is_kept_per_domain():
 
 @pytest.mark.parametrize("world, seed, blocked", [
     ("office", 6, 1), ("u_shape", 7, 0), ("tb3_sandbox", 8, 0), ("depot", 9, 2),
+    ("gaussians", 10, 0),  # (free cells filling a rectangle: every one settled at once)
 ])
 def test_fast_tessellation_is_the_centralized_one(world, seed, blocked):
     """fast_tessellate (the launcher's and the viewer's score) gives tessellate's labels,

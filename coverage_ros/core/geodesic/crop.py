@@ -28,7 +28,7 @@ from coverage_ros.core.geodesic.graph import build_grid_graph, neighbourhood
 from coverage_ros.core.geodesic.tangents import SIGHT_TILE
 from coverage_ros.core.world.grid import GridMap
 
-__all__ = ["cropped", "free_window"]
+__all__ = ["cropped", "free_window", "window_of"]
 
 #: a window is cut only where it leaves out at least this share of the grid's cells (a few
 #: percent saved does not pay for a second domain's tables)
@@ -77,4 +77,19 @@ def cropped(domain: CoverageDomain, window: tuple[slice, slice]) -> CoverageDoma
                          unknown_is_free=domain.unknown_is_free,
                          cut_from=(whole, (c0 + cols.start, r0 + rows.start)))
     cut._cache["depth_bins"] = domain.depth_bins  # (the angular bins decide what is seen)
+    return cut
+
+
+def window_of(domain: CoverageDomain, points: np.ndarray
+              ) -> tuple[CoverageDomain, tuple[slice, slice]] | None:
+    """The cut domain of ``domain`` and its window (made once, kept in the domain's cache) when
+    it has one and every map-frame point of ``points (n, 2)`` lies on a free cell (a point off
+    the free space snaps to its nearest free cell over the whole grid); else None."""
+    key = "free_window"
+    if key not in domain._cache:
+        window = free_window(domain)
+        domain._cache[key] = None if window is None else (cropped(domain, window), window)
+    cut: tuple[CoverageDomain, tuple[slice, slice]] | None = domain._cache[key]
+    if cut is None or not domain.free_at_grid(domain.to_grid(points))[2].all():
+        return None
     return cut

@@ -29,6 +29,7 @@ import numpy as np
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
 
+from coverage_ros.core.geodesic.crop import window_of
 from coverage_ros.core.geodesic.domain import CoverageDomain, Snap
 from coverage_ros.core.geodesic.local_search import LocalGraph, local_graph_for
 from coverage_ros.core.geodesic.visible_first import visible_first_search
@@ -188,8 +189,19 @@ def fast_tessellate(domain: CoverageDomain, gens: Sequence[Generator],
     (:func:`~coverage_ros.core.geodesic.visible_first.visible_first_search`: the same labels
     and distances, tested; a fraction of its CPU time); otherwise :func:`tessellate`. For
     the scores taken again and again during a run (the launcher's, the viewer's); the parity
-    tests compare everything with :func:`tessellate` itself."""
+    tests compare everything with :func:`tessellate` itself. On a grid whose free space fills
+    a small part of it, on the window that holds the free space
+    (:func:`~coverage_ros.core.geodesic.crop.window_of`: the same tessellation bit for bit)."""
     method = resolve_method(domain, method)
+    cut = window_of(domain, np.array([g.position for g in gens]).reshape(-1, 2))
+    if cut is not None:
+        inner, window = cut
+        part = fast_tessellate(inner, gens, method)
+        labels = np.full(domain.shape, -1, dtype=part.labels.dtype)
+        labels[window] = part.labels
+        distances = np.full(domain.shape, np.inf)
+        distances[window] = part.distances
+        return Tessellation(labels, distances, part.masses, part.costs, part.unassigned)
     weights = np.array([g.weight for g in gens], dtype=np.float64)
     if method != "visibility" or len(gens) == 0 or np.ptp(weights) > 0:
         return tessellate(domain, gens, method)

@@ -203,19 +203,13 @@ class GeodesicTeam:
         self.domain = domain
         self.method = method
 
-    @cached_property
-    def _window(self) -> tuple[CoverageDomain, tuple[slice, slice]] | None:
-        from coverage_ros.core.geodesic.crop import cropped, free_window
-
-        window = free_window(self.domain)
-        return None if window is None else (cropped(self.domain, window), window)
-
     def step(self, positions: np.ndarray, weights: np.ndarray | None = None) -> TeamStep:
         P, R = EuclideanTeam._inputs(positions, weights)
+        from coverage_ros.core.geodesic.crop import window_of
         from coverage_ros.core.offline.geodesic_team import team_cells  # graph searches: scipy
 
-        cut = self._window
-        if cut is None or not self.domain.free_at_grid(self.domain.to_grid(P))[2].all():
+        cut = window_of(self.domain, P)
+        if cut is None:
             cells = team_cells(self.domain, P, R, self.method)
             return TeamStep(P, cells.masses, cells.costs, P + cells.controls, cells.goals,
                             cells.cells)

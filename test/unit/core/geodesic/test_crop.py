@@ -9,10 +9,10 @@ import pytest
 from conftest import random_points, shared_map
 
 from coverage_ros.core.geodesic.charts import sphere_domain, torus_domain
-from coverage_ros.core.geodesic.crop import cropped, free_window
+from coverage_ros.core.geodesic.crop import cropped, free_window, window_of
 from coverage_ros.core.geodesic.domain import CoverageDomain
 from coverage_ros.core.geodesic.tangents import SIGHT_TILE
-from coverage_ros.core.geodesic.tessellation import Generator, tessellate
+from coverage_ros.core.geodesic.tessellation import Generator, fast_tessellate, tessellate
 from coverage_ros.core.geodesic.world_domain import world_domain
 from coverage_ros.core.offline.geodesic_team import team_cells
 from coverage_ros.core.offline.lloyd_team import GeodesicTeam
@@ -83,9 +83,9 @@ def test_team_step_on_the_window_is_the_whole_domains(source, power):
     domain = _slam_like(0.3) if source == "slam" else world_domain(
         load_world(shared_map(source)), 0.105)
     team = GeodesicTeam(domain)
-    assert team._window is not None  # (the step below runs on the window)
     for seed in range(4):
         P = _centres(domain, 8, seed) if seed % 2 else random_points(domain, 8, 0, seed)
+        assert window_of(domain, P) is not None  # (the step below runs on the window)
         R = np.random.default_rng(seed).uniform(0.0, 1.0, 8) if power else np.zeros(8)
         fast, whole = team.step(P, R), team_cells(domain, P, R)
         assert np.array_equal(fast.labels, whole.cells())
@@ -95,11 +95,29 @@ def test_team_step_on_the_window_is_the_whole_domains(source, power):
         assert np.allclose(fast.goals, whole.goals, rtol=0.0, atol=1e-12)
 
 
+@pytest.mark.parametrize("power", [False, True])
+def test_fast_tessellation_on_the_window_is_the_whole_domains(power):
+    domain = world_domain(load_world(shared_map("tb3_sandbox")), 0.105)
+    uncut = world_domain(load_world(shared_map("tb3_sandbox")), 0.105)
+    uncut._cache["free_window"] = None  # (as a domain without a window: the whole grid)
+    for seed in range(3):
+        P = _centres(domain, 8, seed) if seed % 2 else random_points(domain, 8, 0, seed)
+        gens = [Generator(p, 0.4 * (k % 3) if power else 0.0) for k, p in enumerate(P)]
+        assert window_of(domain, P) is not None and window_of(uncut, P) is None
+        fast, whole = fast_tessellate(domain, gens), fast_tessellate(uncut, gens)
+        assert np.array_equal(fast.labels, whole.labels)
+        assert np.array_equal(fast.distances, whole.distances)
+        assert np.array_equal(fast.masses, whole.masses)
+        assert np.array_equal(fast.costs, whole.costs)
+        assert fast.unassigned == whole.unassigned
+
+
 def test_a_robot_off_the_free_space_steps_on_the_whole_domain():
     """A robot on a blocked cell snaps to its nearest free cell over the whole grid."""
     domain = _slam_like()
     team = GeodesicTeam(domain)
     P = np.vstack([random_points(domain, 4, 0, 5), domain.to_map(np.array([[20.5, 30.5]]))])
+    assert window_of(domain, P) is None and window_of(domain, P[:4]) is not None
     fast, ref = team.step(P), team.reference_step(P)
     assert np.array_equal(fast.labels, ref.labels)
     assert np.allclose(fast.masses, ref.masses, rtol=1e-12, atol=0.0)

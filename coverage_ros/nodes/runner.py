@@ -11,7 +11,9 @@ The signals do not shut ROS down at once (rclpy's own handlers would: a callback
 that moment failed, and every node's last words - a robot's zero velocity command that leaves
 it standing, its summary on ``/rosout`` - went nowhere). They ask the spin loop to stop between
 callbacks; the nodes' clean-up then runs with ROS still up, and ROS shuts down after it. A
-second signal ends the process at once (exit code 128 + the signal's number).
+second signal ends the process at once (exit code 128 + the signal's number), and so does a
+clean-up still running :data:`SHUTDOWN_LIMIT` seconds after the first (a process whose launcher
+was killed gets no second signal; a container of fifty robots took over 30 s on a loaded host).
 
 The executor is rclpy's ``EventsExecutor`` (``rclpy.experimental``, its dispatch loop in C++:
 0.24-0.30x the CPU per message received in ``scripts/bench_executor``; a process of 16 robots
@@ -27,6 +29,7 @@ from __future__ import annotations
 import os
 import signal
 import sys
+import threading
 import time
 from collections.abc import Callable
 from typing import Any
@@ -46,6 +49,11 @@ STARTUP_ERRORS = (CoverageError, ParameterException, OSError)
 #: Values of ``COVERAGE_ROS_EXECUTOR`` (module docstring); the first is the default.
 EXECUTORS = ("events", "single")
 EXECUTOR_ENV = "COVERAGE_ROS_EXECUTOR"
+#: [s] after the first SIGINT / SIGTERM the process ends within this whatever its clean-up does
+#: (the launcher waits 8 s before its SIGTERM)
+SHUTDOWN_LIMIT = 10.0
+#: [s] after that the kernel ends it (SIGALRM), should native code hold the interpreter
+SHUTDOWN_BACKSTOP = 5.0
 
 
 def executor_kind() -> str:
@@ -104,6 +112,7 @@ class StopRequest:
         self.asked = False
         self.starting = True
         self._before = {sig: signal.signal(sig, self._on_signal) for sig in self.SIGNALS}
+        self._watchdog: threading.Timer | None = None
 
     def _on_signal(self, signum, frame) -> None:
         if self.starting:
@@ -114,10 +123,25 @@ class StopRequest:
             # interrupted rclpy itself (a robot container waited for ever).
             os._exit(128 + signum)
         self.asked = True
+        self._watchdog = threading.Timer(SHUTDOWN_LIMIT, _cut_short, args=(signum,))
+        self._watchdog.daemon = True
+        self._watchdog.start()
+        signal.signal(signal.SIGALRM, signal.SIG_DFL)
+        signal.alarm(int(SHUTDOWN_LIMIT + SHUTDOWN_BACKSTOP + 0.999))
 
     def restore(self) -> None:
+        """The handlers as before; a shutdown deadline armed is called off."""
+        if self._watchdog is not None:
+            self._watchdog.cancel()
+            signal.alarm(0)
         for sig, handler in self._before.items():
             signal.signal(sig, handler)
+
+
+def _cut_short(signum: int) -> None:
+    print(f"shutdown still running {SHUTDOWN_LIMIT:g} s after the signal: ending now",
+          file=sys.stderr, flush=True)
+    os._exit(128 + signum)
 
 
 def _spin(executor, context, stop: StopRequest) -> None:

@@ -11,9 +11,11 @@ The signals do not shut ROS down at once (rclpy's own handlers would: a callback
 that moment failed, and every node's last words - a robot's zero velocity command that leaves
 it standing, its summary on ``/rosout`` - went nowhere). They ask the spin loop to stop between
 callbacks; the nodes' clean-up then runs with ROS still up, and ROS shuts down after it. A
-second signal ends the process at once (exit code 128 + the signal's number), and so does a
-clean-up still running :data:`SHUTDOWN_LIMIT` seconds after the first (a process whose launcher
-was killed gets no second signal; a container of fifty robots took over 30 s on a loaded host).
+second signal ends the process at once (exit code 128 + the signal's number). A process whose
+parent had died when the signal came (the kernel's SIGTERM to a child of a killed launcher) gets
+no second one: its clean-up is cut short :data:`SHUTDOWN_LIMIT` seconds after the signal (a
+container of fifty robots took over 30 s on a loaded host). With its parent alive it is left to
+finish (the launcher gives the rerun bridge 30 s to index its recording, then signals again).
 
 The executor is rclpy's ``EventsExecutor`` (``rclpy.experimental``, its dispatch loop in C++:
 0.24-0.30x the CPU per message received in ``scripts/bench_executor``; a process of 16 robots
@@ -49,8 +51,8 @@ STARTUP_ERRORS = (CoverageError, ParameterException, OSError)
 #: Values of ``COVERAGE_ROS_EXECUTOR`` (module docstring); the first is the default.
 EXECUTORS = ("events", "single")
 EXECUTOR_ENV = "COVERAGE_ROS_EXECUTOR"
-#: [s] after the first SIGINT / SIGTERM the process ends within this whatever its clean-up does
-#: (the launcher waits 8 s before its SIGTERM)
+#: [s] a process whose parent has died ends within this of its signal, whatever its clean-up
+#: does (a live launcher waits 8 s before its second signal to the robots)
 SHUTDOWN_LIMIT = 10.0
 #: [s] after that the kernel ends it (SIGALRM), should native code hold the interpreter
 SHUTDOWN_BACKSTOP = 5.0
@@ -112,6 +114,7 @@ class StopRequest:
         self.asked = False
         self.starting = True
         self._before = {sig: signal.signal(sig, self._on_signal) for sig in self.SIGNALS}
+        self._parent = os.getppid()
         self._watchdog: threading.Timer | None = None
 
     def _on_signal(self, signum, frame) -> None:
@@ -123,6 +126,10 @@ class StopRequest:
             # interrupted rclpy itself (a robot container waited for ever).
             os._exit(128 + signum)
         self.asked = True
+        if os.getppid() != self._parent:  # (orphaned: no second signal will come)
+            self._arm(signum)
+
+    def _arm(self, signum: int) -> None:
         self._watchdog = threading.Timer(SHUTDOWN_LIMIT, _cut_short, args=(signum,))
         self._watchdog.daemon = True
         self._watchdog.start()
@@ -139,7 +146,8 @@ class StopRequest:
 
 
 def _cut_short(signum: int) -> None:
-    print(f"shutdown still running {SHUTDOWN_LIMIT:g} s after the signal: ending now",
+    print(f"parent gone and shutdown still running {SHUTDOWN_LIMIT:g} s after the signal: "
+          "ending now",
           file=sys.stderr, flush=True)
     os._exit(128 + signum)
 

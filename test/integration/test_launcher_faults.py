@@ -50,6 +50,18 @@ def _is_fork_server(p: psutil.Process) -> bool:
     return False
 
 
+def _described(pids: list[int]) -> list[str]:
+    """Each process as ``top`` names it, with its state and parent (for a failure's message)."""
+    out = []
+    for pid in pids:
+        try:
+            p = psutil.Process(pid)
+            out.append(f"{pid} {p.name()} ({p.status()}, parent {p.ppid()})")
+        except psutil.Error as exc:
+            out.append(f"{pid} ({type(exc).__name__})")
+    return out
+
+
 def _children(pid: int) -> list[psutil.Process]:
     try:
         return psutil.Process(pid).children(recursive=True)
@@ -84,7 +96,7 @@ def test_an_interrupt_at_any_moment_leaves_nothing_behind(tmp_path, when):
     gone = time.monotonic() - t0
     alive = [p.pid for p in seen.values() if p.is_running() and p.status() != "zombie"]
     try:
-        assert not alive, f"left behind: {alive}"
+        assert not alive, f"left behind: {_described(alive)}"
         # The stop escalates in 10 s at most (SIGINT, 4 s, SIGTERM, 3 s, SIGKILL, 3 s); the rest
         # is the summary, written by a process that a loaded machine may keep waiting.
         assert gone <= 20.0, gone
@@ -174,7 +186,7 @@ def test_a_launcher_killed_during_a_big_start_up_leaves_nothing_behind(tmp_path,
         alive = [pid for pid, p in seen.items() if p.is_running() and p.status() != "zombie"]
     try:
         assert len(seen) >= 4, seen  # the world and the robots' processes
-        assert not alive, f"left behind 30 s after the launcher died: {alive}"
+        assert not alive, f"left behind 30 s after the launcher died: {_described(alive)}"
     finally:
         for pid in alive:
             with contextlib.suppress(ProcessLookupError):

@@ -14,7 +14,9 @@ reading the world, building the domain, the JSON) is what its wall time leaves b
 ``break_even_steps`` is how many steps a run needs before its end-to-end time per step is at most
 CoverageControl's step: a run that converges in fewer (a team already near its cells) cannot
 meet the target, whatever the step costs, since the Python interpreter and numpy alone start in
-about 80 ms.
+about 80 ms. So each row also sets the two processes side by side, start to exit each
+(``ratio_end_to_end``: ours over CoverageControl's end-to-end time per step), which pays its own
+interpreter, imports and world.
 """
 
 from __future__ import annotations
@@ -81,6 +83,9 @@ def row(seed: int, cells: int, world: dict, robots: int, result: dict) -> dict:
         return out
     out.update({"cc_steps": theirs["steps"], "cc_step_ms": theirs["step_ms"],
                 "ratio": result["ratio_end_to_end_over"]["step"]})
+    if "end_to_end" in result["ratio_end_to_end_over"]:  # (process against process)
+        out.update({"cc_end_to_end_ms_per_step": theirs["end_to_end_ms_per_step"],
+                    "ratio_end_to_end": result["ratio_end_to_end_over"]["end_to_end"]})
     gain = theirs["step_ms"] - ours["step_ms"]  # [ms] per step
     out["break_even_steps"] = math.ceil(out["fixed_ms"] / gain) if gain > 0 else None
     out["met"] = out["ratio"] <= 1.0
@@ -88,15 +93,23 @@ def row(seed: int, cells: int, world: dict, robots: int, result: dict) -> dict:
 
 
 def targets(summary: dict) -> list[dict]:
-    """The target as the results page shows it: end to end at most CoverageControl's step on
-    every scenario compared."""
+    """The targets as the results page shows them: end to end at most CoverageControl's step
+    on every scenario compared, and at most its process's own end-to-end time per step."""
     if not summary.get("compared"):
         return []
-    return [{"target": "end-to-end ms/step <= CoverageControl's step, every scenario",
-             "value": f"{summary['met']} of {summary['compared']} (ratio median "
-                      f"{summary['median_ratio']:g}, worst {summary['worst_ratio']:g}; the "
-                      f"runs not met took at most {summary['most_steps_not_met']} steps)",
-             "met": summary["met"] == summary["compared"]}]
+    out = [{"target": "end-to-end ms/step <= CoverageControl's step, every scenario",
+            "value": f"{summary['met']} of {summary['compared']} (ratio median "
+                     f"{summary['median_ratio']:g}, worst {summary['worst_ratio']:g}; the "
+                     f"runs not met took at most {summary['most_steps_not_met']} steps)",
+            "met": summary["met"] == summary["compared"]}]
+    if "met_end_to_end" in summary:
+        out.append({"target": "end-to-end ms/step <= CoverageControl's end-to-end ms/step "
+                              "(process start to exit, both), every scenario",
+                    "value": f"{summary['met_end_to_end']} of {summary['compared']} (ratio "
+                             f"median {summary['median_ratio_end_to_end']:g}, worst "
+                             f"{summary['worst_ratio_end_to_end']:g})",
+                    "met": summary["met_end_to_end"] == summary["compared"]})
+    return out
 
 
 def summarize(rows: list[dict]) -> dict:
@@ -108,9 +121,15 @@ def summarize(rows: list[dict]) -> dict:
     ratios = [r["ratio"] for r in timed]
     met = [r for r in timed if r["met"]]
     missed = [r for r in timed if not r["met"]]
-    return {"scenarios": len(rows), "compared": len(timed), "met": len(met),
-            "median_ratio": round(statistics.median(ratios), 3),
-            "worst_ratio": round(max(ratios), 3),
-            "median_fixed_ms": round(statistics.median(r["fixed_ms"] for r in timed), 1),
-            "most_steps_not_met": max((r["steps"] for r in missed), default=None),
-            "fewest_steps_met": min((r["steps"] for r in met), default=None)}
+    out = {"scenarios": len(rows), "compared": len(timed), "met": len(met),
+           "median_ratio": round(statistics.median(ratios), 3),
+           "worst_ratio": round(max(ratios), 3),
+           "median_fixed_ms": round(statistics.median(r["fixed_ms"] for r in timed), 1),
+           "most_steps_not_met": max((r["steps"] for r in missed), default=None),
+           "fewest_steps_met": min((r["steps"] for r in met), default=None)}
+    whole = [r["ratio_end_to_end"] for r in timed if "ratio_end_to_end" in r]
+    if len(whole) == len(timed):
+        out.update({"met_end_to_end": sum(v <= 1.0 for v in whole),
+                    "median_ratio_end_to_end": round(statistics.median(whole), 3),
+                    "worst_ratio_end_to_end": round(max(whole), 3)})
+    return out

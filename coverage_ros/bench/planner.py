@@ -239,7 +239,8 @@ def bench_sweep(count: int, rounds: int, say) -> dict:
                 r = rows[-1]
                 say(f"  end to end / CoverageControl's step: {r['ratio']:.2f} ({r['steps']} "
                     f"steps; fixed cost {r['fixed_ms']:.0f} ms: break-even at "
-                    f"{r['break_even_steps']} steps)")
+                    f"{r['break_even_steps']} steps); / its end to end: "
+                    f"{r.get('ratio_end_to_end', float('nan')):.2f}")
     summary = cc_scenarios.summarize(rows)
     return {"seeds": [cc_scenarios.SEEDS_FROM + i for i in range(count)], "rounds": rounds,
             "targets": cc_scenarios.targets(summary), "summary": summary, "rows": rows}
@@ -341,6 +342,11 @@ def main(argv: list[str] | None = None) -> int:
                 f"{summary['compared']}: ratio median {summary['median_ratio']:.2f}, worst "
                 f"{summary['worst_ratio']:.2f}; fixed cost median "
                 f"{summary['median_fixed_ms']:.0f} ms")
+        if "met_end_to_end" in summary:
+            say(f"  end to end <= CoverageControl's end to end in {summary['met_end_to_end']} "
+                f"of {summary['compared']}: ratio median "
+                f"{summary['median_ratio_end_to_end']:.2f}, worst "
+                f"{summary['worst_ratio_end_to_end']:.2f}")
         write_results("end_to_end_sweep", e2e_sweep, args.json, argv)
         out["end_to_end_sweep"] = e2e_sweep
     if args.sweep != "none":

@@ -34,11 +34,15 @@ def test_every_team_size_meets_both_grids_within_nine_scenarios():
     assert pairs == {(n, c) for n in TEAMS for c in (402, 1024)}
 
 
-def _result(steps, wall_s, step_ms, cc_step_ms):
-    return {"coverage_plan": {"steps": steps, "end_to_end_ms_per_step": wall_s * 1e3 / steps,
-                              "step_ms": step_ms, "wall_s": wall_s},
-            "coveragecontrol": {"steps": steps, "step_ms": cc_step_ms},
-            "ratio_end_to_end_over": {"step": wall_s * 1e3 / steps / cc_step_ms}}
+def _result(steps, wall_s, step_ms, cc_step_ms, cc_wall_s=None):
+    out = {"coverage_plan": {"steps": steps, "end_to_end_ms_per_step": wall_s * 1e3 / steps,
+                             "step_ms": step_ms, "wall_s": wall_s},
+           "coveragecontrol": {"steps": steps, "step_ms": cc_step_ms},
+           "ratio_end_to_end_over": {"step": wall_s * 1e3 / steps / cc_step_ms}}
+    if cc_wall_s is not None:
+        out["coveragecontrol"]["end_to_end_ms_per_step"] = cc_wall_s * 1e3 / steps
+        out["ratio_end_to_end_over"]["end_to_end"] = wall_s / cc_wall_s
+    return out
 
 
 def test_rows_give_the_fixed_cost_and_the_steps_a_run_needs_to_meet_the_target():
@@ -68,3 +72,20 @@ def test_without_coveragecontrol_rows_keep_our_figures_and_nothing_is_judged():
     assert "ratio" not in row and "met" not in row
     assert summarize([row]) == {"scenarios": 1, "compared": 0}
     assert targets(summarize([row])) == []
+
+
+def test_rows_set_the_two_processes_side_by_side_when_both_were_timed():
+    world = {"density": {"components": [{}]}}
+    # 50 steps: ours 0.175 s against their step of 2 ms (not met), but their process took 0.35 s
+    short = scenario_row(1, 402, world, 8, _result(50, 0.175, 0.5, 2.0, cc_wall_s=0.35))
+    assert not short["met"] and short["ratio_end_to_end"] == pytest.approx(0.5)
+    assert short["cc_end_to_end_ms_per_step"] == pytest.approx(7.0)
+    slow = scenario_row(2, 402, world, 8, _result(100, 0.3, 2.5, 2.0, cc_wall_s=0.25))
+    summary = summarize([short, slow])
+    assert summary["met_end_to_end"] == 1 and summary["worst_ratio_end_to_end"] == 1.2
+    step, whole = targets(summary)
+    assert not step["met"] and not whole["met"] and whole["value"].startswith("1 of 2")
+    assert targets(summarize([short]))[1]["met"]
+    # (a row without their process's time: the summary judges only the step)
+    assert "met_end_to_end" not in summarize([short, scenario_row(3, 402, world, 8,
+                                                                  _result(100, 0.2, 0.5, 2.0))])

@@ -15,6 +15,12 @@ update over the whole domain, what the team step replaces) at the run's first po
   tenth of its window) and the shipped ``office`` (162 x 242 cells of rooms off a corridor,
   most cells out of sight of every robot).
 
+:func:`bench_geodesic_sweep` then times the same step for 8 robots on random 400 x 400 scenarios
+(:func:`coverage_ros.bench.lloyd_sweep.scenario`'s kinds: 1-5 Gaussians, a uniform density, or
+4-9 random boxes with a few Gaussians; a start cluster in a random corner; seeds from
+:data:`SWEEP_SEEDS_FROM`, never used to tune anything), each along its own geodesic Lloyd run:
+the target's 10 ms on scenarios nobody chose, per kind.
+
 A new search every step: the positions drift by a tenth of a millimetre between steps, as
 robots do between updates. ``geodesic_ms`` is wall time (the target's measure); ``cpu_ms``,
 the process's CPU time over the same steps, shows what a busy host adds.
@@ -47,6 +53,10 @@ MAP_ROBOTS = 8
 #: [m] drift of every robot between two timed steps (a new search each time)
 DRIFT = 1e-4
 SEED = 0
+SWEEP_SEEDS_FROM = 9000
+SWEEP_ROBOTS = 8
+#: [ms] the target of the team step of 8 robots on 400 x 400 cells
+SWEEP_TARGET_MS = 10.0
 
 
 def bench_geodesic_scale(rounds: int, say, depot: Path = DEPOT) -> list[dict]:
@@ -92,9 +102,49 @@ def _free_points(domain: CoverageDomain, n: int, rng: np.random.Generator) -> np
     return np.array(points)
 
 
-def _row(name: str, domain: CoverageDomain, path: np.ndarray, rounds: int,
-         target_ms: float, say) -> dict[str, Any]:
-    team = GeodesicTeam(domain)
+def bench_geodesic_sweep(count: int, rounds: int, say) -> dict[str, Any]:
+    """The geodesic team step of 8 robots on ``count`` random 400 x 400 scenarios (module
+    docstring), each timed over ``rounds`` positions along its run; rows, and per kind the
+    median and worst of the scenarios' median step and how many meet the target."""
+    from coverage_ros.bench.lloyd_sweep import scenario
+
+    rows = []
+    for i in range(count):
+        seed = SWEEP_SEEDS_FROM + i
+        domain, starts, about = scenario(seed, i, robots=SWEEP_ROBOTS)
+        team = GeodesicTeam(domain)
+        path = solve_lloyd(team, starts, tolerance=0.05, max_steps=30).positions
+        times, cpu = _timed_steps(team, path, rounds)
+        ms = round(statistics.median(times) * 1e3, 2)
+        H, W = domain.shape
+        rows.append({"seed": seed, "kind": about["kind"], "grid": [W, H], "geodesic_ms": ms,
+                     "cpu_ms": round(statistics.median(cpu) * 1e3, 2),
+                     "worst_ms": round(max(times) * 1e3, 2), "met": ms <= SWEEP_TARGET_MS})
+        say(f"  scenario {i + 1}/{count} (seed {seed}, {about['kind']}): {ms} ms "
+            f"(worst of {rounds} steps {rows[-1]['worst_ms']} ms)")
+    kinds = by_kind(rows, SWEEP_TARGET_MS)
+    for kind, k in kinds.items():
+        say(f"  {kind}: {k['met']} of {k['scenarios']} within {SWEEP_TARGET_MS:g} ms "
+            f"(median {k['median_ms']} ms, worst {k['worst_ms']} ms)")
+    return {"robots": SWEEP_ROBOTS, "target_ms": SWEEP_TARGET_MS, "steps_timed": rounds,
+            "kinds": kinds, "rows": rows}
+
+
+def by_kind(rows: list[dict], target_ms: float) -> dict[str, dict]:
+    """Per scenario kind (in order of first appearance): how many scenarios, the median and
+    worst of their ``geodesic_ms`` and how many are within ``target_ms``."""
+    kinds = {}
+    for kind in dict.fromkeys(r["kind"] for r in rows):
+        ms = [r["geodesic_ms"] for r in rows if r["kind"] == kind]
+        kinds[kind] = {"scenarios": len(ms), "median_ms": round(statistics.median(ms), 2),
+                       "worst_ms": max(ms), "met": sum(v <= target_ms for v in ms)}
+    return kinds
+
+
+def _timed_steps(team: GeodesicTeam, path: np.ndarray,
+                 rounds: int) -> tuple[list[float], list[float]]:
+    """Wall and CPU times [s] of ``team``'s step at ``rounds`` positions along ``path``, each
+    moved by a drift of its own (a new search every step)."""
     team.step(path[0] + DRIFT)  # the domain's own tables (graph, tiles, occluders)
     times, cpu = [], []
     for k in range(rounds):
@@ -103,6 +153,13 @@ def _row(name: str, domain: CoverageDomain, path: np.ndarray, rounds: int,
         team.step(P)
         times.append(time.perf_counter() - t)
         cpu.append(time.process_time() - c)
+    return times, cpu
+
+
+def _row(name: str, domain: CoverageDomain, path: np.ndarray, rounds: int,
+         target_ms: float, say) -> dict[str, Any]:
+    team = GeodesicTeam(domain)
+    times, cpu = _timed_steps(team, path, rounds)
     t = time.perf_counter()
     team.reference_step(path[0])
     reference = time.perf_counter() - t

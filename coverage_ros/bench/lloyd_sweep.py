@@ -55,11 +55,13 @@ SEEDS = {"train": 1000, "held-out": 5000}
 NUDGE = 1e-3
 
 
-def scenario(seed: int, index: int) -> tuple[CoverageDomain, np.ndarray, dict]:
+def scenario(seed: int, index: int,
+             robots: int | None = None) -> tuple[CoverageDomain, np.ndarray, dict]:
     """The domain, starts (n, 2) [m] and a description of scenario ``index`` drawn from
-    ``seed``."""
+    ``seed`` (``robots``: that team size instead of the index's)."""
     rng = np.random.default_rng(seed)
-    kind, robots = KINDS[index % len(KINDS)], TEAMS[index % len(TEAMS)]
+    kind = KINDS[index % len(KINDS)]
+    robots = TEAMS[index % len(TEAMS)] if robots is None else robots
     cells = int(round(SIDE / RESOLUTION))
     occ = np.zeros((cells, cells), dtype=np.int8)
     if kind == "obstacles":

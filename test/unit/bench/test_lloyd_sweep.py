@@ -44,7 +44,7 @@ def test_plain_nudged_spread_counts_gaps_above_a_tenth_of_a_percent_and_slower_r
 
 
 def test_nudged_starts_move_by_the_nudge_and_stay_free():
-    domain, starts, _ = scenario(5003, 3)  # box obstacles
+    domain, starts, _ = scenario(5007, 7)  # box obstacles
     moved = nudged(domain, starts, 5003)
     assert np.allclose(np.hypot(*(moved - starts).T), NUDGE)
     assert all(domain.is_free_point(p) for p in moved)
@@ -74,3 +74,12 @@ def test_a_sweep_with_another_switch_threshold_is_run_with_it_and_kept_beside(ca
     row = json.loads(capsys.readouterr().out.strip().splitlines()[-1])["sweep"]["scenarios"][0]
     # (the default switches)
     assert row["accelerated"]["steps_within"] < row["plain"]["steps_within"]
+
+
+def test_a_scenario_takes_another_team_size_and_keeps_its_world():
+    domain, starts, about = scenario(5007, 7)
+    other, eight, about8 = scenario(5007, 7, robots=8)
+    assert about["kind"] == about8["kind"] == "obstacles" and about8["robots"] == 8
+    assert len(eight) == 8 and len(starts) == about["robots"] != 8
+    assert np.array_equal(domain.free, other.free)
+    assert all(other.is_free_point(p) for p in eight)

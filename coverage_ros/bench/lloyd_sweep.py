@@ -5,7 +5,8 @@ Every scenario is drawn from its seed alone: a 20 m square at 5 cm with a densit
 Gaussians (widths 0.5-5 m), a uniform density, or random box obstacles with a few Gaussians;
 8, 16 or 32 robots starting in a cluster in a random corner. Kinds and team sizes take turns so
 that every seed set has each pairing. Two disjoint seed sets: ``train`` (what the solver was
-tuned on) and ``held-out`` (what is reported).
+tuned on) and ``held-out`` (what is reported). The team step is plain Lloyd's Euclidean cells, or
+(``team="geodesic"``) the geodesic power cells of ``coverage-plan --strategy geodesic``.
 
 Per scenario, both solvers from the same starts until no robot moves more than ``TOLERANCE``:
 
@@ -38,7 +39,7 @@ import numpy as np
 
 from coverage_ros.core.geodesic.domain import CoverageDomain
 from coverage_ros.core.offline.lloyd_solvers import SETTLED
-from coverage_ros.core.offline.lloyd_team import EuclideanTeam, solve_lloyd
+from coverage_ros.core.offline.lloyd_team import EuclideanTeam, GeodesicTeam, solve_lloyd
 from coverage_ros.core.world.density import Density, GaussianMixture, UniformDensity
 from coverage_ros.core.world.grid import OCCUPIED, GridMap
 
@@ -53,6 +54,9 @@ SEEDS = {"train": 1000, "held-out": 5000}
 #: [m] plain Lloyd's own spread (``plain_nudged``): the scenario again from starts moved this
 #: far in seeded directions, against plain Lloyd - how far its end moves with the starts alone.
 NUDGE = 1e-3
+#: the team steps a sweep may compare the solvers with: Euclidean Voronoi cells (plain
+#: ``coverage-plan --strategy lloyd``), or geodesic power cells (``--strategy geodesic``)
+TEAM_STEPS = {"lloyd": EuclideanTeam, "geodesic": GeodesicTeam}
 
 
 def scenario(seed: int, index: int,
@@ -104,13 +108,14 @@ def scenario(seed: int, index: int,
 
 
 def compare(domain: CoverageDomain, starts: np.ndarray, solvers=("lloyd", "accelerated"),
-            **options) -> dict:
-    """Both solvers from ``starts``; steps, steps within 0.1 % of plain's H, H gaps, times."""
-    team = EuclideanTeam(domain)
+            team: str = "lloyd", **options) -> dict:
+    """Both solvers from ``starts`` with the ``team`` step (:data:`TEAM_STEPS`); steps, steps
+    within 0.1 % of plain's H, H gaps, times."""
+    step = TEAM_STEPS[team](domain)
     runs, walls = {}, {}
     for solver in solvers:
         t0 = time.perf_counter()
-        runs[solver] = solve_lloyd(team, starts, solver=solver, tolerance=TOLERANCE,
+        runs[solver] = solve_lloyd(step, starts, solver=solver, tolerance=TOLERANCE,
                                    max_steps=MAX_STEPS, **options.get(solver, {}))
         walls[solver] = time.perf_counter() - t0
     ref = runs["lloyd"]
@@ -134,17 +139,17 @@ def nudged(domain: CoverageDomain, starts: np.ndarray, seed: int) -> np.ndarray:
 
 
 def run_sweep(seed_set: str, count: int, say, solvers=("lloyd", "accelerated"),
-              **options) -> dict:
-    """``count`` scenarios of ``seed_set``, each compared (module docstring), and plain Lloyd
-    from starts nudged by :data:`NUDGE`; a summary."""
+              team: str = "lloyd", **options) -> dict:
+    """``count`` scenarios of ``seed_set``, each compared (module docstring) with the ``team``
+    step, and plain Lloyd from starts nudged by :data:`NUDGE`; a summary."""
     base = SEEDS[seed_set]
     rows = []
     for i in range(count):
         seed = base + i
         domain, starts, about = scenario(seed, i)
-        res = compare(domain, starts, solvers, **options)
+        res = compare(domain, starts, solvers, team, **options)
         p, a = res["lloyd"], res[solvers[-1]]
-        again = solve_lloyd(EuclideanTeam(domain), nudged(domain, starts, seed),
+        again = solve_lloyd(TEAM_STEPS[team](domain), nudged(domain, starts, seed),
                             tolerance=TOLERANCE, max_steps=MAX_STEPS)
         row = {**about, "plain": p, "accelerated": a,
                "ratio_steps": a["steps"] / p["steps"],
@@ -193,7 +198,8 @@ def run_sweep(seed_set: str, count: int, say, solvers=("lloyd", "accelerated"),
          "may go on into a lower minimum)", "value": summary["worst_ratio_steps"],
          "met": met["worst_case_no_slower_than_plain"]}]
     settled = options.get("accelerated", {}).get("settled", SETTLED)
-    return {"seed_set": seed_set, "seeds": [r["seed"] for r in rows], "tolerance_m": TOLERANCE,
+    return {"seed_set": seed_set, "team": team, "seeds": [r["seed"] for r in rows],
+            "tolerance_m": TOLERANCE,
             "settled": settled, "targets": targets, "summary": summary, "scenarios": rows}
 
 

@@ -273,10 +273,12 @@ def write_results(part: str, figures: dict, path: Path, argv: list[str]) -> None
     path.write_text(json.dumps(data, indent=1) + "\n")
 
 
-def sweep_part(seed_set: str, settled: float | None) -> str:
+def sweep_part(seed_set: str, settled: float | None, team: str = "lloyd") -> str:
     """The results file's part for a sweep of ``seed_set`` with switch threshold ``settled``
-    (None: the solver's own)."""
+    (None: the solver's own) and the ``team`` step."""
     part = f"sweep_{seed_set.replace('-', '_')}"
+    if team != "lloyd":
+        part += f"_{team}"
     if settled is not None and settled != SETTLED:
         part += f"_settled_{settled:g}"
     return part
@@ -291,6 +293,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--sweep", choices=("train", "held-out", "none"), default="held-out",
                     help="the accelerated solver's sweep over random scenarios on this seed set")
     ap.add_argument("--scenarios", type=int, default=24, help="sweep scenarios")
+    ap.add_argument("--team", choices=("lloyd", "geodesic"), default="lloyd",
+                    help="the sweep's team step: Euclidean cells (coverage-plan --strategy "
+                         "lloyd) or geodesic power cells (--strategy geodesic)")
     ap.add_argument("--settled", type=float, default=None,
                     help="the accelerated solver's switch threshold for the sweep (share of H "
                          "plain Lloyd's extrapolated tail must fall below; default the "
@@ -353,8 +358,8 @@ def main(argv: list[str] | None = None) -> int:
         from coverage_ros.bench.lloyd_sweep import run_sweep
 
         options = {} if args.settled is None else {"accelerated": {"settled": args.settled}}
-        sweep = run_sweep(args.sweep, args.scenarios, say, **options)
-        write_results(sweep_part(args.sweep, args.settled), sweep, args.json, argv)
+        sweep = run_sweep(args.sweep, args.scenarios, say, team=args.team, **options)
+        write_results(sweep_part(args.sweep, args.settled, args.team), sweep, args.json, argv)
         out["sweep"] = sweep
     print(json.dumps(out))
     return 0

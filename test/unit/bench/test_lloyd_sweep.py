@@ -60,6 +60,7 @@ def test_a_sweep_with_another_switch_threshold_is_run_with_it_and_kept_beside(ca
 
     assert sweep_part("held-out", None) == sweep_part("held-out", SETTLED) == "sweep_held_out"
     assert sweep_part("train", 1e-4) == "sweep_train_settled_0.0001"
+    assert sweep_part("held-out", None, "geodesic") == "sweep_held_out_geodesic"
     # a threshold no tail gets below: the accelerated solver never switches, so its descent is
     # plain Lloyd's (its relocations come after)
     assert main(["--no-end-to-end", "--sweep", "train", "--scenarios", "1", "--settled",
@@ -83,3 +84,20 @@ def test_a_scenario_takes_another_team_size_and_keeps_its_world():
     assert len(eight) == 8 and len(starts) == about["robots"] != 8
     assert np.array_equal(domain.free, other.free)
     assert all(other.is_free_point(p) for p in eight)
+
+
+def test_the_solvers_compare_with_the_geodesic_team_step_when_asked():
+    from coverage_ros.bench.lloyd_sweep import RADIUS, TOLERANCE, compare
+    from coverage_ros.core.geodesic.domain import CoverageDomain
+    from coverage_ros.core.offline.lloyd_team import GeodesicTeam, solve_lloyd
+    from coverage_ros.core.world.grid import OCCUPIED, GridMap
+
+    occ = np.zeros((60, 60), dtype=np.int8)
+    occ[10:50, 28:32] = OCCUPIED  # (a wall across most of the room: geodesic cells differ)
+    domain = CoverageDomain.from_grid(GridMap(occ, 0.05, (0.0, 0.0, 0.0)), RADIUS)
+    starts = np.array([[0.3, 0.3], [0.6, 0.3], [0.3, 0.6], [0.6, 0.6]])
+    geodesic = compare(domain, starts, team="geodesic")
+    own = solve_lloyd(GeodesicTeam(domain), starts, tolerance=TOLERANCE, max_steps=3000)
+    assert geodesic["lloyd"]["steps"] == own.steps and geodesic["lloyd"]["H"] == own.cost
+    assert geodesic["lloyd"]["H"] != compare(domain, starts)["lloyd"]["H"]
+    assert geodesic["accelerated"]["gap"] <= 1e-3

@@ -48,6 +48,9 @@ class GeodesicParams:
     #: least saving of the bound, as a share of the pair's cost (hysteresis against moves
     #: that gain little)
     escape_gain: float = 0.01
+    #: ... and as a share of the H of all the robot hears: a robot crosses a building only
+    #: for a move that matters to the team (on a large map a relocation takes minutes)
+    escape_team_gain: float = 0.005
     #: [m] a robot whose Lloyd step is shorter counts as settled (offers, claims) ...
     escape_settle: float = 0.1
     #: ... and shorter than this share of its cell's radius sqrt(area / pi) as well: on
@@ -82,7 +85,8 @@ class GeodesicParams:
             raise ConfigError.at("method", "unknown method", self.method, f"one of {METHODS}")
         if not isinstance(self.escape, bool):
             raise ConfigError.at("escape", "must be true or false", self.escape)
-        for name in ("escape_gain", "escape_settle", "escape_settle_share"):
+        for name in ("escape_gain", "escape_team_gain", "escape_settle",
+                     "escape_settle_share"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int | float) or not (
                     math.isfinite(v) and v >= 0):
@@ -98,7 +102,9 @@ class GeodesicParams:
                 raise ConfigError.at(name, "must be an integer >= 0", v)
 
     def handover(self) -> HandoverSettings:
-        return HandoverSettings(gain=float(self.escape_gain), settle=float(self.escape_settle),
+        return HandoverSettings(gain=float(self.escape_gain),
+                                team_gain=float(self.escape_team_gain),
+                                settle=float(self.escape_settle),
                                 settle_share=float(self.escape_settle_share),
                                 cooldown=self.escape_cooldown, wait=self.escape_wait,
                                 transit=self.escape_transit, steps=self.escape_steps,

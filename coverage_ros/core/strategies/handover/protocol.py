@@ -23,7 +23,9 @@ move at a time: a robot on its way leaves its cell to the others, who spread int
 arrives, so a bound priced meanwhile would price a passing state; of claims made at once, all but
 the one of the highest priority - saving, then lower id - are dropped before a grant), j neither
 claims nor grants another, and ``offer_gain(j) - removal_increase(i)`` exceeds ``escape_gain``
-times the pair's cost ``H_i + H_j``. When no offer passes so and i stood still at its last update
+times the pair's cost ``H_i + H_j`` and ``escape_team_gain`` times the H of all i hears (on a
+large map a robot crosses it for minutes, meanwhile H rises: only for a move that matters to
+the team). When no offer passes so and i stood still at its last update
 (Lloyd's end), the same test runs on the joint bound instead (:func:`.bounds.joint_change`: i at
 j's offered point, every robot whose cell touches i's or j's re-spreading, against the same steps
 without the move), which sees moves that pay only once the neighbours of both cells shift along; if
@@ -72,7 +74,7 @@ touch either, are tessellated from them), nothing else; the protocol is determin
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -93,6 +95,7 @@ from coverage_ros.core.strategies.handover.published import (
     destination,
     idle,
     offers_of,
+    rank,
     value,
 )
 from coverage_ros.core.strategies.handover.split import SplitOffer
@@ -112,6 +115,7 @@ class HandoverSettings:
     """The ``escape_*`` settings of the geodesic strategy (validated there)."""
 
     gain: float  # least saving of the bound, as a share of the pair's cost H_i + H_j
+    team_gain: float  # ... and as a share of the H of all the robot hears
     settle: float  # [m] a robot whose Lloyd step is shorter is settled ...
     cooldown: int  # [updates] after a relocation or a dropped claim, before the next claim
     wait: int  # [updates] a claim waits this long for its grant
@@ -307,10 +311,8 @@ class Handover:
     def _consider(self, key: np.ndarray, position: np.ndarray, weight: float,
                   cell: CellResult, neighbours: Sequence[Neighbour],
                   bordering: Sequence[int], stopped: bool) -> None:
-        """Unless a robot it hears claims: the neighbour whose offer beats the own removal
-        most, if by enough; if none does and the robot stands still (``stopped``: Lloyd's end,
-        where staying is what the joint bound compares with), the offer whose joint bound
-        saves most, with one ring of cells re-spreading, else with the next ring too."""
+        """Unless a robot it hears claims: the offer that beats the own removal most, if by
+        enough; else, standing still (``stopped``: Lloyd's end), by the joint bounds."""
         if any(value(n, "claim", NONE) >= 0 for n in neighbours):
             return  # one move at a time (module docstring)
         here = Places.of(self.robot_id, position, neighbours)
@@ -325,17 +327,23 @@ class Handover:
                   and self.domain.is_free_point(o.point) and not made(o)]
         if not offers:
             return
+        s = self.settings  # a move saves ``escape_gain`` of the pair's cost, and of the H heard
+        floor = s.team_gain * self.prices.heard_cost(key, position, neighbours, weight) \
+            if s.team_gain > 0 else 0.0
+
+        def need(o: Offer) -> float:
+            return max(s.gain * (cell.cost + o.base), floor)
+
         # the removal bound per target: one held fixed when it borders the own cell
         removal = {o.robot_id: self.prices.removal(key, position, weight, cell, neighbours,
                                                    bordering, o.robot_id)
                    for o in offers}
-        best, saving = self._best(offers, cell.cost, {
+        best, saving = self._best(offers, need, {
             o.key: o.gain - removal[o.robot_id] for o in offers})
         rings = 1
         while best is None and stopped and rings <= self.settings.joint_rings:
-            # no pair's bound suffices: the bound with both cells' neighbours re-spreading,
-            # then theirs too
-            best, saving = self._best(offers, cell.cost, {
+            # no pair's bound suffices: both cells' neighbours re-spreading, then theirs too
+            best, saving = self._best(offers, need, {
                 o.key: -self.prices.joint(key, position, weight, neighbours, o, rings)
                 for o in offers})
             rings += 1
@@ -345,14 +353,13 @@ class Handover:
             if self._turns is None or not same_config(self._turns[0], key, self.domain.resolution):
                 self._turns = (key, 0)
             self._turns = (key, self._turns[1] + 1)  # (updates here, this one counted)
-            if self._turns[1] <= _rank(self.robot_id, cell.cost, neighbours):
+            if self._turns[1] <= rank(self.robot_id, cell.cost, neighbours):
                 self._awaits_turn = True
                 return
             largest = sorted(offers, key=lambda o: (-o.gain, o.key))[
                 :self.settings.descent_offers]
-            best, saving = self._best(largest, cell.cost, {
-                o.key: -self.prices.descent(key, position, weight, neighbours, o,
-                                            self.settings.gain * (cell.cost + o.base))
+            best, saving = self._best(largest, need, {
+                o.key: -self.prices.descent(key, position, weight, neighbours, o, need(o))
                 for o in largest})
             if best is None and self.settings.descent_rooms > 1:
                 # none of them pays: a point in every other room of the cells they split
@@ -360,9 +367,9 @@ class Handover:
                          for o in self.prices.rooms(key, position, weight, neighbours, j,
                                                     offers) if not made(o)]
                 if rooms:
-                    best, saving = self._best(rooms, cell.cost, {
+                    best, saving = self._best(rooms, need, {
                         o.key: -self.prices.descent(key, position, weight, neighbours, o,
-                                                    self.settings.gain * (cell.cost + o.base))
+                                                    need(o))
                         for o in rooms})
         if best is None:
             return
@@ -372,15 +379,16 @@ class Handover:
             return  # no better than where a move of its own left from (module docstring)
         self.claim, self.claim_gain, self.claim_age = best.robot_id, saving, 0
         self.target = best.point.copy()
-        self._claimed_from = Departure(ids, H, self.settings.gain * (cell.cost + best.base))
+        self._claimed_from = Departure(ids, H, need(best))
 
-    def _best(self, offers: Sequence[Offer], cost: float,
+    @staticmethod
+    def _best(offers: Sequence[Offer], need: Callable[[Offer], float],
               savings: dict[tuple[int, int], float]) -> tuple[Offer | None, float]:
         """The offer of the largest saving (then the lower id, then the first of a robot's
-        two), if it beats ``escape_gain`` of the pair's cost (``cost``: the own cell's)."""
+        two), if it beats what the offer ``need``s to save."""
         best = max(offers, key=lambda o: (savings[o.key], -o.robot_id, -o.key[1]))
         saving = savings[best.key]
-        if not saving > self.settings.gain * (cost + best.base):
+        if not saving > need(best):
             return None, 0.0
         return best, saving
 
@@ -388,11 +396,4 @@ class Handover:
         self.claim, self.claim_gain, self.claim_age = -1, 0.0, 0
         self.relocating, self.target = False, None
         self.cooldown = self.settings.cooldown
-
-
-def _rank(robot_id: int, cost: float, neighbours: Sequence[Neighbour]) -> int:
-    """How many robots it hears published a cell cost below the own (then a lower id): its
-    turn to price offers by the descent in a settled configuration (module docstring)."""
-    return sum((value(n, "offer_base"), n.robot_id) < (cost, robot_id) for n in neighbours
-               if value(n, "offer_gain") > 0)
 

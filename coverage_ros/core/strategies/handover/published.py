@@ -13,6 +13,7 @@ Whoever makes way for it reads where it is going (:func:`destination`).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -81,3 +82,11 @@ def offers_of(n: Neighbour) -> list[Offer]:
         if gain > 0 and np.all(np.isfinite(point)):
             out.append(Offer((n.robot_id, k), gain, point, value(n, "offer_base")))
     return out
+
+
+def rank(robot_id: int, cost: float, neighbours: Sequence[Neighbour]) -> int:
+    """How many robots it hears published a cell cost below the own (then a lower id): its
+    turn to price offers by the descent in a settled configuration (module docstring)."""
+    return sum((value(n, "offer_base"), n.robot_id) < (cost, robot_id) for n in neighbours
+               if value(n, "offer_gain") > 0)
+

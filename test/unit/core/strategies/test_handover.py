@@ -522,6 +522,33 @@ def test_a_move_no_bound_sees_is_priced_by_the_teams_own_descent():
     assert {k for k, _, _ in _claims(domain, P, {"escape_descent_offers": 1})} == {1}
 
 
+
+def test_a_move_must_save_a_share_of_the_teams_H():
+    """Robot 1's move into robot 7's cell at the plan-2 positions saves S (where the team's
+    own descent ends): claimed while ``escape_team_gain`` asks for less than S of the team's
+    H (its descent then goes on past the pair's threshold to that share), not once it asks
+    for more - whatever the pair's threshold says; asked for half the team's H, nobody
+    claims."""
+    from coverage_ros.core.strategies.handover.bounds import descent_change
+
+    domain, P, (i, j) = _drawn_plan(2), PLAN2_SETTLED, (1, 7)
+    gens = [Generator(p) for p in P]
+    H0 = fast_tessellate(domain, gens).cost
+    cells = [geodesic_cell(domain, g, gens[:k] + gens[k + 1:]) for k, g in enumerate(gens)]
+    offer = split_offer(domain, cells[j].nodes, cells[j].distances, cells[j].cost, 0.0,
+                        cells[j].cell_radius, 3)
+    ids = [k for k in range(len(P)) if k != i]
+    known = known_cells(domain, np.vstack([P[i][None], P[ids]]))
+    S = -descent_change(domain, known, 0.0, list(range(1, len(P))), offer.point).increase
+    assert S > GeodesicParams().escape_gain * (cells[i].cost + offer.base)
+    params = {"escape_descent_offers": 1, "escape_descent_rooms": 0}
+    assert {(k, t) for k, t, _ in _claims(
+        domain, P, params | {"escape_team_gain": 0.9 * S / H0})} == {(i, j)}
+    # (a robot whose turn comes after robot 1's may still have a move that saves more)
+    assert (i, j) not in {(k, t) for k, t, _ in _claims(
+        domain, P, params | {"escape_team_gain": 1.1 * S / H0})}
+    assert _claims(domain, P, params | {"escape_team_gain": 0.5}) == []
+
 #: [m] where a team of 8 on drawn plan 12 ended with no offer paying (start seed 1 of
 #: scripts/bench_closets, H 6.5 % above the best known): robot 6 covers from the corridor
 #: a west room, the large east room and the south-east room; robot 4 sits in the south-west
@@ -915,6 +942,7 @@ def test_update_takes_only_the_observation_and_the_neighbours():
 
 @pytest.mark.parametrize("name,value", [
     ("escape", "yes"), ("escape_gain", -0.1), ("escape_gain", math.inf),
+    ("escape_team_gain", -0.01),
     ("escape_settle", -1.0), ("escape_settle_share", -0.1), ("escape_settle_share", math.nan),
     ("escape_cooldown", 0), ("escape_wait", 0),
     ("escape_transit", 0), ("escape_steps", 0), ("escape_steps", 1.5),

@@ -469,6 +469,18 @@ PLAN2_SETTLED = np.array([
 
 
 @pytest.mark.slow
+def _move_into(domain, P, i: int, j: int):
+    """For robot i moving into robot j's cell at the team ``P``: H, every robot's cell, j's
+    split offer, the others' ids and the cells robot i knows (generator 0: itself)."""
+    gens = [Generator(p) for p in P]
+    H0 = fast_tessellate(domain, gens).cost
+    cells = [geodesic_cell(domain, g, gens[:k] + gens[k + 1:]) for k, g in enumerate(gens)]
+    offer = split_offer(domain, cells[j].nodes, cells[j].distances, cells[j].cost, 0.0,
+                        cells[j].cell_radius, 3)
+    ids = [k for k in range(len(P)) if k != i]
+    return H0, cells, offer, ids, known_cells(domain, np.vstack([P[i][None], P[ids]]))
+
+
 def test_a_move_no_bound_sees_is_priced_by_the_teams_own_descent():
     """Robot 2 moving to robot 7's offered point: every bound says H rises (the pair's, the
     joint one with one and with two rings re-spreading), but where the team's own generalized
@@ -480,13 +492,7 @@ def test_a_move_no_bound_sees_is_priced_by_the_teams_own_descent():
 
     domain = _drawn_plan(2)
     P, (i, j) = PLAN2_SETTLED, (2, 7)
-    gens = [Generator(p) for p in P]
-    H0 = fast_tessellate(domain, gens).cost
-    cells = [geodesic_cell(domain, g, gens[:k] + gens[k + 1:]) for k, g in enumerate(gens)]
-    offer = split_offer(domain, cells[j].nodes, cells[j].distances, cells[j].cost, 0.0,
-                        cells[j].cell_radius, 3)
-    ids = [k for k in range(len(P)) if k != i]
-    known = known_cells(domain, np.vstack([P[i][None], P[ids]]))
+    H0, cells, offer, ids, known = _move_into(domain, P, i, j)
     threshold = GeodesicParams().escape_gain * (cells[i].cost + offer.base)
     for rings in (1, 2):
         assert joint_change(domain, known, 0.0, 1 + ids.index(j), offer.point, 10,
@@ -532,13 +538,7 @@ def test_a_move_must_save_a_share_of_the_teams_H():
     from coverage_ros.core.strategies.handover.bounds import descent_change
 
     domain, P, (i, j) = _drawn_plan(2), PLAN2_SETTLED, (1, 7)
-    gens = [Generator(p) for p in P]
-    H0 = fast_tessellate(domain, gens).cost
-    cells = [geodesic_cell(domain, g, gens[:k] + gens[k + 1:]) for k, g in enumerate(gens)]
-    offer = split_offer(domain, cells[j].nodes, cells[j].distances, cells[j].cost, 0.0,
-                        cells[j].cell_radius, 3)
-    ids = [k for k in range(len(P)) if k != i]
-    known = known_cells(domain, np.vstack([P[i][None], P[ids]]))
+    H0, cells, offer, _, known = _move_into(domain, P, i, j)
     S = -descent_change(domain, known, 0.0, list(range(1, len(P))), offer.point).increase
     assert S > GeodesicParams().escape_gain * (cells[i].cost + offer.base)
     params = {"escape_descent_offers": 1, "escape_descent_rooms": 0}

@@ -96,20 +96,30 @@ class Split:
 
 
 def split_parts(domain: CoverageDomain, nodes: np.ndarray, g_own: np.ndarray, weight: float,
-                cell_radius: float, steps: int, method: str, starts: int) -> list[Split]:
+                cell_radius: float, steps: int, method: str, starts: int,
+                limit: float | None = None) -> list[Split]:
     """The least-cost split of the cell ``nodes`` (distances ``g_own`` from the own
     generator) from each of ``starts`` starts: the node farthest from the own generator, then
     each the node farthest from it and every earlier start (fewer where none is left in
     reach); from a start, the second generator moves ``steps`` times to the mass centroid of
     its part (the part's node nearest to it), and the least cost seen counts. Empty for a cell
-    of fewer than two nodes."""
+    of fewer than two nodes.
+
+    The second generator's searches reach ``limit`` (chart units; None: the cell's farthest
+    node from the own generator, or twice ``cell_radius`` if that is nearer). A node farther
+    from the second generator than that is farther from it than from the own one, so it stays
+    the own whether it is reached or not: every limit from the farthest node on gives the same
+    splits, the nearest one at the least cost (in the open, a quarter of the nodes that twice
+    the radius reaches)."""
     nodes = np.asarray(nodes, dtype=np.int64)
     if len(nodes) < 2:
         return []
     wdA = domain.mass_element.ravel()[nodes]
     pts = node_points(domain, nodes)
     own = g_own * g_own - weight ** 2
-    limit = 2.0 * cell_radius + SLACK_EDGES * domain.graph.max_edge_cost
+    if limit is None:
+        limit = min(2.0 * cell_radius + SLACK_EDGES * domain.graph.max_edge_cost,
+                    float(np.max(g_own)))
     apart = np.array(g_own, dtype=np.float64)  # [m] from the own generator and the starts
 
     def descend(start: int) -> Split:

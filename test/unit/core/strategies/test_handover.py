@@ -40,6 +40,7 @@ from coverage_ros.core.strategies.handover import (
 from coverage_ros.core.strategies.handover.places import HeardMove, Places
 from coverage_ros.core.strategies.handover.protocol import STILL_UPDATES, Handover
 from coverage_ros.core.strategies.handover.published import held
+from coverage_ros.core.strategies.handover.split import split_parts
 from coverage_ros.core.world import parse_world
 from coverage_ros.core.world.placement import largest_free_region, team_starts
 from coverage_ros.errors import ConfigError
@@ -323,6 +324,30 @@ def _drawn_plan(seed: int):
 
     world = coarse_world(parse_world(drawn_plan(seed)), RESOLUTION)
     return world_domain(world, world.robot_spec(0).radius)
+
+
+@pytest.mark.parametrize("plan", ["ward", "plan-6"])
+def test_splits_searched_to_the_cells_farthest_node_are_the_whole_maps(plan):
+    """A split's second generator searched only as far as the cell's farthest node from the
+    own generator gives every start's cost, point and part exactly as searched over the whole
+    map, on plain Lloyd's end state of the ward (one robot's cell across doorways) and on the
+    two-rooms configuration of drawn plan 6."""
+    if plan == "ward":
+        domain, P = ward()[1], run(cluster(1), escape=False).positions[-1]
+    else:
+        domain, P = _drawn_plan(6), PLAN6_TWO_ROOMS
+    gens = [Generator(p) for p in P]
+    compared = 0
+    for k, g in enumerate(gens):
+        c = geodesic_cell(domain, g, gens[:k] + gens[k + 1:])
+        near, whole = (split_parts(domain, c.nodes, c.distances, 0.0, c.cell_radius, 3,
+                                   "auto", 4, limit=limit) for limit in (None, math.inf))
+        assert len(near) == len(whole) >= 1, k
+        for a, b in zip(near, whole, strict=True):
+            assert a.cost == b.cost and a.at == b.at, k
+            assert np.array_equal(a.point, b.point) and np.array_equal(a.part, b.part), k
+            compared += 1
+    assert compared >= 2 * len(P)
 
 
 def test_a_cell_spanning_two_rooms_offers_its_split_in_either():

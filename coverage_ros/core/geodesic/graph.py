@@ -179,6 +179,21 @@ class GridGraph:
         return lengths
 
     @cached_property
+    def offset_costs(self) -> np.ndarray | None:
+        """``(K,)`` the cost of the edges along each offset, as :attr:`edge_table` holds
+        them, when every edge along an offset costs the same (a uniform metric), else None."""
+        _, cost = self.edge_table
+        costs = np.full(cost.shape[1], np.inf)  # (an offset without edges: never read)
+        for k in range(cost.shape[1]):
+            c = cost[:, k]
+            c = c[np.isfinite(c)]
+            if len(c) and (c != c[0]).any():
+                return None
+            if len(c):
+                costs[k] = c[0]
+        return costs
+
+    @cached_property
     def csr(self) -> csr_matrix:
         """The whole graph as a ``(N, N)`` CSR matrix of edge costs (directed both ways), each
         row's columns ascending."""

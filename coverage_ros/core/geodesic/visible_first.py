@@ -150,14 +150,17 @@ def _search_hidden(domain: CoverageDomain, local: LocalGraph, hidden: np.ndarray
     m = len(sub)
     # Hidden rows: their graph edges within the sub-graph; border rows: edges into hidden
     # cells. Rows are selected row-major, so they stay in order (CSR built directly).
+    uniform = domain.graph.offset_costs  # (one cost per offset: no gather of the costs)
+    n_hidden = len(hidden)
     counts, cols, vals = [], [], []
     for start, to in ((hidden, to_hidden), (border, nb_table[border])):
-        inside = pos[to] >= 0
-        if start is border:
-            inside &= ~settled_x[to]
+        at = pos[to]
+        # (hidden rows: every edge, all to hidden or border cells; border rows: to hidden)
+        inside = at >= 0 if start is hidden else at.view(np.uint32) < n_hidden
         counts.append(inside.sum(axis=1))
-        cols.append(pos[to[inside]])
-        vals.append(cost_table[start][inside])
+        cols.append(at[inside])
+        vals.append(cost_table[start][inside] if uniform is None
+                    else np.broadcast_to(uniform, to.shape)[inside])
     rows = (np.concatenate(counts), np.concatenate(cols), np.concatenate(vals))
     # One virtual source per generator: to its border cells at their settled distance, and to
     # the hidden cells it snaps to or sees (at its snap / straight-line cost).
@@ -212,7 +215,7 @@ def _search_hidden(domain: CoverageDomain, local: LocalGraph, hidden: np.ndarray
         if seen.any():
             fresh[k] = (better[seen], e[seen])
     if fresh:  # (a line no shorter than the path found changes nothing: the first stands)
-        _improve(domain, hidden, pos, hc, (d, p, src), fresh, grids, biases, tiled)
+        _improve(domain, hidden, hc, (d, p, src), fresh, grids, biases, tiled)
     h = np.arange(len(hidden))
     reached = np.isfinite(d[h])
     lid = hidden[h[reached]] + 1
@@ -237,21 +240,22 @@ def _may_be_shorter(tiled: tuple[np.ndarray, ...], grid: np.ndarray, bias: float
     return may
 
 
-def _improve(domain: CoverageDomain, hidden: np.ndarray, pos: np.ndarray, hc: np.ndarray,
+def _improve(domain: CoverageDomain, hidden: np.ndarray, hc: np.ndarray,
              found: tuple[np.ndarray, np.ndarray, np.ndarray],
              fresh: dict[int, tuple[np.ndarray, np.ndarray]], grids: np.ndarray,
              biases: np.ndarray, tiled: tuple[np.ndarray, ...]) -> None:
     """Add the straight lines into hidden cells found shorter than the first search's paths
     (``fresh``: per generator, hidden indices and costs) to that search's results ``found``
-    (distances, parents, sources over the sub-graph whose nodes ``pos`` numbers; changed in
-    place). A path from such a seed is at least the straight line from its generator, so it
-    can only be shorter where that line is shorter than the path found - and so is every node
-    before it on the path: one search from the new seeds over those cells alone, each cell
-    then taking the shorter of its two distances, is the search with every seed at once.
-    A path from a seed ``s`` (cost ``e_s``) to a cell ``q`` is no shorter than
-    ``e_s + |q - s|``, nor is it anywhere on the way: only the tiles where that bound, least
-    over blocks of seeds (box to box), is no longer than the longest path found into the tile
-    are searched (on depot about a third of the cells the straight lines alone leave)."""
+    (distances, parents, sources over the sub-graph of the hidden cells, then their border,
+    then the sources; changed in place). A path from such a seed is at least the straight
+    line from its generator, so it can only be shorter where that line is shorter than the
+    path found - and so is every node before it on the path: one search from the new seeds
+    over those cells alone, each cell then taking the shorter of its two distances, is the
+    search with every seed at once. A path from a seed ``s`` (cost ``e_s``) to a cell ``q``
+    is no shorter than ``e_s + |q - s|``, nor is it anywhere on the way: only the tiles where
+    that bound, least over blocks of seeds (box to box), is no longer than the longest path
+    found into the tile are searched (on depot about a third of the cells the straight lines
+    alone leave)."""
     d, p, src = found
     n_hidden = len(hidden)
     m = len(d) - len(grids)  # the sub-graph's nodes; its sources follow
@@ -270,11 +274,15 @@ def _improve(domain: CoverageDomain, hidden: np.ndarray, pos: np.ndarray, hc: np
     at = np.full(n_hidden + 1, -1, dtype=np.int32)  # hidden index -> index among cells
     at[cells] = np.arange(m2, dtype=np.int32)
     nb_table, cost_table = domain.graph.edge_table
-    to = nb_table[hidden[cells]]
-    h = pos[to]
-    to_cell = at[np.where((h >= 0) & (h < n_hidden), h, n_hidden)]
+    nodes = hidden[cells]
+    cell_of = np.full(len(nb_table), -1, dtype=np.int32)  # node -> index among cells
+    cell_of[nodes] = np.arange(m2, dtype=np.int32)
+    to = nb_table[nodes]
+    to_cell = cell_of[to]
     inside = to_cell >= 0
-    rows = (inside.sum(axis=1), to_cell[inside], cost_table[hidden[cells]][inside])
+    uniform = domain.graph.offset_costs
+    rows = (inside.sum(axis=1), to_cell[inside], cost_table[nodes][inside] if uniform is None
+            else np.broadcast_to(uniform, to.shape)[inside])
     gens = np.array(list(fresh), dtype=np.int64)
     none = (np.zeros(0, dtype=np.int32), np.zeros(0))
     d2, p2, src2 = dijkstra(

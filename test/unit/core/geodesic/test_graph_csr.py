@@ -49,3 +49,20 @@ def test_the_csr_matrix_holds_every_edge_once_in_column_order(connectivity, weig
         assert csr.data[a:b].tolist() == costs[node]
     # Every edge is there both ways with one cost (the metric is symmetric).
     assert abs(csr - csr.T).max() == 0.0
+
+
+@pytest.mark.parametrize("connectivity", [8, 16])
+def test_offset_costs_are_the_tables_own_values_and_none_when_an_offset_varies(connectivity):
+    rng = np.random.default_rng(connectivity)
+    free = rng.random((11, 14)) < 0.7
+    plain = build_grid_graph(free, 0.05, connectivity)
+    nb, cost = plain.edge_table
+    N = plain.num_nodes
+    costs = plain.offset_costs
+    assert costs is not None
+    for k in range(len(plain.offsets)):
+        edges = nb[:N, k] < N
+        assert edges.any()
+        assert (cost[:N, k][edges] == costs[k]).all()  # (bit for bit, not only close)
+    weighted = build_grid_graph(free, 0.05, connectivity, zeta=rng.uniform(0.5, 2.0, free.shape))
+    assert weighted.offset_costs is None

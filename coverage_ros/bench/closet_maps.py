@@ -34,8 +34,14 @@ DRAWN_ROOM = (1.5, 5.0)  # [m] room widths
 DRAWN_CLOSET_FROM, DRAWN_CLOSET_CHANCE, DRAWN_CLOSET_DEPTH = 3.5, 0.4, (1.2, 1.8)
 DRAWN_CLOSET_DOOR = 0.8  # [m]
 DRAWN_ROOM_DOOR = 0.9  # [m] a room's door onto the corridor (the hostel's)
+#: drawn plans of two corridors (:func:`twin_plan`): ``twin-<seed>``, their own random stream
+#: and building length [m]
+TWIN = re.compile(r"twin-(\d+)")
+TWIN_STREAM = 2
+TWIN_LENGTH = (18.0, 26.0)
 RESOLUTION = 0.1  # [m] benchmark raster: a restart on warehouse (30 x 50 m) in seconds
 TARGET = 1.05  # H_final / H_best at most
+Wall = tuple[tuple[float, float], tuple[float, float]]  # [m] a wall's two ends
 
 
 def hostel() -> WorldSpec:
@@ -76,27 +82,73 @@ def drawn_plan(seed: int) -> dict:
     below, above = rng.uniform(*DRAWN_DEPTH, 2)
     y0, y1 = below, below + corridor
     height = float(y1 + above)
-    walls: list[tuple[tuple[float, float], tuple[float, float]]] = []
+    walls: list[Wall] = []
     for y, y_far in ((y0, 0.0), (y1, height)):
-        x = 0.0
-        for width in _room_widths(rng, length):
-            door = rng.uniform(0.2, width - DRAWN_ROOM_DOOR - 0.2)
-            walls += [((x, y), (x + door, y)),
-                      ((x + door + DRAWN_ROOM_DOOR, y), (x + width, y))]
-            if width >= DRAWN_CLOSET_FROM and rng.random() < DRAWN_CLOSET_CHANCE:
-                depth = rng.uniform(*DRAWN_CLOSET_DEPTH)
-                yc = y_far + depth if y_far < y else y_far - depth
-                at = rng.uniform(0.2, width - DRAWN_CLOSET_DOOR - 0.2)
-                walls += [((x, yc), (x + at, yc)),
-                          ((x + at + DRAWN_CLOSET_DOOR, yc), (x + width, yc))]
-            x += width
-            if x < length - 1e-9:
-                walls.append(((x, y), (x, y_far)))
+        walls += _rooms(rng, 0.0, length, y, y_far)
+    return _plan(f"plan-{seed}", rng, walls, length, height)
+
+
+def twin_plan(seed: int) -> dict:
+    """Floor plan ``twin-<seed>`` as a world file's mapping, drawn from ``seed`` alone (a
+    stream of its own, not ``plan-<seed>``'s): two corridors along the building, rooms on
+    their outer sides and two rows of rooms back to back between them, the middle rows broken
+    by a cross corridor that joins the two; rooms, doors and closets as in
+    :func:`drawn_plan`, and on half the seeds the corridors run along y."""
+    rng = np.random.default_rng([TWIN_STREAM, seed])
+    length = float(rng.uniform(*TWIN_LENGTH))
+    corridors = rng.uniform(*DRAWN_CORRIDOR, 2)
+    depths = rng.uniform(*DRAWN_DEPTH, 4)  # (outer, middle, middle, outer rows)
+    cross = float(rng.uniform(*DRAWN_CORRIDOR))
+    x_cross = float(rng.uniform(0.25 * length, 0.75 * length - cross))
+    y_a = depths[0]  # the first corridor's near side, then its far side and so on up
+    y_a1 = y_a + corridors[0]
+    y_mid = y_a1 + depths[1]
+    y_b = y_mid + depths[2]
+    y_b1 = y_b + corridors[1]
+    height = float(y_b1 + depths[3])
+    walls = _rooms(rng, 0.0, length, y_a, 0.0)
+    for y in (y_a1, y_b):
+        walls += _rooms(rng, 0.0, x_cross, y, y_mid)
+        walls += _rooms(rng, x_cross + cross, length, y, y_mid)
+    walls += _rooms(rng, 0.0, length, y_b1, height)
+    walls += [((0.0, y_mid), (x_cross, y_mid)), ((x_cross + cross, y_mid), (length, y_mid)),
+              ((x_cross, y_a1), (x_cross, y_b)), ((x_cross + cross, y_a1), (x_cross + cross, y_b))]
+    return _plan(f"twin-{seed}", rng, walls, length, height)
+
+
+def _rooms(rng: np.random.Generator, x0: float, x1: float, y: float, y_far: float
+           ) -> list[Wall]:
+    """The walls of a row of rooms side by side over ``x0 .. x1`` between the line ``y``
+    (their doors, onto a corridor) and ``y_far`` (their backs): random widths and door
+    places, a closet across the back of some, a wall between neighbours (none at the row's
+    ends)."""
+    walls: list[Wall] = []
+    x = x0
+    for width in _room_widths(rng, x1 - x0):
+        door = rng.uniform(0.2, width - DRAWN_ROOM_DOOR - 0.2)
+        walls += [((x, y), (x + door, y)),
+                  ((x + door + DRAWN_ROOM_DOOR, y), (x + width, y))]
+        if width >= DRAWN_CLOSET_FROM and rng.random() < DRAWN_CLOSET_CHANCE:
+            depth = rng.uniform(*DRAWN_CLOSET_DEPTH)
+            yc = y_far + depth if y_far < y else y_far - depth
+            at = rng.uniform(0.2, width - DRAWN_CLOSET_DOOR - 0.2)
+            walls += [((x, yc), (x + at, yc)),
+                      ((x + at + DRAWN_CLOSET_DOOR, yc), (x + width, yc))]
+        x += width
+        if x < x1 - 1e-9:
+            walls.append(((x, y), (x, y_far)))
+    return walls
+
+
+def _plan(name: str, rng: np.random.Generator, walls: list[Wall], length: float,
+          height: float) -> dict:
+    """The world mapping of a drawn plan of ``walls`` in ``length`` x ``height`` [m]; turned
+    a quarter (x and y swapped) on half the draws of ``rng``."""
     bounds = [0.0, 0.0, round(length, 3), round(height, 3)]  # (plain floats: a world file)
     if rng.random() < 0.5:  # (the corridor along y)
         walls = [((a[1], a[0]), (b[1], b[0])) for a, b in walls]
         bounds = [0.0, 0.0, bounds[3], bounds[2]]
-    return {"name": f"plan-{seed}", "resolution": RESOLUTION, "bounds": bounds,
+    return {"name": name, "resolution": RESOLUTION, "bounds": bounds,
             "obstacles": [{"type": "wall", "from": [round(float(v), 3) for v in a],
                            "to": [round(float(v), 3) for v in b], "thickness": 0.1}
                           for a, b in walls]}
@@ -118,17 +170,20 @@ def _room_widths(rng: np.random.Generator, length: float) -> list[float]:
 
 
 def floor_plan(name: str) -> dict | None:
-    """The world mapping of a plan drawn here (``hostel``, ``plan-<seed>``); None for the
-    maps read from files (:data:`MAPS`)."""
+    """The world mapping of a plan drawn here (``hostel``, ``plan-<seed>``,
+    ``twin-<seed>``); None for the maps read from files (:data:`MAPS`)."""
     if name == "hostel":
         return hostel_plan()
-    drawn = DRAWN.fullmatch(name)
+    drawn, twin = DRAWN.fullmatch(name), TWIN.fullmatch(name)
+    if twin:
+        return twin_plan(int(twin.group(1)))
     return drawn_plan(int(drawn.group(1))) if drawn else None
 
 
 def known_map(name: str) -> bool:
-    """Whether ``name`` is a benchmark map: one of :data:`MAPS` or a drawn ``plan-<seed>``."""
-    return name in MAPS or DRAWN.fullmatch(name) is not None
+    """Whether ``name`` is a benchmark map: one of :data:`MAPS` or a drawn ``plan-<seed>`` or
+    ``twin-<seed>``."""
+    return name in MAPS or DRAWN.fullmatch(name) is not None or TWIN.fullmatch(name) is not None
 
 
 def coarse_world(world: WorldSpec, resolution: float) -> WorldSpec:

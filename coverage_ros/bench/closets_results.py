@@ -158,9 +158,9 @@ def live_ends(run: dict) -> str:
 
 def map_names(data: dict) -> list[str]:
     """The maps of the results file in table order: :data:`MAPS`, then the drawn plans by
-    seed."""
+    kind (``plan``, then ``twin``) and seed."""
     drawn = [m for m in data.get("best", {}) if m not in MAPS and known_map(m)]
-    return [*MAPS, *sorted(drawn, key=lambda m: int(m.split("-")[1]))]
+    return [*MAPS, *sorted(drawn, key=lambda m: (m.startswith("twin"), int(m.split("-")[1])))]
 
 
 def update_readme(data: dict, path: Path) -> bool:

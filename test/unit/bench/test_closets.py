@@ -23,6 +23,7 @@ from coverage_ros.bench.closet_maps import (
     hostel,
     hostel_plan,
     known_map,
+    twin_plan,
 )
 from coverage_ros.bench.closets_live import within_at, world_file
 from coverage_ros.bench.closets_results import (
@@ -147,13 +148,49 @@ def test_drawn_plans_are_one_region_a_robot_can_drive_with_rooms_behind_doors():
     assert closets > 0
 
 
+def test_twin_plans_are_one_region_with_two_corridors_and_rooms_back_to_back():
+    """Every two-corridor plan: the seed alone gives it; all its free space a robot keeps
+    clear of the walls in is one region; and the middle rooms' shared back wall runs the
+    building's length, broken once by the cross corridor, whose sides meet it there."""
+    from scipy import ndimage
+
+    from coverage_ros.core.world.placement import CLUSTER_WALL_MARGIN
+
+    for seed in range(12):
+        plan = twin_plan(seed)
+        assert plan == twin_plan(seed) == floor_plan(f"twin-{seed}")
+        world = parse_world(plan)
+        assert yaml.safe_load(yaml.safe_dump(plan)) == plan
+        free = world.grid.inflated_free_mask(world.robot_spec(0).radius + CLUSTER_WALL_MARGIN)
+        _, regions = ndimage.label(free, structure=np.ones((3, 3)))
+        assert regions == 1, seed
+        walls = [(o["from"], o["to"]) for o in plan["obstacles"]]
+        middles = []
+        for axis in (0, 1):  # (walls across axis: constant coordinate 1 - axis)
+            span = plan["bounds"][2 + axis]
+            lines: dict[float, list[tuple[float, float]]] = {}
+            for a, b in walls:
+                if a[1 - axis] == b[1 - axis]:
+                    lines.setdefault(a[1 - axis], []).append(tuple(sorted((a[axis], b[axis]))))
+            for at, pieces in lines.items():
+                pieces.sort()
+                if len(pieces) == 2 and pieces[0][0] == 0.0 and pieces[1][1] == span:
+                    gap = (pieces[0][1], pieces[1][0])
+                    sides = [(a, b) for a, b in walls if a[axis] == b[axis]
+                             and a[axis] in gap and min(a[1 - axis], b[1 - axis]) < at
+                             < max(a[1 - axis], b[1 - axis])]
+                    middles.append((1.2 <= gap[1] - gap[0] <= 2.0, len(sides)))
+        assert middles == [(True, 2)], (seed, middles)
+
+
 def test_floor_plans_and_map_names():
     assert floor_plan("hostel") == hostel_plan()
     assert floor_plan("ward") is None and floor_plan("plan-x") is None
     assert known_map("ward") and known_map("plan-12") and not known_map("plan-") \
         and not known_map("nowhere")
-    data = {"best": {"plan-10": {}, "ward": {}, "plan-2": {}}}
-    assert map_names(data)[-2:] == ["plan-2", "plan-10"]
+    assert known_map("twin-3") and floor_plan("twin-3") == twin_plan(3) != drawn_plan(3)
+    data = {"best": {"twin-4": {}, "plan-10": {}, "ward": {}, "twin-12": {}, "plan-2": {}}}
+    assert map_names(data)[-4:] == ["plan-2", "plan-10", "twin-4", "twin-12"]
 
 
 def _spans(rooms):

@@ -14,10 +14,12 @@ Maps: the shared map_server maps (tb3_sandbox, depot, warehouse), the shipped fl
 (:func:`~coverage_ros.bench.closet_maps.hostel`, drawn for the benchmark as a check on a plan
 the escape was not tuned on), and any number of plans drawn at random from a seed,
 ``plan-<seed>`` (:func:`~coverage_ros.bench.closet_maps.drawn_plan`: rooms of random widths on
-both sides of a corridor, some with a closet inside); :mod:`coverage_ros.bench.closet_maps` has
-them. Every map is rasterized at
-``--resolution`` (coarser cells where the map's own are finer: an occupied or unknown fine cell
-makes its coarse cell so), which keeps a restart of the largest map within seconds.
+both sides of a corridor, some with a closet inside) and ``twin-<seed>``
+(:func:`~coverage_ros.bench.closet_maps.twin_plan`: two corridors with rooms outside them and
+back to back between them); :mod:`coverage_ros.bench.closet_maps` has them. Every map is
+rasterized at ``--resolution`` (coarser cells where the map's own are finer: an occupied or
+unknown fine cell makes its coarse cell so), which keeps a restart of the largest map within
+seconds.
 
 Writes ``docs/results/closets.json`` (``--json``): one row per label and map (``rows``), the
 runs under their ``--label`` (e.g. before / after), each with its settings and provenance, and
@@ -170,7 +172,7 @@ def _main(argv: list[str] | None) -> int:
     ap = argparse.ArgumentParser(prog="bench_closets", description=__doc__.split("\n")[0])
     ap.add_argument("--label", required=True, help="name of this run in the results file")
     ap.add_argument("--maps", default=",".join(MAPS),
-                    help=f"some of {','.join(MAPS)} and drawn plans plan-<seed>")
+                    help=f"some of {','.join(MAPS)} and drawn plans plan-<seed>, twin-<seed>")
     ap.add_argument("--seeds", type=int, default=3, help="start seeds per map (0, 1, ...)")
     ap.add_argument("--restarts", type=int, default=8, help="random restarts per map (N)")
     ap.add_argument("--restart-seed", type=int, default=1000)
@@ -220,7 +222,7 @@ def _main(argv: list[str] | None) -> int:
     unknown = sorted(m for m in set(maps) if not known_map(m))
     if unknown:
         raise ConfigError.at("--maps", "unknown maps", unknown,
-                             f"some of {sorted(MAPS)} or plan-<seed> (a drawn plan)")
+                             f"some of {sorted(MAPS)} or plan-<seed>, twin-<seed> (drawn plans)")
 
     def say(msg: str) -> None:
         print(msg, file=sys.stderr, flush=True)

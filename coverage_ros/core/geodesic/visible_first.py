@@ -25,7 +25,7 @@ from scipy.sparse.csgraph import dijkstra
 from coverage_ros.core.geodesic.domain import CoverageDomain, Snap
 from coverage_ros.core.geodesic.local_search import LocalGraph
 from coverage_ros.core.geodesic.sight import TILED_FROM, DepthMaps
-from coverage_ros.core.geodesic.straight_winner import grow_boxes, straight_winner
+from coverage_ros.core.geodesic.straight_winner import straight_winner
 from coverage_ros.core.geodesic.tangents import SIGHT_TILE
 
 
@@ -46,7 +46,7 @@ def visible_first_search(domain: CoverageDomain, local: LocalGraph,
     grids = np.array([s[2] for s in snaps])
     biases = np.array([domain.bias(g) for g in grids])
     H, W = domain.shape  # the whole-domain graph's local ids are node ids + 1 (row-major)
-    best, winner, boxes = straight_winner(grids, biases, (H, W), res)
+    best, winner, tiles = straight_winner(grids, biases, (H, W), res, SIGHT_TILE)
     best[~free] = np.inf
     winner[~free] = -1
     snap_best: list[tuple[np.ndarray, np.ndarray]] = []
@@ -74,20 +74,15 @@ def visible_first_search(domain: CoverageDomain, local: LocalGraph,
     # in a tile seen (hidden) whole from their winner are settled (not) by the tile's answer,
     # the others one by one (the same answers), each generator's from a depth map of the
     # occluders around its cells (the hidden cells' search widens it where it needs).
-    for k in range(k_gens):
-        own_snap = snap_best[k][0]
-        won = own_snap[winner[own_snap] == k]
-        grow_boxes(boxes, won // W, won % W, np.full(len(won), k))
     depths: DepthMaps = {}
     node_tiles = _node_tiles(domain)
-    nx = -(-W // SIGHT_TILE)
     n_tiles = int(node_tiles[-1]) + 1
     states = np.full((k_gens, n_tiles), -1, dtype=np.int8)  # (-1: test each cell)
-    for g in np.flatnonzero(boxes[:, 0] < boxes[:, 1]):
-        i0, j0 = int(boxes[g, 0]) // SIGHT_TILE, int(boxes[g, 2]) // SIGHT_TILE
-        i1, j1 = -(-int(boxes[g, 1]) // SIGHT_TILE), -(-int(boxes[g, 3]) // SIGHT_TILE)
-        ids = (np.arange(i0, i1)[:, None] * nx + np.arange(j0, j1)[None, :]).ravel()
-        states[g, ids] = domain.sight_tiles_in(grids[g], depths, ids)
+    per_gen = np.searchsorted(tiles, np.arange(k_gens + 1) * n_tiles)
+    for g in range(k_gens):
+        ids = tiles[per_gen[g]:per_gen[g + 1]] - g * n_tiles
+        if len(ids):
+            states[g, ids] = domain.sight_tiles_in(grids[g], depths, ids)
     mine = winner >= 0
     # (winner -1, nobody's: a negative index into the last row, masked out by mine)
     state = np.take(states.ravel(), winner * n_tiles + node_tiles)

@@ -102,7 +102,7 @@ def visible_first_search(domain: CoverageDomain, local: LocalGraph,
     hidden = np.flatnonzero(free & ~settled)
     if len(hidden):
         _search_hidden(domain, local, hidden, settled, dist, pred, label, grids, biases,
-                       snap_best, (depths, node_tiles[hidden]))
+                       snap_best, (depths, node_tiles[hidden], winner[hidden]))
     return dist, pred, label
 
 
@@ -127,7 +127,8 @@ def _search_hidden(domain: CoverageDomain, local: LocalGraph, hidden: np.ndarray
                    sight: tuple[DepthMaps, np.ndarray]) -> None:
     """Dijkstra over the hidden cells from their settled neighbours and from every generator's
     own seeds among them (in line of sight, or snap edges); fills the arrays in place.
-    ``sight``: the depth maps made so far and the hidden cells' line-of-sight tiles."""
+    ``sight``: the depth maps made so far, the hidden cells' line-of-sight tiles and their
+    straight-line winners (each hidden from its own: no line from it is tested)."""
     n = local.n
     first = n + 1
     res = domain.resolution
@@ -177,7 +178,7 @@ def _search_hidden(domain: CoverageDomain, local: LocalGraph, hidden: np.ndarray
                          indices=sources, min_only=True, return_predecessors=True)
     upper = d[:len(hidden)]
     hc = local.centers[hidden]
-    depths, tiles = sight
+    depths, tiles, winners = sight
     # The hidden cells by line-of-sight tile, and per tile the longest path found into it: a
     # tile whose nearest point is farther from a generator in a straight line than every path
     # found into the tile cannot give that generator a shorter line (nor need its test).
@@ -185,12 +186,16 @@ def _search_hidden(domain: CoverageDomain, local: LocalGraph, hidden: np.ndarray
     by_tile = np.argsort(small, kind="stable")  # (16-bit keys: a radix sort)
     present, starts, per_tile = np.unique(tiles[by_tile], return_index=True, return_counts=True)
     longest = np.maximum.reduceat(upper[by_tile], starts)
+    won = winners[by_tile]
+    alone = np.where(np.minimum.reduceat(won, starts) == np.maximum.reduceat(won, starts),
+                     np.maximum.reduceat(won, starts), -1)  # (a tile of one winner's cells)
     nx = -(-domain.shape[1] // SIGHT_TILE)
     tx0, ty0 = (present % nx) * float(SIGHT_TILE), (present // nx) * float(SIGHT_TILE)
     fresh: dict[int, tuple[np.ndarray, np.ndarray]] = {}
     tiled = (by_tile, starts, per_tile, longest, tx0, ty0)
     for k in range(k_gens):  # (cells in tiles hidden whole from the generator drop out first)
         may = _may_be_shorter(tiled, grids[k], biases[k], res)
+        may = may[alone[may] != k]
         if len(may) == 0:
             continue
         if per_tile[may].sum() >= TILED_FROM:  # (a few cells: no tile answers needed)
@@ -202,7 +207,7 @@ def _search_hidden(domain: CoverageDomain, local: LocalGraph, hidden: np.ndarray
             continue
         near = by_tile[_ranges(starts[may], per_tile[may])]
         e = np.hypot(hc[near, 0] - grids[k, 0], hc[near, 1] - grids[k, 1]) * res + biases[k]
-        keep = e <= upper[near] + 1e-9
+        keep = (e <= upper[near] + 1e-9) & (winners[near] != k)
         better, e = near[keep], e[keep]
         seen = np.repeat(state, per_tile[may])[keep] == 1  # (tiles seen whole)
         test = np.flatnonzero(~seen)  # (the others: mixed)

@@ -124,7 +124,7 @@ def _search_hidden(domain: CoverageDomain, local: LocalGraph, hidden: np.ndarray
                    settled: np.ndarray, dist: np.ndarray, pred: np.ndarray, label: np.ndarray,
                    grids: np.ndarray, biases: np.ndarray,
                    snap_best: list[tuple[np.ndarray, np.ndarray]],
-                   sight: tuple[DepthMaps, np.ndarray]) -> None:
+                   sight: tuple[DepthMaps, np.ndarray, np.ndarray]) -> None:
     """Dijkstra over the hidden cells from their settled neighbours and from every generator's
     own seeds among them (in line of sight, or snap edges); fills the arrays in place.
     ``sight``: the depth maps made so far, the hidden cells' line-of-sight tiles and their

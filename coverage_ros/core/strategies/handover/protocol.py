@@ -4,8 +4,8 @@ bound says H drops (:mod:`.bounds`), after a claim its neighbour grants.
 Every robot publishes, with its state (``SharedState.extra``):
 
 * ``settled`` (1/0): its Lloyd step is below ``escape_settle`` and ``escape_settle_share`` of its
-  cell's radius sqrt(area / pi), or it moved less than the convergence tolerance over its last
-  :data:`STILL_UPDATES` updates (a step it does not take: monotone rule, blocked);
+  cell's radius sqrt(area / pi), or it stands still (:mod:`.stillness`: not moving, or dithering
+  within that step threshold);
 * ``offer_gain``, ``offer_x``, ``offer_y``, ``offer_base``: settled, what splitting its own cell
   with a second generator at (x, y) would save, and its cell's cost (:func:`.split.split_offer`;
   gain 0: no offer); ``offer2_gain``, ``offer2_x``, ``offer2_y``: a second split, in the part of
@@ -99,10 +99,8 @@ from coverage_ros.core.strategies.handover.published import (
     value,
 )
 from coverage_ros.core.strategies.handover.split import SplitOffer
+from coverage_ros.core.strategies.handover.stillness import STILL_UPDATES, Stillness
 
-#: [updates] standing still this long counts as settled: a robot turning towards a new goal
-#: stands still for an update or two (half a turn at 2.84 rad/s takes 1.1 s, at 2 Hz).
-STILL_UPDATES = 4
 #: A relocating robot has arrived within this many convergence tolerances of its point, or
 #: this many grid cells, whichever is more (a goal is a cell centre).
 ARRIVAL_TOLERANCES, ARRIVAL_CELLS = 3.0, 2.0
@@ -168,8 +166,7 @@ class Handover:
     relocating: bool = False
     cooldown: int = 0  # [updates]
     relocations: int = 0  # moves made
-    _last: np.ndarray | None = field(default=None, repr=False)  # (2,) [m] previous position
-    _still: int = 0  # [updates] in a row that moved less than the convergence tolerance
+    _stillness: Stillness = field(default_factory=Stillness, repr=False)
     #: updates that reached the descent's pricing in one configuration (its key); waiting
     _turns: tuple[np.ndarray, int] | None = field(default=None, repr=False)
     _awaits_turn: bool = False
@@ -202,13 +199,12 @@ class Handover:
             self.cooldown -= 1
         step = float(np.hypot(*(cell.goal - position)))
         # standing still counts too: a step the robot does not take (monotone rule, blocked)
-        moved = math.inf if self._last is None else float(np.hypot(*(position - self._last)))
-        self._last = np.array(position, dtype=np.float64)
-        self._still = self._still + 1 if moved < convergence_tolerance else 0
-        if arrived:
-            self._still = 0  # the cells changed at once: standing still so far says nothing
+        moving = self._stillness
+        moving.note(position, convergence_tolerance, restart=arrived)
         settle = s.settle_below(self.domain.area_of(cell.nodes))
-        settled = step < settle or self._still >= STILL_UPDATES
+        dithers = moving.dithers(settle)
+        still = moving.stands() or dithers
+        settled = step < settle or still
         key = config_key(position, neighbours)
         self._hear_moves(position, neighbours)
         offers: list[SplitOffer] = []  # the own (published)
@@ -224,7 +220,7 @@ class Handover:
         elif (settled and self.cooldown == 0 and not claimants
               and all(value(n, "settled") > 0 for n in neighbours)):
             self._consider(key, position, weight, cell, neighbours, bordering,
-                           stopped=moved < convergence_tolerance)
+                           stopped=moving.moved < convergence_tolerance or dithers)
         grant = NONE if self.claim >= 0 or not claimants else float(-claimants[0][1])
         if self.relocating:
             self.relocations += 1
@@ -240,7 +236,7 @@ class Handover:
                 extra.update(offer2_gain=offers[1].gain, offer2_x=float(offers[1].point[0]),
                              offer2_y=float(offers[1].point[1]))
         # standing still off the Lloyd goal, not yet settled: not done either (may claim later)
-        waiting = 0 < self._still < STILL_UPDATES and step >= settle
+        waiting = 0 < moving.still_for < STILL_UPDATES and step >= settle and not still
         # in its cooldown (after a move or a dropped claim) it may claim again once it ends:
         # not done either (all claims made at once but one are dropped, so at Lloyd's end
         # most of a team may be cooling down together)

@@ -989,3 +989,21 @@ def test_without_escape_nothing_extra_is_published():
                  for i, s in enumerate(team)]
     for d in _round(team, P, published):
         assert dict(d.shared.extra) == {} and d.mode == "lloyd"
+
+
+def test_a_robot_dithering_far_from_its_goal_settles_and_one_driving_does_not():
+    """A live robot whose goal flips between two rooms turns back and forth in place: moving
+    more than the tolerance each update, never nearer its goal, it is settled once its last
+    STILL_UPDATES + 1 positions lie within the settle step of their mean; one driving at the
+    same pace in one direction is not."""
+    _, domain = ward()
+    cell = geodesic_cell(domain, Generator(cluster(0)[0, :2], 0.0), [])  # the whole ward
+    below = GeodesicParams().handover().settle_below(len(cell.nodes) * domain.resolution ** 2)
+    hop = 3.0 * TOLERANCE  # [m] per update, as much back and forth as on the way
+    assert hop / 2 < below
+    start = cell.goal - [1.0, 0.0]  # [m] a metre short of its goal
+    for path, settles in (([start + [hop * (k % 2), 0.0] for k in range(8)], True),
+                          ([start + [hop * k, 0.0] for k in range(8)], False)):
+        robot = Handover(0, domain, GeodesicParams().handover())
+        settled = [robot.step(p, 0.0, cell, [], [], TOLERANCE).extra["settled"] for p in path]
+        assert settled == [float(settles and k >= STILL_UPDATES) for k in range(8)], settles

@@ -1,0 +1,53 @@
+"""Whether a robot stands still, from its positions at its last updates: it moved less than the
+convergence tolerance at each of its last :data:`STILL_UPDATES` updates (a step it does not
+take: monotone rule, blocked), or those positions stay within a given distance of their mean
+(a live robot dithering between goals that flip as its neighbours shift by centimetres: a cell
+spanning two rooms has two far apart centroids nearly as good, and the robot turns towards one,
+then the other, going nowhere). A robot driving straight at d per update is within 2 d of the
+mean: the second rule counts it still only below half the distance per update (with the live
+convergence tolerance of 5 cm and an escape_settle of 10 cm, no drive the first rule does not).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+#: [updates] standing still this long counts as settled: a robot turning towards a new goal
+#: stands still for an update or two (half a turn at 2.84 rad/s takes 1.1 s, at 2 Hz).
+STILL_UPDATES = 4
+
+
+@dataclass
+class Stillness:
+    """One robot's positions at its latest updates."""
+
+    #: [updates] in a row that moved less than the convergence tolerance
+    still_for: int = 0
+    moved: float = math.inf  # [m] at the latest update (inf: the first)
+    #: (<= STILL_UPDATES + 1, 2) [m] the latest positions, the oldest first
+    recent: np.ndarray = field(default_factory=lambda: np.empty((0, 2)), repr=False)
+
+    def note(self, position: np.ndarray, tolerance: float, restart: bool = False) -> None:
+        """The robot stands at ``position`` [m] at this update; ``tolerance`` [m] is the
+        convergence tolerance; ``restart``: its cell changed at once (a neighbour arrived),
+        so how it stood so far says nothing."""
+        p = np.asarray(position, dtype=np.float64)[:2]
+        self.moved = float(np.hypot(*(p - self.recent[-1]))) if len(self.recent) else math.inf
+        self.still_for = self.still_for + 1 if self.moved < tolerance else 0
+        self.recent = np.vstack([self.recent, p[None, :]])[-(STILL_UPDATES + 1):]
+        if restart:
+            self.still_for, self.recent = 0, self.recent[-1:]
+
+    def stands(self) -> bool:
+        """Moved less than the tolerance at each of the last STILL_UPDATES updates."""
+        return self.still_for >= STILL_UPDATES
+
+    def dithers(self, within: float) -> bool:
+        """The last STILL_UPDATES + 1 positions all lie within ``within`` [m] of their mean."""
+        if len(self.recent) <= STILL_UPDATES:
+            return False
+        off = self.recent - self.recent.mean(axis=0)
+        return bool(np.hypot(off[:, 0], off[:, 1]).max() < within)

@@ -47,6 +47,7 @@ import numpy as np
 from coverage_ros.bench.closet_maps import (
     MAPS,
     RESOLUTION,
+    TWIN,
     coarse_world,
     floor_plan,
     known_map,
@@ -79,6 +80,9 @@ MAX_ITERATIONS = 300  # coverage-plan's default
 LIVE_DURATION = 900.0
 #: [s] ... on the warehouse (30 x 50 m), where crossings take longer still
 LIVE_DURATIONS = {"warehouse": 1500.0}
+#: [s] ... on the twin plans (20 x 18.5 m, 24 rooms off two corridors): a team makes 5-8
+#: relocations of 80-130 s each (twin-0 start seed 0: 7 by 900 s, settled at 1095 s)
+TWIN_LIVE_DURATION = 1800.0
 #: [s] sim time a live run ends after once settled (coverage-team --until-settled): longer than
 #: the pause between a team settling and its next relocation
 LIVE_SETTLE = 60.0
@@ -184,7 +188,8 @@ def _main(argv: list[str] | None) -> int:
     ap.add_argument("--live", action="store_true",
                     help="run the launcher's team in lock-step instead of the offline cases "
                          "(coverage_ros.bench.closets_live)")
-    per_map = ", ".join(f"{m} {s:g} s" for m, s in LIVE_DURATIONS.items())
+    per_map = ", ".join([*(f"{m} {s:g} s" for m, s in LIVE_DURATIONS.items()),
+                         f"twin-<seed> {TWIN_LIVE_DURATION:g} s"])
     ap.add_argument("--duration", type=float, default=None,
                     help=f"[s] with --live: simulated time of each run (default "
                          f"{LIVE_DURATION:g} s; {per_map})")
@@ -264,6 +269,8 @@ def _main(argv: list[str] | None) -> int:
 
 def live_duration(name: str) -> float:
     """[s] the default sim time of a live run on map ``name``."""
+    if TWIN.fullmatch(name) is not None:
+        return TWIN_LIVE_DURATION
     return LIVE_DURATIONS.get(name, LIVE_DURATION)
 
 

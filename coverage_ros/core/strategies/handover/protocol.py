@@ -25,7 +25,7 @@ the one of the highest priority - saving, then lower id - are dropped before a g
 claims nor grants another, and ``offer_gain(j) - removal_increase(i)`` exceeds ``escape_gain``
 times the pair's cost ``H_i + H_j`` and ``escape_team_gain`` times the H of all i hears (on a
 large map a robot crosses it for minutes, meanwhile H rises: only for a move that matters to
-the team). When no offer passes so and i stood still at its last update
+the team). When no offer passes so and i stood still at its last update or dithers
 (Lloyd's end), the same test runs on the joint bound instead (:func:`.bounds.joint_change`: i at
 j's offered point, every robot whose cell touches i's or j's re-spreading, against the same steps
 without the move), which sees moves that pay only once the neighbours of both cells shift along; if
@@ -199,11 +199,11 @@ class Handover:
             self.cooldown -= 1
         step = float(np.hypot(*(cell.goal - position)))
         # standing still counts too: a step the robot does not take (monotone rule, blocked)
-        moving = self._stillness
-        moving.note(position, convergence_tolerance, restart=arrived)
+        stood = self._stillness
+        stood.note(position, convergence_tolerance, restart=arrived)
         settle = s.settle_below(self.domain.area_of(cell.nodes))
-        dithers = moving.dithers(settle)
-        still = moving.stands() or dithers
+        dithers = stood.dithers(settle)
+        still = stood.stands() or dithers
         settled = step < settle or still
         key = config_key(position, neighbours)
         self._hear_moves(position, neighbours)
@@ -220,7 +220,7 @@ class Handover:
         elif (settled and self.cooldown == 0 and not claimants
               and all(value(n, "settled") > 0 for n in neighbours)):
             self._consider(key, position, weight, cell, neighbours, bordering,
-                           stopped=moving.moved < convergence_tolerance or dithers)
+                           stopped=stood.moved < convergence_tolerance or dithers)
         grant = NONE if self.claim >= 0 or not claimants else float(-claimants[0][1])
         if self.relocating:
             self.relocations += 1
@@ -236,7 +236,7 @@ class Handover:
                 extra.update(offer2_gain=offers[1].gain, offer2_x=float(offers[1].point[0]),
                              offer2_y=float(offers[1].point[1]))
         # standing still off the Lloyd goal, not yet settled: not done either (may claim later)
-        waiting = 0 < moving.still_for < STILL_UPDATES and step >= settle and not still
+        waiting = 0 < stood.still_for < STILL_UPDATES and step >= settle and not still
         # in its cooldown (after a move or a dropped claim) it may claim again once it ends:
         # not done either (all claims made at once but one are dropped, so at Lloyd's end
         # most of a team may be cooling down together)

@@ -80,8 +80,8 @@ MAX_ITERATIONS = 300  # coverage-plan's default
 LIVE_DURATION = 900.0
 #: [s] ... on the warehouse (30 x 50 m), where crossings take longer still
 LIVE_DURATIONS = {"warehouse": 1500.0}
-#: [s] ... on the twin plans (20 x 18.5 m, 24 rooms off two corridors): a team makes 5-8
-#: relocations of 80-130 s each (twin-0 start seed 0: 7 by 900 s, settled at 1095 s)
+#: [s] ... on the twin plans (20 x 18.5 m, 24 rooms off two corridors): a team makes 3-10
+#: relocations of 80-130 s each (twin-0's start seeds: 8, 3 and 10, settled by 1095 s)
 TWIN_LIVE_DURATION = 1800.0
 #: [s] sim time a live run ends after once settled (coverage-team --until-settled): longer than
 #: the pause between a team settling and its next relocation

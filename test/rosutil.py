@@ -3,7 +3,10 @@ client in the test process with waits that always time out.
 
 Every process gets ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` (unless the caller set another
 value) and the test's own ``ROS_DOMAIN_ID``: ``COVERAGE_ROS_TEST_DOMAIN_BASE`` (set per run by
-scripts/test, 100..199) plus an offset per test module and pytest-xdist worker (or slot).
+scripts/test, 100..199) plus an offset per test module and pytest-xdist worker (or slot), taken
+among the ids the launcher never draws as fresh ones: a team started without ``--domain-id``
+(the startup and fuzz benches' short versions) runs beside the other tests and would otherwise
+join one of their domains whenever its probe ran before that test's nodes were up.
 """
 
 from __future__ import annotations
@@ -20,21 +23,25 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from coverage_ros.cli.team.domains import FRESH_RANGE, MAX_DOMAIN_ID
+
 REPO = Path(__file__).resolve().parents[1]
-MAX_DOMAIN_ID = 232  # Fast DDS maps domain ids to UDP ports; 232 is the highest usable one
 _FALLBACK_BASE = random.randint(100, 199)  # one per test process when scripts/test set none
+# 1..232 without the launcher's fresh range (0 is every ROS 2 tool's default): 132 ids
+TEST_DOMAINS = tuple(d for d in range(1, MAX_DOMAIN_ID + 1)
+                     if not FRESH_RANGE[0] <= d <= FRESH_RANGE[1])
 
 
 def domain_id(offset: int) -> int:
     """A DDS domain id for this run, test ``offset`` (0..29) and slot: the xdist worker, or
     ``COVERAGE_ROS_TEST_DOMAIN_SLOT`` for a pytest run beside other runs of the same base
-    (scripts/test's real-time tests beside its xdist workers). 133 ids hold four slots."""
+    (scripts/test's real-time tests beside its xdist workers). The 132 test ids hold four slots
+    of 30, and none of them is one the launcher may pick for a team of its own."""
     base = int(os.environ.get("COVERAGE_ROS_TEST_DOMAIN_BASE", _FALLBACK_BASE))
     worker = os.environ.get("PYTEST_XDIST_WORKER", "gw0")
     wid = int(worker[2:]) if worker[2:].isdigit() else 0
     wid = int(os.environ.get("COVERAGE_ROS_TEST_DOMAIN_SLOT", wid))
-    value = base + offset + 30 * wid
-    return 100 + (value - 100) % (MAX_DOMAIN_ID - 100 + 1)
+    return TEST_DOMAINS[(base + offset + 30 * wid) % len(TEST_DOMAINS)]
 
 
 def ros_env(domain: int, **extra: str) -> dict[str, str]:

@@ -175,8 +175,8 @@ class GridGraph:
         (Euclidean metric), else None."""
         if not self.euclidean:
             return None
-        lengths: np.ndarray = np.hypot(self.offsets[:, 0], self.offsets[:, 1]) * self.resolution
-        return lengths
+        return np.array([offset_length(int(dr), int(dc), self.resolution)
+                         for dr, dc in self.offsets])
 
     @cached_property
     def offset_costs(self) -> np.ndarray | None:
@@ -281,6 +281,12 @@ def build_grid_graph(free: np.ndarray, resolution: float, connectivity: int = 8,
                      wrap=wrap, extra_edges=extra_edges, area=area, euclidean=euclidean)
 
 
+def offset_length(dr: int, dc: int, resolution: float) -> float:
+    """[m] the straight length of the offset ``(dr, dc)`` cells, rounded one way wherever an
+    edge's cost is made (a local search's edges and the whole graph's then agree bit for bit)."""
+    return float(np.hypot(dc * resolution, dr * resolution))
+
+
 def _edge_costs(free: np.ndarray, resolution: float, offsets: np.ndarray,
                 wrap: tuple[bool, bool], sqrt_zeta: np.ndarray | None,
                 tensor: np.ndarray | None) -> np.ndarray:
@@ -293,7 +299,7 @@ def _edge_costs(free: np.ndarray, resolution: float, offsets: np.ndarray,
         for sr, sc in swept_cells(int(dr), int(dc)):
             ok &= shift(free, sr, sc, wrap, False)
         v = np.array([dc, dr], dtype=np.float64) * resolution  # (x, y) chart displacement
-        length = float(np.hypot(*v))
+        length = offset_length(int(dr), int(dc), resolution)
         if tensor is not None:
             q = np.sqrt(np.einsum("i,hwij,j->hw", v, tensor, v))
             c = 0.5 * (q + shift(q, dr, dc, wrap, np.inf))

@@ -66,3 +66,15 @@ def test_offset_costs_are_the_tables_own_values_and_none_when_an_offset_varies(c
         assert (cost[:N, k][edges] == costs[k]).all()  # (bit for bit, not only close)
     weighted = build_grid_graph(free, 0.05, connectivity, zeta=rng.uniform(0.5, 2.0, free.shape))
     assert weighted.offset_costs is None
+
+
+@pytest.mark.parametrize("connectivity", [8, 16])
+@pytest.mark.parametrize("resolution", [0.05, 0.1, 0.07, 0.0196078431372549, 1.0])
+def test_the_uniform_costs_of_local_searches_are_the_whole_graphs_bit_for_bit(connectivity,
+                                                                             resolution):
+    # (the hypot of the offset times the resolution is not the hypot of the displacement on
+    # diagonals at 0.05 or 0.1 m: a robot's local search and a whole search then tie apart)
+    free = np.ones((6, 7), dtype=bool)
+    graph = build_grid_graph(free, resolution, connectivity)
+    assert graph.uniform_costs is not None and graph.offset_costs is not None
+    assert graph.uniform_costs.tolist() == graph.offset_costs.tolist()

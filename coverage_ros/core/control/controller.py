@@ -36,7 +36,7 @@ import numpy as np
 from coverage_ros.core.control import published_state
 from coverage_ros.core.control.make_way import Ways, make_way
 from coverage_ros.core.control.neighbours import NeighbourTable, safety_discs
-from coverage_ros.core.control.planning import detour, plan_path
+from coverage_ros.core.control.planning import MAX_DETOUR, detour, plan_path
 from coverage_ros.core.control.pose_age import PoseAges
 from coverage_ros.core.control.recovery import ESCAPE_LOOK, ROBOT_AHEAD, StuckRecovery
 from coverage_ros.core.control.region_seek import seek_region
@@ -63,6 +63,9 @@ from coverage_ros.errors import ConfigError
 
 #: [m] goal changes smaller than this keep the current path (no replanning jitter).
 REPLAN_DISTANCE = 0.05
+#: Modes whose goal is a destination elsewhere on the map (a claimed cell's point, a region of
+#: interest), not a step within the own cell: planned for however far round the way goes.
+DESTINATION_MODES = frozenset({"relocate", "seek"})
 
 
 @dataclass(frozen=True)
@@ -221,7 +224,8 @@ class RobotController:
             if goal is None or path is None or stale or replan or \
                     float(np.hypot(*(new_goal - goal))) > REPLAN_DISTANCE or \
                     (arrived and float(np.hypot(*(new_goal - pose[:2]))) >= tol):
-                goal, path = new_goal, plan_path(nav, pose[:2], new_goal)
+                reach = math.inf if decision.mode in DESTINATION_MODES else MAX_DETOUR
+                goal, path = new_goal, plan_path(nav, pose[:2], new_goal, reach)
                 if replan == ROBOT_AHEAD:  # it gave way: around the robots in its way
                     P, R, _ = safety_discs(nbrs, now, self.config.robot)
                     path = detour(nav, path, P, self.safety.config.clearance_to(R))

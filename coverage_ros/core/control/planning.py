@@ -31,6 +31,10 @@ CHECK_STEP_CELLS = 0.25
 PATH_MARGIN = 0.05
 #: [m] the first path search looks this far around the box of start and goal.
 PLAN_WINDOW_MARGIN = 2.0
+#: A goal farther by path than this many times its straight-line distance (+ 2 m) is not
+#: planned for by default: a step of the robot's own cell is near by path too, and the search
+#: for a goal out of reach stops there instead of crossing the whole map.
+MAX_DETOUR = 4.0
 
 
 def segment_free(domain: CoverageDomain, a: np.ndarray, b: np.ndarray,
@@ -59,16 +63,17 @@ def points_free(domain: CoverageDomain, grid_pts: np.ndarray) -> bool:
 
 
 def plan_path(domain: CoverageDomain, start: np.ndarray, goal: np.ndarray,
-              max_detour: float = 4.0) -> np.ndarray | None:
+              max_detour: float = MAX_DETOUR) -> np.ndarray | None:
     """``(M, 2)`` waypoints from ``start`` to ``goal`` (both included), or None when the goal
-    cannot be reached within ``max_detour`` times the straight-line distance (+ 2 m)."""
+    cannot be reached within ``max_detour`` times the straight-line distance (+ 2 m); with
+    ``max_detour`` infinite, None only when no path reaches it at all."""
     start = np.asarray(start, dtype=np.float64)
     goal = np.asarray(goal, dtype=np.float64)
+    straight = float(np.hypot(*(goal - start)))
     if segment_free(domain, start, goal, PATH_MARGIN) or (
-            float(np.hypot(*(goal - start))) < 4 * domain.resolution
-            and segment_free(domain, start, goal)):
+            straight < 4 * domain.resolution and segment_free(domain, start, goal)):
         return np.stack([start, goal])
-    limit = max_detour * float(np.hypot(*(goal - start))) + 2.0
+    limit = math.inf if math.isinf(max_detour) else max_detour * straight + 2.0
     # First a window around start and goal (paths to a coverage goal are short), then the
     # whole map.
     for window in (PLAN_WINDOW_MARGIN, None):

@@ -59,6 +59,63 @@ def test_straight_path_when_free_and_none_when_unreachable():
     assert plan_path(closed, np.array([0.3, 1.0]), np.array([1.7, 1.0])) is None
 
 
+def hall(gap_from: float = 5.5) -> CoverageDomain:
+    """6 m x 6 m hall split by a wall across x = 3 m from y = 0 up to ``gap_from`` [m]."""
+    occ = np.zeros((120, 120), np.int8)
+    occ[0, :] = occ[-1, :] = OCCUPIED
+    occ[:, 0] = occ[:, -1] = OCCUPIED
+    occ[:int(round(gap_from / RES)), 59:61] = OCCUPIED
+    return CoverageDomain.from_grid(GridMap(occ, RES), RADIUS)
+
+
+def test_a_goal_far_round_a_wall_is_planned_for_only_without_the_detour_limit():
+    """0.6 m apart in a straight line, ~10 m round the wall: beyond the default detour (4 x
+    + 2 m), planned with an infinite one; a goal no path reaches is None either way."""
+    d, a, b = hall(), np.array([2.7, 0.5]), np.array([3.3, 0.5])
+    assert plan_path(d, a, b) is None
+    path = plan_path(d, a, b, max_detour=math.inf)
+    assert path is not None and path[:, 1].max() > 5.5  # through the gap at the top
+    assert np.allclose(path[0], a) and np.allclose(path[-1], b)
+    for p, q in itertools.pairwise(path):
+        assert segment_free(d, p, q)
+    length = np.hypot(*np.diff(path, axis=0).T).sum()
+    assert 2 * math.hypot(0.3, 5.0) < length < 1.1 * 2 * math.hypot(0.3, 5.5)
+    assert plan_path(hall(gap_from=6.0), a, b, max_detour=math.inf) is None  # (closed)
+
+
+class _Fixed:
+    """A strategy whose decisions are another's with the goal and mode given."""
+
+    def __init__(self, strategy, goal: np.ndarray, mode: str) -> None:
+        self._strategy, self._goal, self._mode = strategy, goal, mode
+
+    def update(self, obs, nbrs):
+        import dataclasses
+
+        d = self._strategy.update(obs, nbrs)
+        return dataclasses.replace(d, goal=self._goal, target=self._goal, mode=self._mode)
+
+    def __getattr__(self, name):
+        return getattr(self._strategy, name)
+
+
+@pytest.mark.parametrize("mode", ["relocate", "seek", "lloyd"])
+def test_a_destination_far_round_a_wall_gets_a_path_a_step_of_the_own_cell_does_not(mode):
+    """A relocation to a claimed cell or a region's nearest point is planned for however far
+    round the wall the way goes (a robot shut in a room off another corridor than its target
+    stood still until its move timed out); a Lloyd goal keeps the detour limit."""
+    from coverage_ros.core.strategies import strategy_choice
+
+    c = RobotController(hall(), ControllerConfig(robot_id=0, strategy=strategy_choice("lloyd")))
+    c.strategy = _Fixed(c.strategy, np.array([3.3, 0.5]), mode)
+    c.set_pose((2.7, 0.5, 0.0))
+    path = c.update(0.0).path
+    if mode == "lloyd":
+        assert path is None
+    else:
+        assert path is not None and path[:, 1].max() > 5.5 and np.allclose(path[-1], [3.3, 0.5])
+
+
 def test_tracker_reaches_the_goal_within_the_limits():
     d = room()
     spec = RobotSpec()

@@ -79,6 +79,11 @@ class GeodesicParams:
     #: starts over the cells of the robots that made those offers, for a point in each room of
     #: such a cell, priced the same way when none of the offers pays (0 or 1: off)
     escape_descent_rooms: int = 6
+    #: [updates] a robot claims only once it and every robot it hears have stood within its
+    #: settle step (escape_settle, escape_settle_share) for this many updates; each robot's
+    #: own settled test passes a robot creeping a few cm per update, as a team re-spreading
+    #: after a move does for minutes (0: no such wait)
+    escape_still: int = 0
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
@@ -96,7 +101,7 @@ class GeodesicParams:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < 1:
                 raise ConfigError.at(name, "must be an integer >= 1", v)
-        for name in ("escape_descent_offers", "escape_descent_rooms"):
+        for name in ("escape_descent_offers", "escape_descent_rooms", "escape_still"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < 0:
                 raise ConfigError.at(name, "must be an integer >= 0", v)
@@ -111,7 +116,8 @@ class GeodesicParams:
                                 joint_steps=self.escape_joint_steps,
                                 joint_rings=self.escape_joint_rings,
                                 descent_offers=self.escape_descent_offers,
-                                descent_rooms=self.escape_descent_rooms)
+                                descent_rooms=self.escape_descent_rooms,
+                                still=self.escape_still)
 
 
 @dataclass(frozen=True)

@@ -10,7 +10,8 @@ from coverage_ros.core.strategies.handover.bounds import (
     known_cells,
     removal_increase,
 )
-from coverage_ros.core.strategies.handover.protocol import Handover, HandoverSettings, HandoverStep
+from coverage_ros.core.strategies.handover.protocol import Handover, HandoverStep
+from coverage_ros.core.strategies.handover.settings import HandoverSettings
 from coverage_ros.core.strategies.handover.split import (
     SplitOffer,
     room_offers,

@@ -44,6 +44,10 @@ the one whose cell costs least first (its leaving costs least), each descent sto
 soon as the move pays; the first move found is claimed and the others need not price.
 Robot j grants the claim of the highest priority (saving, then lower id) among those on it
 unless it claims itself.
+With ``escape_still`` > 0 a robot also claims only once it and every robot it hears have stood
+within its settle step over that many updates (:class:`.stillness.TeamStillness`): a live team
+re-spreading after a move creeps a few cm per update, each robot settled by its own test, while
+its H still falls by a tenth in 30 s, and a move priced meanwhile is priced from a passing state.
 Granted, i drives to j's offered point (mode ``relocate``), keeping its claim, so that j lets
 nobody else in and i's neighbours do not leave meanwhile; there it drops the claim and waits
 ``escape_cooldown`` updates before it may claim again (hysteresis), busy meanwhile (not
@@ -98,39 +102,19 @@ from coverage_ros.core.strategies.handover.published import (
     rank,
     value,
 )
+from coverage_ros.core.strategies.handover.settings import HandoverSettings
 from coverage_ros.core.strategies.handover.split import SplitOffer
-from coverage_ros.core.strategies.handover.stillness import STILL_UPDATES, Stillness
+from coverage_ros.core.strategies.handover.stillness import (
+    STILL_UPDATES,
+    Stillness,
+    TeamStillness,
+)
 
 #: A relocating robot has arrived within this many convergence tolerances of its point, or
 #: this many grid cells, whichever is more (a goal is a cell centre).
 ARRIVAL_TOLERANCES, ARRIVAL_CELLS = 3.0, 2.0
 #: [configurations] relocated from, remembered per robot (the latest)
 DEPARTURES = 8
-
-
-@dataclass(frozen=True)
-class HandoverSettings:
-    """The ``escape_*`` settings of the geodesic strategy (validated there)."""
-
-    gain: float  # least saving of the bound, as a share of the pair's cost H_i + H_j
-    team_gain: float  # ... and as a share of the H of all the robot hears
-    settle: float  # [m] a robot whose Lloyd step is shorter is settled ...
-    cooldown: int  # [updates] after a relocation or a dropped claim, before the next claim
-    wait: int  # [updates] a claim waits this long for its grant
-    transit: int  # [updates] a relocating robot gives up after this many
-    steps: int  # Lloyd steps of the split and of the removal
-    joint_steps: int = 10  # Lloyd steps of the joint bound
-    joint_rings: int = 1  # rings of cells around the pair the joint bound widens to, at most
-    #: offers (the largest first) priced by the team's own descent when no bound passes
-    descent_offers: int = 0
-    #: starts over the cell of each robot offering one of those, for one point per room of it
-    #: (:func:`.split.room_offers`) priced by the descent too when none of the offers pays
-    descent_rooms: int = 0
-    settle_share: float = math.inf  # ... and shorter than this share of its cell's radius
-
-    def settle_below(self, area: float) -> float:
-        """[m] a Lloyd step shorter than this settles a robot whose cell has ``area`` [m^2]."""
-        return min(self.settle, self.settle_share * math.sqrt(area / math.pi))
 
 
 @dataclass(frozen=True)
@@ -167,6 +151,8 @@ class Handover:
     cooldown: int = 0  # [updates]
     relocations: int = 0  # moves made
     _stillness: Stillness = field(default_factory=Stillness, repr=False)
+    _team_still: TeamStillness = field(init=False, repr=False)
+    _awaits_still: bool = field(default=False, repr=False)
     #: updates that reached the descent's pricing in one configuration (its key); waiting
     _turns: tuple[np.ndarray, int] | None = field(default=None, repr=False)
     _awaits_turn: bool = False
@@ -183,6 +169,7 @@ class Handover:
     def __post_init__(self) -> None:
         s = self.settings
         self.prices = Prices(self.domain, self.method, s.steps, s.joint_steps, s.descent_rooms)
+        self._team_still = TeamStillness(s.still)
 
     def step(self, position: np.ndarray, weight: float, cell: CellResult,
              neighbours: Sequence[Neighbour], bordering: Sequence[int],
@@ -192,8 +179,9 @@ class Handover:
         relocation away from where its generator counted meanwhile."""
         s = self.settings
         by_id = {n.robot_id: n for n in neighbours}
-        self._awaits_turn = False
+        self._awaits_turn = self._awaits_still = False
         if self.relocating:
+            self._team_still.restart()
             return self._transit(position, by_id, convergence_tolerance)
         if self.cooldown > 0:
             self.cooldown -= 1
@@ -206,6 +194,7 @@ class Handover:
         still = stood.stands() or dithers
         settled = step < settle or still
         key = config_key(position, neighbours)
+        self._team_still.note(key)
         self._hear_moves(position, neighbours)
         offers: list[SplitOffer] = []  # the own (published)
         if settled and self.claim < 0:
@@ -219,8 +208,11 @@ class Handover:
             self._follow_claim(by_id)
         elif (settled and self.cooldown == 0 and not claimants
               and all(value(n, "settled") > 0 for n in neighbours)):
-            self._consider(key, position, weight, cell, neighbours, bordering,
-                           stopped=stood.moved < convergence_tolerance or dithers)
+            if self._team_still.still(settle):
+                self._consider(key, position, weight, cell, neighbours, bordering,
+                               stopped=stood.moved < convergence_tolerance or dithers)
+            else:  # (the team still creeps: busy, it may claim once it stands)
+                self._awaits_still = True
         grant = NONE if self.claim >= 0 or not claimants else float(-claimants[0][1])
         if self.relocating:
             self.relocations += 1
@@ -240,8 +232,9 @@ class Handover:
         # in its cooldown (after a move or a dropped claim) it may claim again once it ends:
         # not done either (all claims made at once but one are dropped, so at Lloyd's end
         # most of a team may be cooling down together)
-        busy = self.claim >= 0 or grant != NONE or waiting or self.cooldown > 0 \
-            or self._awaits_turn  # (waiting for its turn to price offers by the descent)
+        # (nor while it waits for its turn to price by the descent, or for the team to stand)
+        busy = (self.claim >= 0 or grant != NONE or waiting or self.cooldown > 0
+                or self._awaits_turn or self._awaits_still)
         return HandoverStep(self.target.copy() if self.relocating else None, extra, busy)
 
     def _transit(self, position: np.ndarray, by_id: dict[int, Neighbour],

@@ -51,3 +51,41 @@ class Stillness:
             return False
         off = self.recent - self.recent.mean(axis=0)
         return bool(np.hypot(off[:, 0], off[:, 1]).max() < within)
+
+
+@dataclass
+class TeamStillness:
+    """Whether a robot and every robot it hears have stood within a distance over a window of
+    its updates: each robot's own test above takes a robot creeping less than half its settle
+    step per update for still, and a team re-spreading after a move creeps so for minutes (its
+    H still falling by a tenth in 30 s) - prices of moves made meanwhile are of a passing
+    state."""
+
+    window: int  # [updates] 0: no window (always still)
+    #: the configuration keys (:func:`.pricing.config_key`) of the latest updates, oldest first
+    recent: list[np.ndarray] = field(default_factory=list, repr=False)
+
+    def note(self, key: np.ndarray) -> None:
+        """The robot and those it hears stand at ``key`` (rows: id, x, y) at this update."""
+        if self.window > 0:
+            self.recent = [*self.recent, key][-(self.window + 1):]
+
+    def restart(self) -> None:
+        """The robot moved away from where it stood (a relocation): nothing counts so far."""
+        self.recent = []
+
+    def still(self, within: float) -> bool:
+        """The same robots over the last ``window`` updates (``window + 1`` keys), each within
+        ``within`` [m] of its mean position over them (dithering stays so, driving at d per
+        update only below 2 within / window)."""
+        if self.window <= 0:
+            return True
+        if len(self.recent) <= self.window:
+            return False
+        ids = self.recent[-1][:, 0]
+        if any(k.shape != ids.shape + (3,) or not np.array_equal(k[:, 0], ids)
+               for k in self.recent):
+            return False
+        xy = np.stack([k[:, 1:] for k in self.recent])  # (window + 1, robots, 2)
+        off = xy - xy.mean(axis=0)
+        return bool(np.hypot(off[..., 0], off[..., 1]).max() < within)

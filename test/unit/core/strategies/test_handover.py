@@ -41,6 +41,7 @@ from coverage_ros.core.strategies.handover.places import HeardMove, Places
 from coverage_ros.core.strategies.handover.protocol import STILL_UPDATES, Handover
 from coverage_ros.core.strategies.handover.published import held
 from coverage_ros.core.strategies.handover.split import split_parts
+from coverage_ros.core.strategies.handover.stillness import TeamStillness
 from coverage_ros.core.world import parse_world
 from coverage_ros.core.world.placement import largest_free_region, team_starts
 from coverage_ros.errors import ConfigError
@@ -973,7 +974,8 @@ def test_update_takes_only_the_observation_and_the_neighbours():
     ("escape_transit", 0), ("escape_steps", 0), ("escape_steps", 1.5),
     ("escape_joint_steps", 0), ("escape_joint_rings", 0), ("escape_joint_rings", 1.5),
     ("escape_descent_offers", -1), ("escape_descent_offers", True),
-    ("escape_descent_rooms", -1), ("escape_descent_rooms", 2.0)])
+    ("escape_descent_rooms", -1), ("escape_descent_rooms", 2.0),
+    ("escape_still", -1), ("escape_still", 2.5)])
 def test_settings_are_checked_by_name(name, value):
     with pytest.raises(ConfigError, match=name):
         GeodesicParams(**{name: value})
@@ -1007,3 +1009,72 @@ def test_a_robot_dithering_far_from_its_goal_settles_and_one_driving_does_not():
         robot = Handover(0, domain, GeodesicParams().handover())
         settled = [robot.step(p, 0.0, cell, [], [], TOLERANCE).extra["settled"] for p in path]
         assert settled == [float(settles and k >= STILL_UPDATES) for k in range(8)], settles
+
+
+def test_team_stillness_needs_the_same_robots_within_the_distance_over_the_window():
+    """Still: the window's keys of the same robots, each within the distance of its mean
+    position (dithering back and forth passes, creeping one way at the same pace does not);
+    a window of 0 is always still."""
+    def key(ids, xy):
+        return np.column_stack([ids, np.asarray(xy, dtype=np.float64)])
+
+    ids, base = [-1.0, 2.0, 5.0], np.array([[1.0, 1.0], [3.0, 1.0], [2.0, 4.0]])
+    assert TeamStillness(0).still(0.05)
+    for moves, still in ((lambda k: [0.0, 0.06 * (k % 2)], True),  # (dithers 6 cm)
+                         (lambda k: [0.0, 0.015 * k], False),  # (creeps 1.5 cm per update)
+                         (lambda k: [0.0, 0.0], True)):
+        team = TeamStillness(10)
+        for k in range(11):
+            xy = base.copy()
+            xy[1] += moves(k)
+            team.note(key(ids, xy))
+            assert team.still(0.05) == (still and k == 10), k
+    team = TeamStillness(3)
+    for k in range(4):  # (robot 5 heard only from the second update on)
+        team.note(key(ids, base) if k else key(ids[:2], base[:2]))
+    assert not team.still(0.05)
+    team.note(key(ids, base))
+    assert team.still(0.05)
+    team.restart()
+    assert not team.still(0.05)
+
+
+def test_with_escape_still_a_robot_claims_only_once_the_team_stands():
+    """At plain Lloyd's end in two wards side by side robots claim cells; with a window of
+    escape_still updates none claims while a robot they hear creeps 1.5 cm per update (settled
+    by its own test, as a live team re-spreading after a move), each busy meanwhile - without
+    the window they claim all the same - and once it stands they claim again."""
+    domain, P, _, _ = _two_wards_at_lloyds_end()
+    window, creeper = 20, len(P) - 1
+
+    def rounds(still: int, creep: int, total: int, busy_from: int = 0) -> list[int]:
+        """The round of every claim over ``total`` rounds, robot ``creeper`` creeping for
+        the first ``creep`` of them (the others busy from round ``busy_from`` while it
+        creeps)."""
+        team = [make_strategy(strategy_choice("geodesic", {"escape_still": still}),
+                              StrategyContext(domain=domain, robot_id=k,
+                                              convergence_tolerance=TOLERANCE))
+                for k in range(len(P))]
+        published = [s.shared_state(Observation(k, np.array([*P[k], 0.0]), 0.0))
+                     for k, s in enumerate(team)]
+        at, made = P.copy(), []
+        for r in range(total):
+            if r < creep:
+                at[creeper] = P[creeper] + [0.0, 0.015 * r]
+            decisions = _round(team, at, published)
+            for k, d in enumerate(decisions):
+                if d.shared.extra["claim"] >= 0:
+                    made.append(r)
+                if still and busy_from <= r < creep and k != creeper:
+                    assert d.settling and not d.converged, (r, k)
+            published = [d.shared for d in decisions]
+            published[creeper] = dataclasses.replace(
+                published[creeper], extra={**published[creeper].extra, "settled": 1.0})
+        return made
+
+    creep = STILL_UPDATES + 24
+    free = rounds(0, creep, creep)  # (no window: claims while it creeps)
+    assert free
+    assert not rounds(window, creep, creep, busy_from=min(free))
+    late = rounds(window, creep, creep + window + STILL_UPDATES + 4, busy_from=min(free))
+    assert late and min(late) >= creep

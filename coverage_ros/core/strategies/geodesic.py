@@ -82,7 +82,7 @@ class GeodesicParams:
     #: [updates] a robot claims only once it and every robot it hears have stood within its
     #: settle step (escape_settle, escape_settle_share) for this many updates; each robot's
     #: own settled test passes a robot creeping a few cm per update, as a team re-spreading
-    #: after a move does for minutes (0: no such wait)
+    #: after a move does for tens of seconds (0: no such wait)
     escape_still: int = 0
 
     def __post_init__(self) -> None:

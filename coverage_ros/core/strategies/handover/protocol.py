@@ -47,7 +47,7 @@ unless it claims itself.
 With ``escape_still`` > 0 a robot also claims only once it and every robot it hears have stood
 within its settle step over that many updates (:class:`.stillness.TeamStillness`): a live team
 re-spreading after a move creeps a few cm per update, each robot settled by its own test, while
-its H still falls by a tenth in 30 s, and a move priced meanwhile is priced from a passing state.
+its H still falls by several % in 10 s, and a move priced meanwhile is priced from a passing state.
 Granted, i drives to j's offered point (mode ``relocate``), keeping its claim, so that j lets
 nobody else in and i's neighbours do not leave meanwhile; there it drops the claim and waits
 ``escape_cooldown`` updates before it may claim again (hysteresis), busy meanwhile (not

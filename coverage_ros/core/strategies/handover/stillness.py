@@ -57,9 +57,9 @@ class Stillness:
 class TeamStillness:
     """Whether a robot and every robot it hears have stood within a distance over a window of
     its updates: each robot's own test above takes a robot creeping less than half its settle
-    step per update for still, and a team re-spreading after a move creeps so for minutes (its
-    H still falling by a tenth in 30 s) - prices of moves made meanwhile are of a passing
-    state."""
+    step per update for still, and a team re-spreading after a move creeps so for tens of
+    seconds (its H still falling by several % in 10 s) - prices of moves made meanwhile are of
+    a passing state."""
 
     window: int  # [updates] 0: no window (always still)
     #: the configuration keys (:func:`.pricing.config_key`) of the latest updates, oldest first

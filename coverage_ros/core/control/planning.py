@@ -1,9 +1,11 @@
 """Paths for a differential-drive robot toward its coverage goal.
 
 :func:`plan_path` finds the shortest path on the configuration-space graph (free cells inflated
-by the robot radius) from the robot to its goal, shortened by line of sight into a few waypoints
-(the straight segment when it is free, which is the usual case: strategies clip their goals to
-what the robot can see). :func:`segment_free` is the collision check both use.
+by the robot radius) from the robot to its goal - within a window around both when one there
+is no longer than the default detour, else over the whole map - shortened by line of sight
+into a few waypoints (the straight segment when it is free, which is the usual case:
+strategies clip their goals to what the robot can see). :func:`segment_free` is the collision
+check both use.
 
 Paths are ``(M, 2)`` map-frame points [m].
 """
@@ -75,12 +77,14 @@ def plan_path(domain: CoverageDomain, start: np.ndarray, goal: np.ndarray,
         return np.stack([start, goal])
     limit = math.inf if math.isinf(max_detour) else max_detour * straight + 2.0
     # First a window around start and goal (paths to a coverage goal are short), then the
-    # whole map.
-    for window in (PLAN_WINDOW_MARGIN, None):
+    # whole map. The window's path counts only within the default detour: a longer one may
+    # wind through the window while the whole map has a far shorter way round.
+    for window, most in ((PLAN_WINDOW_MARGIN, min(limit, MAX_DETOUR * straight + 2.0)),
+                         (None, limit)):
         local = _planning_graph(domain, start, goal, window)
         nodes, costs, _ = domain.snap(start)
         csr = local.with_sources([(local.local_of(nodes), costs)])
-        dist, pred = dijkstra(csr, directed=True, indices=local.n + 1, limit=limit,
+        dist, pred = dijkstra(csr, directed=True, indices=local.n + 1, limit=most,
                               return_predecessors=True)
         lids = local.local_of(domain.snap(goal)[0])
         lids = lids[lids > 0]

@@ -83,6 +83,35 @@ def test_a_goal_far_round_a_wall_is_planned_for_only_without_the_detour_limit():
     assert plan_path(hall(gap_from=6.0), a, b, max_detour=math.inf) is None  # (closed)
 
 
+def test_a_destination_far_round_takes_the_maps_shortest_way_not_the_windows():
+    """The first search covers the box of start and goal (+ 2 m): a way through it that winds
+    past baffles is longer than the default detour, while the map's shortest way runs through
+    a gap outside the box; the path planned without the detour limit is that shortest one."""
+    occ = np.zeros((240, 240), np.int8)
+    occ[0, :] = occ[-1, :] = OCCUPIED
+    occ[:, 0] = occ[:, -1] = OCCUPIED
+
+    def cells(v: float) -> int:
+        return int(round(v / RES))
+
+    occ[:, cells(3.0):cells(3.1)] = OCCUPIED  # a wall at x = 3 m with two gaps:
+    occ[cells(8.5):cells(9.1), cells(3.0):cells(3.1)] = 0  # one outside the box,
+    occ[cells(4.3):cells(4.9), cells(3.0):cells(3.1)] = 0  # one inside, behind baffles
+    occ[cells(5.5):cells(5.6), cells(0.6):cells(3.0)] = OCCUPIED
+    for i, x in enumerate(np.arange(0.9, 2.9, 0.4)):
+        rows = slice(cells(4.25), cells(5.5)) if i % 2 == 0 else slice(cells(2.0), cells(5.25))
+        occ[rows, cells(x):cells(x + 0.1)] = OCCUPIED
+    d = CoverageDomain.from_grid(GridMap(occ, RES), RADIUS)
+    a, b = np.array([2.0, 6.0]), np.array([4.0, 6.0])
+    short = plan_path(d, a, b)  # (within the default detour: through the far gap)
+    far = plan_path(d, a, b, max_detour=math.inf)
+    assert short is not None and far is not None
+    length = [float(np.hypot(*np.diff(p, axis=0).T).sum()) for p in (short, far)]
+    assert far[:, 1].max() > 8.5  # through the gap outside the box
+    assert length[1] == pytest.approx(length[0], rel=1e-9)
+    assert length[1] < 2 * math.hypot(1.0, 3.0) + 0.5
+
+
 class _Fixed:
     """A strategy whose decisions are another's with the goal and mode given."""
 

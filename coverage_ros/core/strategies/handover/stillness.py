@@ -75,17 +75,21 @@ class TeamStillness:
         self.recent = []
 
     def still(self, within: float) -> bool:
-        """The same robots over the last ``window`` updates (``window + 1`` keys), each within
-        ``within`` [m] of its mean position over them (dithering stays so, driving at d per
-        update only below 2 within / window)."""
+        """Every robot of the latest update heard at both ends of the last ``window`` updates
+        (``window + 1`` keys; a robot missed between them, at the edge of its range, counts
+        by the updates it was heard in), each within ``within`` [m] of its mean position over
+        them (dithering stays so, driving at d per update only below 2 within / window); a
+        robot heard only since the window began is not known to stand."""
         if self.window <= 0:
             return True
         if len(self.recent) <= self.window:
             return False
-        ids = self.recent[-1][:, 0]
-        if any(k.shape != ids.shape + (3,) or not np.array_equal(k[:, 0], ids)
-               for k in self.recent):
+        first, last = self.recent[0], self.recent[-1]
+        if not np.isin(last[:, 0], first[:, 0]).all():
             return False
-        xy = np.stack([k[:, 1:] for k in self.recent])  # (window + 1, robots, 2)
-        off = xy - xy.mean(axis=0)
-        return bool(np.hypot(off[..., 0], off[..., 1]).max() < within)
+        for rid in last[:, 0]:
+            xy = np.vstack([k[k[:, 0] == rid, 1:] for k in self.recent])
+            off = xy - xy.mean(axis=0)
+            if not np.hypot(off[:, 0], off[:, 1]).max() < within:
+                return False
+        return True

@@ -1012,9 +1012,10 @@ def test_a_robot_dithering_far_from_its_goal_settles_and_one_driving_does_not():
 
 
 def test_team_stillness_needs_the_same_robots_within_the_distance_over_the_window():
-    """Still: the window's keys of the same robots, each within the distance of its mean
-    position (dithering back and forth passes, creeping one way at the same pace does not);
-    a window of 0 is always still."""
+    """Still: every robot of the latest key heard at both ends of the window, each within the
+    distance of its mean position over the keys it is in (dithering back and forth passes,
+    creeping one way at the same pace does not; a robot heard late is not still, one missed
+    in between is judged by the rest); a window of 0 is always still."""
     def key(ids, xy):
         return np.column_stack([ids, np.asarray(xy, dtype=np.float64)])
 
@@ -1035,8 +1036,20 @@ def test_team_stillness_needs_the_same_robots_within_the_distance_over_the_windo
     assert not team.still(0.05)
     team.note(key(ids, base))
     assert team.still(0.05)
-    team.restart()
+    for k in range(4):  # (robot 5 missed at the second and third: at the edge of its range)
+        team.note(key(ids[:2], base[:2]) if k in (1, 2) else key(ids, base))
+    assert team.still(0.05)
+    moved = base + [[0.0, 0.0], [0.0, 0.0], [0.0, 0.2]]
+    for k in range(4):  # (... and moved meanwhile)
+        team.note(key(ids[:2], base[:2]) if k == 1 else key(ids, moved if k == 3 else base))
     assert not team.still(0.05)
+    team.note(key(ids[:2], base[:2]))  # (not heard now: the others are judged)
+    assert team.still(0.05)
+    team.restart()
+    for _ in range(4):
+        assert not team.still(0.05)
+        team.note(key(ids, base))
+    assert team.still(0.05)  # (the window filled again)
 
 
 def test_with_escape_still_a_robot_claims_only_once_the_team_stands():

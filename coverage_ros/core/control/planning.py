@@ -16,7 +16,7 @@ import math
 from itertools import pairwise
 
 import numpy as np
-from scipy.sparse.csgraph import dijkstra
+from scipy.sparse.csgraph import connected_components, dijkstra
 
 from coverage_ros.core.geodesic.domain import CoverageDomain
 from coverage_ros.core.geodesic.local_search import (
@@ -76,6 +76,8 @@ def plan_path(domain: CoverageDomain, start: np.ndarray, goal: np.ndarray,
             straight < 4 * domain.resolution and segment_free(domain, start, goal)):
         return np.stack([start, goal])
     limit = math.inf if math.isinf(max_detour) else max_detour * straight + 2.0
+    if math.isinf(limit) and not _connected(domain, start, goal):
+        return None  # (else every update would search all the robot's side of the map)
     # First a window around start and goal (paths to a coverage goal are short), then the
     # whole map. The window's path counts only within the default detour: a longer one may
     # wind through the window while the whole map has a far shorter way round.
@@ -99,6 +101,21 @@ def plan_path(domain: CoverageDomain, start: np.ndarray, goal: np.ndarray,
         v = int(pred[v])
     cells = domain.to_map(domain.node_centers(np.array(chain[::-1], dtype=np.int64)))
     return shortcut(domain, np.vstack([start, cells, goal]))
+
+
+def _connected(domain: CoverageDomain, start: np.ndarray, goal: np.ndarray) -> bool:
+    """Whether a free node ``start`` snaps to shares a connected part of the domain's graph
+    with one ``goal`` snaps to (the parts memoized per domain)."""
+    key = "plan_components"
+    parts: tuple[LocalGraph, np.ndarray] | None = domain._cache.get(key)
+    if parts is None:
+        whole = local_graph_for(domain, None, np.zeros((1, 2)), np.zeros(1), math.inf)
+        _, label = connected_components(whole.with_sources([]), directed=True,
+                                        connection="weak")
+        parts = domain._cache[key] = (whole, label)
+    whole, label = parts
+    a, b = (whole.local_of(domain.snap(p)[0]) for p in (start, goal))
+    return bool(np.isin(label[a[a > 0]], label[b[b > 0]]).any())
 
 
 def _planning_graph(domain: CoverageDomain, start: np.ndarray, goal: np.ndarray,

@@ -83,6 +83,24 @@ def test_a_goal_far_round_a_wall_is_planned_for_only_without_the_detour_limit():
     assert plan_path(hall(gap_from=6.0), a, b, max_detour=math.inf) is None  # (closed)
 
 
+def test_a_destination_on_another_part_of_the_map_is_refused_without_a_search(monkeypatch):
+    """A goal no path can reach gets None before any search when the detour is unlimited
+    (a robot would otherwise search its whole side of the map at every update); across an
+    open gap it is planned."""
+    import coverage_ros.core.control.planning as planning
+
+    def no_search(*args, **kwargs):
+        raise AssertionError("searched")
+
+    a, b = np.array([2.7, 0.5]), np.array([3.3, 0.5])
+    closed = hall(gap_from=6.0)
+    monkeypatch.setattr(planning, "dijkstra", no_search)
+    assert plan_path(closed, a, b, max_detour=math.inf) is None
+    assert plan_path(closed, a, np.array([2.0, 4.0]), max_detour=math.inf) is not None  # (free)
+    monkeypatch.undo()
+    assert plan_path(hall(), a, b, max_detour=math.inf) is not None
+
+
 def test_a_destination_far_round_takes_the_maps_shortest_way_not_the_windows():
     """The first search covers the box of start and goal (+ 2 m): a way through it that winds
     past baffles is longer than the default detour, while the map's shortest way runs through

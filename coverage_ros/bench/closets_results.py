@@ -72,6 +72,8 @@ def best_and_ratios(data: dict) -> None:
             consider(name, before["H"], before.get("found", {}))
         for k, h in enumerate(r["H"]):
             consider(name, h, {"restart": k})
+        for k, h in enumerate(r.get("escape_H", [])):
+            consider(name, h, {"restart with escape": k})
     for label, run in data["runs"].items():
         for name, m in run["maps"].items():
             restarts = data["restarts"].get(name, {}).get("settings")
@@ -82,6 +84,7 @@ def best_and_ratios(data: dict) -> None:
                     consider(name, c["H"], {"label": label, "seed": c.get("seed"),
                                             "commit": commit})
     data["best"] = {name: {**b, "restarts": len(data["restarts"][name]["H"]),
+                           "escape_restarts": len(data["restarts"][name].get("escape_H", [])),
                            "problem": {k: data["restarts"][name]["settings"].get(k)
                                        for k in PROBLEM}}
                     for name, b in best.items()}
@@ -127,7 +130,7 @@ def summary_table(data: dict, labels: tuple[str, ...] = ("before", "after"),
              *(f"{label}{at(label)}" for label in labels[1:])]
     if live_run is not None:
         heads.append(f"{live}: the launcher's team, lock-step (sim time){at(live)}")
-    lines = [f"| map | best known H (N restarts) | {' | '.join(heads)} |",
+    lines = [f"| map | best known H (N restarts, + M with escape) | {' | '.join(heads)} |",
              "|---|---|" + "---|" * len(heads)]
     for name in map_names(data):
         runs = [data["runs"].get(label, {}).get("maps", {}).get(name) for label in labels]
@@ -140,7 +143,8 @@ def summary_table(data: dict, labels: tuple[str, ...] = ("before", "after"),
                  for m in runs]
         if live_run is not None and runs[-1] is not None:
             cells[-1] += f" ({live_ends(runs[-1])})"
-        lines.append(f"| {name} | {best['H']:.5g} ({best['restarts']}) | "
+        more = f" + {best['escape_restarts']}" if best.get("escape_restarts") else ""
+        lines.append(f"| {name} | {best['H']:.5g} ({best['restarts']}{more}) | "
                      f"{' | '.join(cells)} |")
     return "\n".join(lines)
 

@@ -71,7 +71,8 @@ def test_the_best_known_is_the_lowest_h_of_any_run_on_the_same_problem():
                                             "cases": [{"H": 250.0}]}}}}}
     data["runs"]["live"]["provenance"] = {"commit": "abc1234"}
     best_and_ratios(data)
-    assert data["best"]["ward"] == {"H": 495.0, "restarts": 2, "problem": problem,
+    assert data["best"]["ward"] == {"H": 495.0, "restarts": 2, "escape_restarts": 0,
+                                    "problem": problem,
                                     "found": {"label": "live", "seed": None,
                                               "commit": "abc1234"}}
     assert data["runs"]["after"]["maps"]["ward"]["cases"][0]["ratio"] == 505.0 / 495.0
@@ -87,6 +88,27 @@ def test_the_best_known_is_the_lowest_h_of_any_run_on_the_same_problem():
     best_and_ratios(data)
     assert data["best"]["ward"]["H"] == 500.0
     assert data["best"]["ward"]["found"] == {"restart": 0}
+
+
+def test_restarts_with_escape_count_towards_the_best_known_and_show_in_the_table():
+    problem = {"robots": 8, "resolution": 0.1}
+    settings = {**problem, "max_iterations": 300}
+    data = {"restarts": {"ward": {"H": [500.0, 510.0],
+                                  "settings": {**settings, "restart_seed": 1000}}},
+            "runs": {label: {"maps": {"ward": {"settings": settings, "cases": [
+                {"H": h} for h in hs]}}} for label, hs in (("before", (900.0, 800.0)),
+                                                            ("after", (502.0, 505.0)))}}
+    best_and_ratios(data)
+    assert data["best"]["ward"]["H"] == 500.0 and data["best"]["ward"]["escape_restarts"] == 0
+    assert summary_table(data).splitlines()[2].startswith("| ward | 500 (2) | ")
+    data["restarts"]["ward"]["escape_H"] = [501.0, 498.0]
+    best_and_ratios(data)
+    assert data["best"]["ward"]["H"] == 498.0
+    assert data["best"]["ward"]["found"] == {"restart with escape": 1}
+    assert data["runs"]["after"]["maps"]["ward"]["worst_ratio"] == 505.0 / 498.0
+    assert summary_table(data).splitlines()[2] == \
+        f"| ward | 498 (2 + 2) | {900 / 498:.3f} / {800 / 498:.3f} | " \
+        f"{502 / 498:.3f} / {505 / 498:.3f} |"
 
 
 def test_update_replaces_only_the_marked_table(tmp_path):
@@ -255,6 +277,8 @@ def test_a_wrong_option_is_refused_in_one_line_before_anything_runs(tmp_path, ca
     assert "--keep" in capsys.readouterr().err
     assert main(["--label", "x", "--live", "--record", "--json", str(out)]) == 2
     assert "--record" in capsys.readouterr().err
+    assert main(["--label", "x", "--escape-restarts", "-1", "--json", str(out)]) == 2
+    assert "--escape-restarts" in capsys.readouterr().err
     assert not out.exists()
 
 

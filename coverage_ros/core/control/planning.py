@@ -1,11 +1,11 @@
 """Paths for a differential-drive robot toward its coverage goal.
 
-:func:`plan_path` finds the shortest path on the configuration-space graph (free cells inflated
-by the robot radius) from the robot to its goal - within a window around both when one there
-is no longer than the default detour, else over the whole map - shortened by line of sight
-into a few waypoints (the straight segment when it is free, which is the usual case:
-strategies clip their goals to what the robot can see). :func:`segment_free` is the collision
-check both use.
+:func:`plan_path` finds a path on the configuration-space graph (free cells inflated by the
+robot radius) from the robot to its goal - the shortest within a window around both when there
+is one there within the detour limit (without a limit, within the default one), else the
+shortest over the whole map - shortened by line of sight into a few waypoints (the straight
+segment when it is free, which is the usual case: strategies clip their goals to what the
+robot can see). :func:`segment_free` is the collision check both use.
 
 Paths are ``(M, 2)`` map-frame points [m].
 """
@@ -76,13 +76,13 @@ def plan_path(domain: CoverageDomain, start: np.ndarray, goal: np.ndarray,
             straight < 4 * domain.resolution and segment_free(domain, start, goal)):
         return np.stack([start, goal])
     limit = math.inf if math.isinf(max_detour) else max_detour * straight + 2.0
-    if math.isinf(limit) and not _connected(domain, start, goal):
-        return None  # (else every update would search all the robot's side of the map)
     # First a window around start and goal (paths to a coverage goal are short), then the
-    # whole map. The window's path counts only within the default detour: a longer one may
-    # wind through the window while the whole map has a far shorter way round.
-    for window, most in ((PLAN_WINDOW_MARGIN, min(limit, MAX_DETOUR * straight + 2.0)),
-                         (None, limit)):
+    # whole map. Without a limit the window's path counts only within the default detour:
+    # a longer one may wind through the window while the map has a far shorter way round.
+    near = limit if math.isfinite(limit) else MAX_DETOUR * straight + 2.0
+    for window, most in ((PLAN_WINDOW_MARGIN, near), (None, limit)):
+        if window is None and math.isinf(limit) and not _connected(domain, start, goal):
+            return None  # (else every update would search all the robot's side of the map)
         local = _planning_graph(domain, start, goal, window)
         nodes, costs, _ = domain.snap(start)
         csr = local.with_sources([(local.local_of(nodes), costs)])

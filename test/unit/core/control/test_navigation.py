@@ -83,28 +83,33 @@ def test_a_goal_far_round_a_wall_is_planned_for_only_without_the_detour_limit():
     assert plan_path(hall(gap_from=6.0), a, b, max_detour=math.inf) is None  # (closed)
 
 
-def test_a_destination_on_another_part_of_the_map_is_refused_without_a_search(monkeypatch):
-    """A goal no path can reach gets None before any search when the detour is unlimited
-    (a robot would otherwise search its whole side of the map at every update); across an
-    open gap it is planned."""
+def test_a_destination_on_another_part_of_the_map_is_refused_without_a_whole_map_search(
+        monkeypatch):
+    """A goal no path can reach gets None without a search of the whole map when the detour
+    is unlimited (a robot would otherwise search its whole side of the map at every update);
+    across an open gap it is planned, over the whole map."""
     import coverage_ros.core.control.planning as planning
 
-    def no_search(*args, **kwargs):
-        raise AssertionError("searched")
+    windows = []
+    graph = planning._planning_graph
 
+    def recorded(domain, start, goal, margin):
+        windows.append(margin)
+        return graph(domain, start, goal, margin)
+
+    monkeypatch.setattr(planning, "_planning_graph", recorded)
     a, b = np.array([2.7, 0.5]), np.array([3.3, 0.5])
-    closed = hall(gap_from=6.0)
-    monkeypatch.setattr(planning, "dijkstra", no_search)
-    assert plan_path(closed, a, b, max_detour=math.inf) is None
-    assert plan_path(closed, a, np.array([2.0, 4.0]), max_detour=math.inf) is not None  # (free)
-    monkeypatch.undo()
+    assert plan_path(hall(gap_from=6.0), a, b, max_detour=math.inf) is None
+    assert None not in windows
     assert plan_path(hall(), a, b, max_detour=math.inf) is not None
+    assert windows[-1] is None
 
 
 def test_a_destination_far_round_takes_the_maps_shortest_way_not_the_windows():
     """The first search covers the box of start and goal (+ 2 m): a way through it that winds
     past baffles is longer than the default detour, while the map's shortest way runs through
-    a gap outside the box; the path planned without the detour limit is that shortest one."""
+    a gap outside the box; the path planned without the detour limit is that shortest one,
+    as with the default detour."""
     occ = np.zeros((240, 240), np.int8)
     occ[0, :] = occ[-1, :] = OCCUPIED
     occ[:, 0] = occ[:, -1] = OCCUPIED
@@ -121,13 +126,17 @@ def test_a_destination_far_round_takes_the_maps_shortest_way_not_the_windows():
         occ[rows, cells(x):cells(x + 0.1)] = OCCUPIED
     d = CoverageDomain.from_grid(GridMap(occ, RES), RADIUS)
     a, b = np.array([2.0, 6.0]), np.array([4.0, 6.0])
-    short = plan_path(d, a, b)  # (within the default detour: through the far gap)
-    far = plan_path(d, a, b, max_detour=math.inf)
-    assert short is not None and far is not None
-    length = [float(np.hypot(*np.diff(p, axis=0).T).sum()) for p in (short, far)]
+
+    def length(path: np.ndarray) -> float:
+        return float(np.hypot(*np.diff(path, axis=0).T).sum())
+
+    far, windowed = plan_path(d, a, b, max_detour=math.inf), plan_path(d, a, b)
+    assert far is not None and windowed is not None
     assert far[:, 1].max() > 8.5  # through the gap outside the box
-    assert length[1] == pytest.approx(length[0], rel=1e-9)
-    assert length[1] < 2 * math.hypot(1.0, 3.0) + 0.5
+    assert length(far) < 2 * math.hypot(1.0, 3.0) + 0.5
+    assert length(far) == pytest.approx(length(windowed), rel=1e-9)
+    for p, q in itertools.pairwise(far):
+        assert segment_free(d, p, q)
 
 
 class _Fixed:

@@ -75,11 +75,11 @@ class TeamStillness:
         self.recent = []
 
     def still(self, within: float) -> bool:
-        """Every robot of the latest update heard at both ends of the last ``window`` updates
-        (``window + 1`` keys; a robot missed between them, at the edge of its range, counts
-        by the updates it was heard in), each within ``within`` [m] of its mean position over
-        them (dithering stays so, driving at d per update only below 2 within / window); a
-        robot heard only since the window began is not known to stand."""
+        """Every robot heard at the start of the last ``window`` updates (``window + 1`` keys)
+        and again since - missed between, at the edge of its range, or at the latest update -
+        within ``within`` [m] of its mean position over the updates it was heard in
+        (dithering stays so, driving at d per update only below 2 within / window); not still
+        while a robot of the latest update was not heard at the start (not known to stand)."""
         if self.window <= 0:
             return True
         if len(self.recent) <= self.window:
@@ -87,8 +87,9 @@ class TeamStillness:
         first, last = self.recent[0], self.recent[-1]
         if not np.isin(last[:, 0], first[:, 0]).all():
             return False
-        for rid in last[:, 0]:
-            xy = np.vstack([k[k[:, 0] == rid, 1:] for k in self.recent])
+        rows = np.vstack(self.recent)
+        for rid in first[:, 0]:
+            xy = rows[rows[:, 0] == rid, 1:]
             off = xy - xy.mean(axis=0)
             if not np.hypot(off[:, 0], off[:, 1]).max() < within:
                 return False

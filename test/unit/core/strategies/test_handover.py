@@ -1011,11 +1011,12 @@ def test_a_robot_dithering_far_from_its_goal_settles_and_one_driving_does_not():
         assert settled == [float(settles and k >= STILL_UPDATES) for k in range(8)], settles
 
 
-def test_team_stillness_needs_the_same_robots_within_the_distance_over_the_window():
-    """Still: every robot of the latest key heard at both ends of the window, each within the
-    distance of its mean position over the keys it is in (dithering back and forth passes,
-    creeping one way at the same pace does not; a robot heard late is not still, one missed
-    in between is judged by the rest); a window of 0 is always still."""
+def test_team_stillness_judges_every_robot_heard_over_the_window_by_the_updates_it_is_in():
+    """Still: every robot heard at the window's start within the distance of its mean position
+    over the keys it is in (dithering back and forth passes, creeping one way at the same pace
+    does not; one missed in between or at the latest key is judged by the rest), and no robot
+    of the latest key heard only since the start (not known to stand); a window of 0 is always
+    still."""
     def key(ids, xy):
         return np.column_stack([ids, np.asarray(xy, dtype=np.float64)])
 
@@ -1040,10 +1041,14 @@ def test_team_stillness_needs_the_same_robots_within_the_distance_over_the_windo
         team.note(key(ids[:2], base[:2]) if k in (1, 2) else key(ids, base))
     assert team.still(0.05)
     moved = base + [[0.0, 0.0], [0.0, 0.0], [0.0, 0.2]]
-    for k in range(4):  # (... and moved meanwhile)
+    for k in range(4):  # (... moved by the latest key, missed once before it)
         team.note(key(ids[:2], base[:2]) if k == 1 else key(ids, moved if k == 3 else base))
     assert not team.still(0.05)
-    team.note(key(ids[:2], base[:2]))  # (not heard now: the others are judged)
+    for k in range(4):  # (moved by the third key, missed at the latest: judged all the same)
+        team.note(key(ids[:2], base[:2]) if k == 3 else key(ids, moved if k == 2 else base))
+    assert not team.still(0.05)
+    for _ in range(4):  # (not heard since the window's start: no longer judged)
+        team.note(key(ids[:2], base[:2]))
     assert team.still(0.05)
     team.restart()
     for _ in range(4):

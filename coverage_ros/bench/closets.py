@@ -141,6 +141,7 @@ def bench_map(name: str, args, stored: dict, say) -> dict:
     settings = {"robots": args.robots, "resolution": domain.resolution,
                 "max_iterations": args.max_iterations, "restart_seed": args.restart_seed}
     restarts = stored.get(name) if stored.get(name, {}).get("settings") == settings else None
+    kept = [] if restarts is None else restarts.get("escape_H", [])
     if restarts is None or len(restarts["H"]) < args.restarts:
         rng = np.random.default_rng(args.restart_seed)
         Hs = []
@@ -153,18 +154,23 @@ def bench_map(name: str, args, stored: dict, say) -> dict:
         restarts = {"settings": settings, "H": Hs}
     else:
         say(f"  {len(restarts['H'])} restarts reused from the results file")
-    escape = restarts.get("escape_H", [])
+    escape = list(kept)
     if len(escape) < args.escape_restarts:
-        # the strategy as shipped (escape on) from random starts of a stream of their own
+        # the strategy as shipped (escape on) from random starts of a stream of their own;
+        # the ones on record are the stream's first (their starts drawn again, not run)
         rng = np.random.default_rng([args.restart_seed, 1])
-        escape = []
         for r in range(args.escape_restarts):
             starts = random_starts(world, args.robots, radius, rng)
+            if r < len(kept):
+                continue
             run = run_team(domain, world, starts, {}, args.max_iterations)
             escape.append(run["H"])
             say(f"  restart with escape {r + 1}/{args.escape_restarts}: H {run['H']:.4g} "
                 f"({run['iterations']} iterations, {run['relocations']} relocations, "
                 f"{run['seconds']} s)")
+    elif escape:
+        say(f"  {len(escape)} restarts with escape reused from the results file")
+    if escape:
         restarts = {**restarts, "escape_H": escape}
     cases = []
     for seed in range(args.seeds):
@@ -233,6 +239,9 @@ def _main(argv: list[str] | None) -> int:
                              expected="--keep DIR as well")
     if args.escape_restarts < 0:
         raise ConfigError.at("--escape-restarts", "must be >= 0", args.escape_restarts)
+    if args.escape_restarts and args.live:
+        raise ConfigError.at("--escape-restarts", "applies to offline runs only",
+                             expected="no --live")
     if args.jobs < 1:
         raise ConfigError.at("--jobs", "must be >= 1", args.jobs)
     if args.duration is not None and args.duration <= 0:
@@ -257,6 +266,7 @@ def _main(argv: list[str] | None) -> int:
     label = runs.setdefault(args.label, {"maps": {}})
     label.update(provenance=provenance(), strategy_params=args.params,
                  settings={"seeds": args.seeds, "restarts": args.restarts,
+                          "escape_restarts": args.escape_restarts,
                            "robots": args.robots, "resolution": args.resolution,
                            "tolerance": TOLERANCE, "max_iterations": args.max_iterations})
     if args.live:
@@ -266,6 +276,7 @@ def _main(argv: list[str] | None) -> int:
         check_maps(maps, data)
         label["settings"].update(live=True)  # (each map's own settings give its duration)
         label["settings"].pop("restarts")
+        label["settings"].pop("escape_restarts")
         label["settings"].pop("duration", None)
         for name in maps:
             duration = args.duration or live_duration(name)

@@ -41,6 +41,7 @@ def rows(data: dict) -> list[dict]:
         for name, m in run["maps"].items():
             best = data["best"].get(name, {})
             out.append({"label": label, "map": name, "restarts": best.get("restarts"),
+                        "escape_restarts": best.get("escape_restarts"),
                         "H_best": best.get("H"),
                         "ratios": [round(c["ratio"], 4) for c in m["cases"]],
                         "relocations": [c.get("relocations") for c in m["cases"]],

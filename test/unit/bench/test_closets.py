@@ -111,6 +111,42 @@ def test_restarts_with_escape_count_towards_the_best_known_and_show_in_the_table
         f"{502 / 498:.3f} / {505 / 498:.3f} |"
 
 
+def test_restarts_on_record_are_kept_and_extended_not_run_again(monkeypatch):
+    """Plain restarts run again (more asked for) keep the restarts with escape on record; more
+    of those asked for run only the new ones, from the starts a run from scratch would draw."""
+    import coverage_ros.bench.closets as closets
+
+    calls = []
+
+    def run_team(domain, world, starts, params, max_iterations):
+        calls.append((np.array(starts), dict(params)))
+        return {"H": float(np.round(starts, 3).sum()), "iterations": 1, "relocations": 0,
+                "seconds": 0.0, "H_start": 0.0}
+
+    monkeypatch.setattr(closets, "run_team", run_team)
+
+    def bench(restarts: int, escape: int, stored: dict) -> dict:
+        args = SimpleNamespace(robots=3, resolution=0.1, max_iterations=5, restart_seed=7,
+                               restarts=restarts, escape_restarts=escape, seeds=0, params={})
+        result = closets.bench_map("plan-1", args, stored, lambda msg: None)
+        stored["plan-1"] = result["restarts"]
+        return result["restarts"]
+
+    stored: dict = {}
+    first = bench(1, 3, stored)
+    assert len(first["H"]) == 1 and len(first["escape_H"]) == 3
+    scratch = [c for c in calls if c[1] == {}]
+    calls.clear()
+    again = bench(2, 0, stored)  # (plain restarts again: the escape ones kept)
+    assert len(again["H"]) == 2 and again["escape_H"] == first["escape_H"]
+    assert all(c[1] != {} for c in calls)
+    calls.clear()
+    stored["plan-1"]["escape_H"] = first["escape_H"][:2]
+    more = bench(2, 3, stored)  # (one more with escape: the third of the stream)
+    assert len(calls) == 1 and np.array_equal(calls[0][0], scratch[2][0])
+    assert more["escape_H"] == first["escape_H"]
+
+
 def test_update_replaces_only_the_marked_table(tmp_path):
     path = tmp_path / "README.md"
     path.write_text(f"intro\n{README_BEGIN}\nold\n{README_END}\nrest\n")
@@ -278,6 +314,8 @@ def test_a_wrong_option_is_refused_in_one_line_before_anything_runs(tmp_path, ca
     assert main(["--label", "x", "--live", "--record", "--json", str(out)]) == 2
     assert "--record" in capsys.readouterr().err
     assert main(["--label", "x", "--escape-restarts", "-1", "--json", str(out)]) == 2
+    assert "--escape-restarts" in capsys.readouterr().err
+    assert main(["--label", "x", "--live", "--escape-restarts", "2", "--json", str(out)]) == 2
     assert "--escape-restarts" in capsys.readouterr().err
     assert not out.exists()
 

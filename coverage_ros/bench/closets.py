@@ -142,6 +142,7 @@ def bench_map(name: str, args, stored: dict, say) -> dict:
                 "max_iterations": args.max_iterations, "restart_seed": args.restart_seed}
     restarts = stored.get(name) if stored.get(name, {}).get("settings") == settings else None
     kept = [] if restarts is None else restarts.get("escape_H", [])
+    escape_provenance = None if restarts is None else restarts.get("escape_provenance")
     if restarts is None or len(restarts["H"]) < args.restarts:
         rng = np.random.default_rng(args.restart_seed)
         Hs = []
@@ -156,6 +157,7 @@ def bench_map(name: str, args, stored: dict, say) -> dict:
         say(f"  {len(restarts['H'])} restarts reused from the results file")
     escape = list(kept)
     if len(escape) < args.escape_restarts:
+        escape_provenance = provenance()  # (of the latest ones run: the code they ran)
         # the strategy as shipped (escape on) from random starts of a stream of their own;
         # the ones on record are the stream's first (their starts drawn again, not run)
         rng = np.random.default_rng([args.restart_seed, 1])
@@ -172,6 +174,8 @@ def bench_map(name: str, args, stored: dict, say) -> dict:
         say(f"  {len(escape)} restarts with escape reused from the results file")
     if escape:
         restarts = {**restarts, "escape_H": escape}
+        if escape_provenance is not None:
+            restarts["escape_provenance"] = escape_provenance
     cases = []
     for seed in range(args.seeds):
         starts = team_starts(world, specs, None, seed)

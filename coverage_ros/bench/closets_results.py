@@ -73,8 +73,9 @@ def best_and_ratios(data: dict) -> None:
             consider(name, before["H"], before.get("found", {}))
         for k, h in enumerate(r["H"]):
             consider(name, h, {"restart": k})
+        made = r.get("escape_provenance", {}).get("commit")  # (the code they ran)
         for k, h in enumerate(r.get("escape_H", [])):
-            consider(name, h, {"restart with escape": k})
+            consider(name, h, {"restart with escape": k} | ({"commit": made} if made else {}))
     for label, run in data["runs"].items():
         for name, m in run["maps"].items():
             restarts = data["restarts"].get(name, {}).get("settings")

@@ -37,6 +37,7 @@ from coverage_ros.bench.closets_results import (
     update_readme,
 )
 from coverage_ros.bench.environment import SHARED_MAPS
+from coverage_ros.bench.results import provenance
 from coverage_ros.core.world import load_world, parse_world
 from coverage_ros.core.world.placement import largest_free_region
 
@@ -102,9 +103,10 @@ def test_restarts_with_escape_count_towards_the_best_known_and_show_in_the_table
     assert data["best"]["ward"]["H"] == 500.0 and data["best"]["ward"]["escape_restarts"] == 0
     assert summary_table(data).splitlines()[2].startswith("| ward | 500 (2) | ")
     data["restarts"]["ward"]["escape_H"] = [501.0, 498.0]
+    data["restarts"]["ward"]["escape_provenance"] = {"commit": "abc1234"}  # (the code run)
     best_and_ratios(data)
     assert data["best"]["ward"]["H"] == 498.0
-    assert data["best"]["ward"]["found"] == {"restart with escape": 1}
+    assert data["best"]["ward"]["found"] == {"restart with escape": 1, "commit": "abc1234"}
     assert data["runs"]["after"]["maps"]["ward"]["worst_ratio"] == 505.0 / 498.0
     assert summary_table(data).splitlines()[2] == \
         f"| ward | 498 (2 + 2) | {900 / 498:.3f} / {800 / 498:.3f} | " \
@@ -135,10 +137,12 @@ def test_restarts_on_record_are_kept_and_extended_not_run_again(monkeypatch):
     stored: dict = {}
     first = bench(1, 3, stored)
     assert len(first["H"]) == 1 and len(first["escape_H"]) == 3
+    assert first["escape_provenance"]["commit"] == provenance()["commit"]  # (the code run)
     scratch = [c for c in calls if c[1] == {}]
     calls.clear()
     again = bench(2, 0, stored)  # (plain restarts again: the escape ones kept)
     assert len(again["H"]) == 2 and again["escape_H"] == first["escape_H"]
+    assert again["escape_provenance"] == first["escape_provenance"]
     assert all(c[1] != {} for c in calls)
     calls.clear()
     stored["plan-1"]["escape_H"] = first["escape_H"][:2]

@@ -197,7 +197,8 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _main(argv: list[str] | None) -> int:
-    ap = argparse.ArgumentParser(prog="bench_closets", description=__doc__.split("\n")[0])
+    ap = argparse.ArgumentParser(prog="bench_closets",
+                                 description=__doc__.split("\n\n")[0].replace("\n", " "))
     ap.add_argument("--label", required=True, help="name of this run in the results file")
     ap.add_argument("--maps", default=",".join(MAPS),
                     help=f"some of {','.join(MAPS)} and drawn plans plan-<seed>, twin-<seed>")

@@ -69,7 +69,11 @@ team stood when the claim was heard, where the claimer left from and where it we
 not make one of them again from the same places - each robot within
 :data:`.places.SAME_PLACE_SHARE` of its cell's radius of one of them, whichever robot stands
 where, itself where the mover left from and the offered point where the mover went. Other
-moves from there stay open (a team may need several moves from one configuration).
+moves from there stay open when a bound prices them (a team may need several moves from one
+configuration), but none priced by the descent: a team standing again where a move left from
+came back from it, which the descent's prediction of where the team goes did not foresee
+(a live robot's neighbours hold its old cell while it drives, and it may be pulled back on
+arrival), and the next prediction from the same places would be as wrong.
 What a robot uses is its own cell, the generators and published values of the robots it
 hears (its bordering neighbours' cells, and for the joint bound the target's and those that
 touch either, are tessellated from them), nothing else; the protocol is deterministic.
@@ -336,9 +340,11 @@ class Handover:
                 o.key: -self.prices.joint(key, position, weight, neighbours, o, rings)
                 for o in offers})
             rings += 1
-        if best is None and stopped and self.settings.descent_offers > 0:
+        if best is None and stopped and self.settings.descent_offers > 0 and not any(
+                here.same(m.places, near) for m in self._moves):
             # no bound sees it: where the whole team's own descent goes from the largest
             # offers, priced by one robot per update, the one whose cell costs least first
+            # (not from where a move heard left: the team came back, the prediction failed)
             if self._turns is None or not same_config(self._turns[0], key, self.domain.resolution):
                 self._turns = (key, 0)
             self._turns = (key, self._turns[1] + 1)  # (updates here, this one counted)

@@ -10,6 +10,7 @@ from __future__ import annotations
 import copy
 import dataclasses
 import math
+from collections.abc import Sequence
 from functools import cache
 
 import numpy as np
@@ -284,13 +285,17 @@ def _round(strategies, positions, published):
     return decisions
 
 
-def _claims(domain, P, params: dict) -> list[tuple[int, int, np.ndarray | None]]:
+def _claims(domain, P, params: dict, heard: Sequence[HeardMove] = ()
+            ) -> list[tuple[int, int, np.ndarray | None]]:
     """(robot, robot whose cell it claims, its point) of every claim a team with ``params``
-    standing at ``P`` makes in the rounds it takes to settle and price."""
+    standing at ``P`` makes in the rounds it takes to settle and price, each robot having
+    heard the moves ``heard``."""
     team = [make_strategy(strategy_choice("geodesic", params),
                           StrategyContext(domain=domain, robot_id=k,
                                           convergence_tolerance=TOLERANCE))
             for k in range(len(P))]
+    for s in team:
+        s.handover._moves = list(heard)
     published = [s.shared_state(Observation(k, np.array([*P[k], 0.0]), 0.0))
                  for k, s in enumerate(team)]
     made = []
@@ -699,6 +704,23 @@ def test_a_robot_claims_no_more_where_the_team_came_back_after_its_move():
     assert max(claims(team[0], P[swapped], 0, swapped)) == 7
     team[1].handover._departures = [dataclasses.replace(left, cost=H_near + 2 * left.saving)]
     assert max(claims(team[1], near)) == 7
+
+
+def test_no_move_is_priced_by_the_descent_where_a_move_heard_left_from():
+    """At the plan-2 positions robot 1's move into robot 7's cell is priced by the descent
+    (no bound sees it). A team that heard a move leave from these same places (robot 5 into
+    robot 7's cell) and stands there again came back from it: the descent's prediction failed
+    here, and nobody claims by it; a move heard from places a room away changes nothing."""
+    domain, P = _drawn_plan(2), PLAN2_SETTLED
+    params = {"escape_descent_offers": 1, "escape_descent_rooms": 0}
+    assert {(k, t) for k, t, _ in _claims(domain, P, params)} == {(1, 7)}
+
+    def heard(shift: list[float]) -> list[HeardMove]:
+        return [HeardMove(Places(tuple(range(len(P))), P + shift), P[5].copy(), P[7].copy())]
+
+    assert _claims(domain, P, params, heard([0.0, 0.0])) == []
+    assert _claims(domain, P, params, heard([0.05, -0.05])) == []  # (as live robots stop)
+    assert {(k, t) for k, t, _ in _claims(domain, P, params, heard([4.0, 0.0]))} == {(1, 7)}
 
 
 def test_places_are_the_same_whichever_robot_stands_where():

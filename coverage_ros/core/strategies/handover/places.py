@@ -45,11 +45,12 @@ class Places:
 @dataclass(frozen=True)
 class HeardMove:
     """A move a robot heard another make: where the team stood, where the mover left from and
-    where it went [m]."""
+    where it went [m], and the saving its claim was priced at."""
 
     places: Places
     start: np.ndarray  # (2,) [m]
     end: np.ndarray  # (2,) [m]
+    saving: float = 0.0  # the claim's ``claim_gain`` (units of H)
 
     def again(self, here: Places, position: np.ndarray, point: np.ndarray, near: float
               ) -> bool:

@@ -27,6 +27,9 @@ from coverage_ros.core.strategies.handover.split import SplitOffer, room_offers,
 
 #: Power weights closer than this [m] count as equal (the bounds assume equal weights).
 WEIGHT_MATCH = 1e-9
+#: A price's key: (target robot id, its point x, y [m], rings: -1 H heard, 0 the descent,
+#: >= 1 the joint bound, the saving [units of H] past which the descent stops)
+Memo = tuple[int, float, float, int, float]
 
 
 @dataclass
@@ -41,7 +44,7 @@ class Prices:
     _offer: tuple[np.ndarray, list[SplitOffer]] | None = field(default=None, repr=False)
     _removal: tuple[np.ndarray, dict[int, float], Tessellations] | None = field(
         default=None, repr=False)
-    _joint: tuple[np.ndarray, Known, dict[tuple[int, float, float, int], float]] | None = field(
+    _joint: tuple[np.ndarray, Known, dict[Memo, float]] | None = field(
         default=None, repr=False)
     #: room offers (:func:`.split.room_offers`) per robot id, of the configuration of ``_joint``
     _rooms: dict[int, list[Offer]] = field(default_factory=dict, repr=False)
@@ -56,7 +59,7 @@ class Prices:
         return self._offer[1]
 
     def known(self, key: np.ndarray, position: np.ndarray, neighbours: Sequence[Neighbour]
-              ) -> tuple[Known, dict[tuple[int, float, float, int], float]]:
+              ) -> tuple[Known, dict[Memo, float]]:
         """The cells of all it hears and the prices found on them (again once one moved)."""
         if self._joint is None or not same_config(self._joint[0], key, self.domain.resolution):
             gens = np.vstack([position[None], [n.position for n in neighbours]])
@@ -69,7 +72,7 @@ class Prices:
         """H of the cells of all it hears and its own (equal power weights ``weight``): the
         sum over every node they reach of (g^2 - weight^2) w dA."""
         known, values = self.known(key, position, neighbours)
-        memo = (-1, 0.0, 0.0, -1)  # (rings -1: not a price)
+        memo = (-1, 0.0, 0.0, -1, 0.0)  # (rings -1: not a price)
         if memo not in values:
             d = known.distances
             reached = np.isfinite(d)
@@ -105,7 +108,7 @@ class Prices:
             return math.inf  # the bound assumes equal power weights
         known, values = self.known(key, position, neighbours)
         point = target.point
-        memo = (target.robot_id, float(point[0]), float(point[1]), rings)
+        memo = (target.robot_id, float(point[0]), float(point[1]), rings, 0.0)
         if memo not in values:
             t = 1 + [n.robot_id for n in neighbours].index(target.robot_id)
             values[memo] = joint_change(self.domain, known, weight, t, point,
@@ -122,7 +125,8 @@ class Prices:
             return math.inf  # the descent prices equal power weights
         known, values = self.known(key, position, neighbours)
         point = target.point
-        memo = (target.robot_id, float(point[0]), float(point[1]), 0)  # (rings 0: descent)
+        # (rings 0: the descent, with where it stops)
+        memo = (target.robot_id, float(point[0]), float(point[1]), 0, float(enough))
         if memo not in values:
             values[memo] = descent_change(self.domain, known, weight,
                                           list(range(1, len(known.generators))), point,

@@ -69,11 +69,10 @@ team stood when the claim was heard, where the claimer left from and where it we
 not make one of them again from the same places - each robot within
 :data:`.places.SAME_PLACE_SHARE` of its cell's radius of one of them, whichever robot stands
 where, itself where the mover left from and the offered point where the mover went. Other
-moves from there stay open when a bound prices them (a team may need several moves from one
-configuration), but none priced by the descent: a team standing again where a move left from
-came back from it, which the descent's prediction of where the team goes did not foresee
-(a live robot's neighbours hold its old cell while it drives, and it may be pulled back on
-arrival), and the next prediction from the same places would be as wrong.
+moves from there stay open (a team may need several moves from one configuration), but one
+priced by the descent must save more than the heard move's claim: a team back where a move
+left from shows the descent wrong there by that saving (live, neighbours hold the mover's
+cell while it drives, it may be pulled back, or two robots trade places).
 What a robot uses is its own cell, the generators and published values of the robots it
 hears (its bordering neighbours' cells, and for the joint bound the target's and those that
 touch either, are tessellated from them), nothing else; the protocol is deterministic.
@@ -164,8 +163,9 @@ class Handover:
     _claimed_from: Departure | None = field(default=None, repr=False)
     _departures: list[Departure] = field(default_factory=list, repr=False)
     #: claims heard, by claimer id: (where the claimer stood [m], its target, the team's
-    #: places then), kept in ``_moves`` once the claimer is heard relocating
-    _heard_claims: dict[int, tuple[np.ndarray, int, Places]] = field(
+    #: places then, the claim's saving), kept in ``_moves`` once the claimer is heard
+    #: relocating
+    _heard_claims: dict[int, tuple[np.ndarray, int, Places, float]] = field(
         default_factory=dict, repr=False)
     _moves: list[HeardMove] = field(default_factory=list, repr=False)
     prices: Prices = field(init=False, repr=False)  # what it priced, per configuration
@@ -277,13 +277,14 @@ class Handover:
                 if heard is not None:
                     self._heard_claims.pop(rid)
                     move = HeardMove(heard[2], heard[0],
-                                     np.array(destination(n), dtype=np.float64))
+                                     np.array(destination(n), dtype=np.float64), heard[3])
                     self._moves = [*self._moves, move][-DEPARTURES:]
             elif target < 0:
                 self._heard_claims.pop(rid, None)
             elif heard is None or heard[1] != target:
                 self._heard_claims[rid] = (np.array(n.position, dtype=np.float64), target,
-                                           Places.of(self.robot_id, position, neighbours))
+                                           Places.of(self.robot_id, position, neighbours),
+                                           value(n, "claim_gain"))
 
     def _follow_claim(self, by_id: dict[int, Neighbour]) -> None:
         """A claim made earlier: relocate once granted, drop it when refused, stale or
@@ -340,11 +341,16 @@ class Handover:
                 o.key: -self.prices.joint(key, position, weight, neighbours, o, rings)
                 for o in offers})
             rings += 1
-        if best is None and stopped and self.settings.descent_offers > 0 and not any(
-                here.same(m.places, near) for m in self._moves):
+        if best is None and stopped and self.settings.descent_offers > 0:
             # no bound sees it: where the whole team's own descent goes from the largest
             # offers, priced by one robot per update, the one whose cell costs least first
-            # (not from where a move heard left: the team came back, the prediction failed)
+            # (more than a heard move from these places saved: it failed by that much)
+            failed = max((m.saving for m in self._moves if here.same(m.places, near)),
+                         default=0.0)
+
+            def beyond(o: Offer) -> float:
+                return max(need(o), failed)
+
             if self._turns is None or not same_config(self._turns[0], key, self.domain.resolution):
                 self._turns = (key, 0)
             self._turns = (key, self._turns[1] + 1)  # (updates here, this one counted)
@@ -353,8 +359,8 @@ class Handover:
                 return
             largest = sorted(offers, key=lambda o: (-o.gain, o.key))[
                 :self.settings.descent_offers]
-            best, saving = self._best(largest, need, {
-                o.key: -self.prices.descent(key, position, weight, neighbours, o, need(o))
+            best, saving = self._best(largest, beyond, {
+                o.key: -self.prices.descent(key, position, weight, neighbours, o, beyond(o))
                 for o in largest})
             if best is None and self.settings.descent_rooms > 1:
                 # none of them pays: a point in every other room of the cells they split
@@ -362,9 +368,9 @@ class Handover:
                          for o in self.prices.rooms(key, position, weight, neighbours, j,
                                                     offers) if not made(o)]
                 if rooms:
-                    best, saving = self._best(rooms, need, {
+                    best, saving = self._best(rooms, beyond, {
                         o.key: -self.prices.descent(key, position, weight, neighbours, o,
-                                                    need(o))
+                                                    beyond(o))
                         for o in rooms})
         if best is None:
             return

@@ -286,10 +286,10 @@ def _round(strategies, positions, published):
 
 
 def _claims(domain, P, params: dict, heard: Sequence[HeardMove] = ()
-            ) -> list[tuple[int, int, np.ndarray | None]]:
-    """(robot, robot whose cell it claims, its point) of every claim a team with ``params``
-    standing at ``P`` makes in the rounds it takes to settle and price, each robot having
-    heard the moves ``heard``."""
+            ) -> list[tuple[int, int, np.ndarray | None, float]]:
+    """(robot, robot whose cell it claims, its point, the claim's saving) of every claim a team
+    with ``params`` standing at ``P`` makes in the rounds it takes to settle and price, each
+    robot having heard the moves ``heard``."""
     team = [make_strategy(strategy_choice("geodesic", params),
                           StrategyContext(domain=domain, robot_id=k,
                                           convergence_tolerance=TOLERANCE))
@@ -301,7 +301,8 @@ def _claims(domain, P, params: dict, heard: Sequence[HeardMove] = ()
     made = []
     for _ in range(STILL_UPDATES + 3):
         decisions = _round(team, P, published)
-        made += [(k, int(d.shared.extra["claim"]), team[k].handover.target)
+        made += [(k, int(d.shared.extra["claim"]), team[k].handover.target,
+                  d.shared.extra["claim_gain"])
                  for k, d in enumerate(decisions) if d.shared.extra["claim"] >= 0]
         published = [d.shared for d in decisions]
     return made
@@ -556,7 +557,7 @@ def test_a_move_no_bound_sees_is_priced_by_the_teams_own_descent():
 
     assert _claims(domain, P, {"escape_descent_offers": 0}) == []
     # priced by the robot of the least cell only (robot 1: 10 against 23-287)
-    assert {k for k, _, _ in _claims(domain, P, {"escape_descent_offers": 1})} == {1}
+    assert {k for k, *_ in _claims(domain, P, {"escape_descent_offers": 1})} == {1}
 
 
 
@@ -573,10 +574,10 @@ def test_a_move_must_save_a_share_of_the_teams_H():
     S = -descent_change(domain, known, 0.0, list(range(1, len(P))), offer.point).increase
     assert S > GeodesicParams().escape_gain * (cells[i].cost + offer.base)
     params = {"escape_descent_offers": 1, "escape_descent_rooms": 0}
-    assert {(k, t) for k, t, _ in _claims(
+    assert {(k, t) for k, t, *_ in _claims(
         domain, P, params | {"escape_team_gain": 0.9 * S / H0})} == {(i, j)}
     # (a robot whose turn comes after robot 1's may still have a move that saves more)
-    assert (i, j) not in {(k, t) for k, t, _ in _claims(
+    assert (i, j) not in {(k, t) for k, t, *_ in _claims(
         domain, P, params | {"escape_team_gain": 1.1 * S / H0})}
     assert _claims(domain, P, params | {"escape_team_gain": 0.5}) == []
 
@@ -630,7 +631,7 @@ def test_a_cell_over_several_rooms_offers_the_descent_a_point_in_each():
 
     assert _claims(domain, P, {"escape_descent_rooms": 0}) == []
     made = _claims(domain, P, {})
-    assert {(k, c) for k, c, _ in made} == {(i, j)}
+    assert {(k, c) for k, c, *_ in made} == {(i, j)}
     to = made[0][2]
     assert to[0] > 5.5 and 2.5 < to[1] < 6.0
 
@@ -706,21 +707,32 @@ def test_a_robot_claims_no_more_where_the_team_came_back_after_its_move():
     assert max(claims(team[1], near)) == 7
 
 
-def test_no_move_is_priced_by_the_descent_where_a_move_heard_left_from():
+def test_a_move_priced_by_the_descent_where_a_move_heard_left_from_must_save_more():
     """At the plan-2 positions robot 1's move into robot 7's cell is priced by the descent
-    (no bound sees it). A team that heard a move leave from these same places (robot 5 into
-    robot 7's cell) and stands there again came back from it: the descent's prediction failed
-    here, and nobody claims by it; a move heard from places a room away changes nothing."""
+    (no bound sees it), which stops once the move pays. A team that heard a move leave from
+    these same places and stands there again came back from it: the descent was wrong there
+    by that move's saving, and a move priced by it must now save more - robot 1's descent
+    runs on past 1.5 times its first price, not past 2.5 times (robot 2's move then pays);
+    a move heard from places a room away changes nothing."""
     domain, P = _drawn_plan(2), PLAN2_SETTLED
     params = {"escape_descent_offers": 1, "escape_descent_rooms": 0}
-    assert {(k, t) for k, t, _ in _claims(domain, P, params)} == {(1, 7)}
+    made = _claims(domain, P, params)
+    assert {(k, t) for k, t, *_ in made} == {(1, 7)}
+    first = made[0][3]
 
-    def heard(shift: list[float]) -> list[HeardMove]:
-        return [HeardMove(Places(tuple(range(len(P))), P + shift), P[5].copy(), P[7].copy())]
+    def heard(shift: list[float], saving: float) -> list[HeardMove]:
+        return [HeardMove(Places(tuple(range(len(P))), P + shift), P[5].copy(), P[7].copy(),
+                          saving)]
 
-    assert _claims(domain, P, params, heard([0.0, 0.0])) == []
-    assert _claims(domain, P, params, heard([0.05, -0.05])) == []  # (as live robots stop)
-    assert {(k, t) for k, t, _ in _claims(domain, P, params, heard([4.0, 0.0]))} == {(1, 7)}
+    # (shifted a little: as live robots stop)
+    made = _claims(domain, P, params, heard([0.05, -0.05], 1.5 * first))
+    assert {(k, t) for k, t, *_ in made} == {(1, 7)}
+    assert all(g > 1.5 * first for *_, g in made)
+    made = _claims(domain, P, params, heard([0.0, 0.0], 2.5 * first))
+    assert made and (1, 7) not in {(k, t) for k, t, *_ in made}
+    assert all(g > 2.5 * first for *_, g in made)
+    made = _claims(domain, P, params, heard([4.0, 0.0], 100 * first))
+    assert {(k, t) for k, t, *_ in made} == {(1, 7)} and made[0][3] == first
 
 
 def test_places_are_the_same_whichever_robot_stands_where():

@@ -45,12 +45,19 @@ class Places:
 @dataclass(frozen=True)
 class HeardMove:
     """A move a robot heard another make: where the team stood, where the mover left from and
-    where it went [m], and the saving its claim was priced at."""
+    where it went [m], the saving its claim was priced at and who moved."""
 
     places: Places
     start: np.ndarray  # (2,) [m]
     end: np.ndarray  # (2,) [m]
     saving: float = 0.0  # the claim's ``claim_gain`` (units of H)
+    mover: int = -1  # its robot id (-1: not known)
+
+    def pulled_back(self, neighbours: Sequence[Neighbour], near: float) -> bool:
+        """The mover, among ``neighbours``, stands within ``near`` [m] of where it left from."""
+        return any(n.robot_id == self.mover
+                   and float(np.hypot(*(np.asarray(n.position) - self.start))) <= near
+                   for n in neighbours)
 
     def again(self, here: Places, position: np.ndarray, point: np.ndarray, near: float
               ) -> bool:

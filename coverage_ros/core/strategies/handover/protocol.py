@@ -69,10 +69,11 @@ team stood when the claim was heard, where the claimer left from and where it we
 not make one of them again from the same places - each robot within
 :data:`.places.SAME_PLACE_SHARE` of its cell's radius of one of them, whichever robot stands
 where, itself where the mover left from and the offered point where the mover went. Other
-moves from there stay open (a team may need several moves from one configuration), but one
-priced by the descent must save more than the heard move's claim: a team back where a move
-left from shows the descent wrong there by that saving (live, neighbours hold the mover's
-cell while it drives, it may be pulled back, or two robots trade places).
+moves from there stay open (a team may need several moves from one configuration), but a
+team back where a move left from shows the descent wrong there: with the mover back where it
+left from (live, neighbours hold its cell while it drives, and it was pulled back) none is
+priced by the descent; else (it and the robot it displaced traded places) one priced by the
+descent must save more than the heard move's claim.
 What a robot uses is its own cell, the generators and published values of the robots it
 hears (its bordering neighbours' cells, and for the joint bound the target's and those that
 touch either, are tessellated from them), nothing else; the protocol is deterministic.
@@ -163,8 +164,7 @@ class Handover:
     _claimed_from: Departure | None = field(default=None, repr=False)
     _departures: list[Departure] = field(default_factory=list, repr=False)
     #: claims heard, by claimer id: (where the claimer stood [m], its target, the team's
-    #: places then, the claim's saving), kept in ``_moves`` once the claimer is heard
-    #: relocating
+    #: places then, the claim's saving), kept in ``_moves`` once it is heard relocating
     _heard_claims: dict[int, tuple[np.ndarray, int, Places, float]] = field(
         default_factory=dict, repr=False)
     _moves: list[HeardMove] = field(default_factory=list, repr=False)
@@ -277,7 +277,7 @@ class Handover:
                 if heard is not None:
                     self._heard_claims.pop(rid)
                     move = HeardMove(heard[2], heard[0],
-                                     np.array(destination(n), dtype=np.float64), heard[3])
+                                     np.array(destination(n), dtype=np.float64), heard[3], rid)
                     self._moves = [*self._moves, move][-DEPARTURES:]
             elif target < 0:
                 self._heard_claims.pop(rid, None)
@@ -341,12 +341,12 @@ class Handover:
                 o.key: -self.prices.joint(key, position, weight, neighbours, o, rings)
                 for o in offers})
             rings += 1
-        if best is None and stopped and self.settings.descent_offers > 0:
-            # no bound sees it: where the whole team's own descent goes from the largest
-            # offers, priced by one robot per update, the one whose cell costs least first
-            # (more than a heard move from these places saved: it failed by that much)
-            failed = max((m.saving for m in self._moves if here.same(m.places, near)),
-                         default=0.0)
+        back = [m for m in self._moves if here.same(m.places, near)]  # (module docstring)
+        if best is None and stopped and self.settings.descent_offers > 0 and not any(
+                m.pulled_back(neighbours, near) for m in back):
+            # no bound sees it: where the whole team's own descent goes from the largest offers
+            # (past a heard move's saving), by one robot per update, the least costly first
+            failed = max((m.saving for m in back), default=0.0)
 
             def beyond(o: Offer) -> float:
                 return max(need(o), failed)

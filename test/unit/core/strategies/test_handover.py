@@ -710,20 +710,24 @@ def test_a_robot_claims_no_more_where_the_team_came_back_after_its_move():
 def test_a_move_priced_by_the_descent_where_a_move_heard_left_from_must_save_more():
     """At the plan-2 positions robot 1's move into robot 7's cell is priced by the descent
     (no bound sees it), which stops once the move pays. A team that heard a move leave from
-    these same places and stands there again came back from it: the descent was wrong there
-    by that move's saving, and a move priced by it must now save more - robot 1's descent
-    runs on past 1.5 times its first price, not past 2.5 times (robot 2's move then pays);
-    a move heard from places a room away changes nothing."""
+    these same places and stands there again came back from it: the descent was wrong there.
+    With the mover back where it left from (robot 5, pulled back) nobody claims by the
+    descent. With the mover where it went and the robot it displaced where it left from
+    (robot 7 from robot 5's place, the two traded places) a move priced by the descent must
+    save more than the heard move's claim - robot 1's descent runs on past 1.5 times its first
+    price, not past 2.5 times (robot 2's move then pays); a move heard from places a room away
+    changes nothing."""
     domain, P = _drawn_plan(2), PLAN2_SETTLED
     params = {"escape_descent_offers": 1, "escape_descent_rooms": 0}
     made = _claims(domain, P, params)
     assert {(k, t) for k, t, *_ in made} == {(1, 7)}
     first = made[0][3]
 
-    def heard(shift: list[float], saving: float) -> list[HeardMove]:
+    def heard(shift: list[float], saving: float, mover: int = 7) -> list[HeardMove]:
         return [HeardMove(Places(tuple(range(len(P))), P + shift), P[5].copy(), P[7].copy(),
-                          saving)]
+                          saving, mover)]
 
+    assert _claims(domain, P, params, heard([0.05, -0.05], 0.0, mover=5)) == []
     # (shifted a little: as live robots stop)
     made = _claims(domain, P, params, heard([0.05, -0.05], 1.5 * first))
     assert {(k, t) for k, t, *_ in made} == {(1, 7)}
@@ -731,7 +735,7 @@ def test_a_move_priced_by_the_descent_where_a_move_heard_left_from_must_save_mor
     made = _claims(domain, P, params, heard([0.0, 0.0], 2.5 * first))
     assert made and (1, 7) not in {(k, t) for k, t, *_ in made}
     assert all(g > 2.5 * first for *_, g in made)
-    made = _claims(domain, P, params, heard([4.0, 0.0], 100 * first))
+    made = _claims(domain, P, params, heard([4.0, 0.0], 100 * first, mover=5))
     assert {(k, t) for k, t, *_ in made} == {(1, 7)} and made[0][3] == first
 
 
@@ -762,6 +766,16 @@ def test_places_are_the_same_whichever_robot_stands_where():
     assert not move.again(here, np.array([5.0, 0.0]), np.array([9.0, 9.2]), 0.1)
     assert not move.again(here, np.array([0.0, 5.0]), np.array([9.0, 9.0]), 0.1)
     assert not move.again(c, np.array([5.0, 0.0]), np.array([9.0, 9.0]), 0.1)
+    # its mover (robot 1) back where it left from, or not
+    moved = dataclasses.replace(move, mover=1)
+
+    def at(k, point):
+        return [Neighbour(k, SharedState(position=np.array(point), weight=0.0))]
+
+    assert moved.pulled_back(at(1, [5.05, 0.0]), 0.1)
+    assert not moved.pulled_back(at(1, [9.0, 9.0]), 0.1)
+    assert not moved.pulled_back(at(2, [5.0, 0.0]), 0.1)
+    assert not move.pulled_back(at(1, [5.0, 0.0]), 0.1)  # (mover not known)
 
 
 def test_one_claimant_per_cell_and_claims_follow_grants():

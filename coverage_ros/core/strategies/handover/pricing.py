@@ -27,6 +27,14 @@ from coverage_ros.core.strategies.handover.split import SplitOffer, room_offers,
 
 #: Power weights closer than this [m] count as equal (the bounds assume equal weights).
 WEIGHT_MATCH = 1e-9
+#: Starts a move's descent is priced from (:meth:`Prices.descent`): the configuration heard and
+#: others shifted from it by at most :data:`JITTER`. A descent through a doorway can go either
+#: way from starts a few cm apart (the robot that follows into the vacated cell, or the one
+#: that stays), live positions are known only that well, and a move is backed by a
+#: configuration next to it (:mod:`.bounds`): one reached from any of the starts.
+DESCENT_DRAWS = 5
+#: Largest shift [grid cells] of each generator, per axis, in the other starts of a descent.
+JITTER = 0.5
 #: A price's key: (target robot id, its point x, y [m], rings: -1 H heard, 0 the descent,
 #: >= 1 the joint bound, the saving [units of H] past which the descent stops)
 Memo = tuple[int, float, float, int, float]
@@ -48,6 +56,8 @@ class Prices:
         default=None, repr=False)
     #: room offers (:func:`.split.room_offers`) per robot id, of the configuration of ``_joint``
     _rooms: dict[int, list[Offer]] = field(default_factory=dict, repr=False)
+    #: the cells of the shifted starts of the descents (:data:`DESCENT_DRAWS`), by draw
+    _shifted: dict[int, Known] = field(default_factory=dict, repr=False)
 
     def offers(self, key: np.ndarray, cell: CellResult, weight: float
                ) -> list[SplitOffer]:
@@ -64,7 +74,7 @@ class Prices:
         if self._joint is None or not same_config(self._joint[0], key, self.domain.resolution):
             gens = np.vstack([position[None], [n.position for n in neighbours]])
             self._joint = (key, known_cells(self.domain, gens, self.method), {})
-            self._rooms = {}
+            self._rooms, self._shifted = {}, {}
         return self._joint[1], self._joint[2]
 
     def heard_cost(self, key: np.ndarray, position: np.ndarray,
@@ -120,7 +130,9 @@ class Prices:
                 neighbours: Sequence[Neighbour], target: Offer,
                 enough: float) -> float:
         """:func:`.bounds.descent_change` of a move to ``target``'s offered point, every
-        generator it hears descending, stopped once H is lower by more than ``enough``."""
+        generator it hears descending, stopped once H is lower by more than ``enough``: the
+        least over the configuration heard and up to ``DESCENT_DRAWS - 1`` others shifted by
+        at most :data:`JITTER`, drawn until one pays more than ``enough``."""
         if any(abs(n.state.weight - weight) >= WEIGHT_MATCH for n in neighbours):
             return math.inf  # the descent prices equal power weights
         known, values = self.known(key, position, neighbours)
@@ -128,10 +140,29 @@ class Prices:
         # (rings 0: the descent, with where it stops)
         memo = (target.robot_id, float(point[0]), float(point[1]), 0, float(enough))
         if memo not in values:
-            values[memo] = descent_change(self.domain, known, weight,
-                                          list(range(1, len(known.generators))), point,
-                                          self.method, enough=enough).increase
+            movers = list(range(1, len(known.generators)))
+            found = math.inf
+            for draw in range(DESCENT_DRAWS):
+                start = known if draw == 0 else self.shifted(known, draw)
+                found = min(found, descent_change(self.domain, start, weight, movers, point,
+                                                  self.method, enough=enough).increase)
+                if found < -enough:
+                    break
+            values[memo] = found
         return values[memo]
+
+    def shifted(self, known: Known, draw: int) -> Known:
+        """The cells of ``known``'s generators each shifted by a fixed draw of at most
+        :data:`JITTER` grid cells per axis (kept where the shift leaves free space)."""
+        if draw not in self._shifted:
+            gens = known.generators
+            shift = np.random.default_rng(draw).uniform(-1.0, 1.0, gens.shape) \
+                * JITTER * self.domain.resolution
+            moved = gens + shift
+            free = np.array([self.domain.is_free_point(q) for q in moved])
+            self._shifted[draw] = known_cells(
+                self.domain, np.where(free[:, None], moved, gens), self.method)
+        return self._shifted[draw]
 
     def removal(self, key: np.ndarray, position: np.ndarray, weight: float,
                 cell: CellResult, neighbours: Sequence[Neighbour],

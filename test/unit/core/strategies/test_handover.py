@@ -563,7 +563,7 @@ def test_a_move_no_bound_sees_is_priced_by_the_teams_own_descent():
 
 def test_a_move_must_save_a_share_of_the_teams_H():
     """Robot 1's move into robot 7's cell at the plan-2 positions saves S (where the team's
-    own descent ends): claimed while ``escape_team_gain`` asks for less than S of the team's
+    own descent ends, from the best of the priced starts): claimed while ``escape_team_gain`` asks for less than S of the team's
     H (its descent then goes on past the pair's threshold to that share), not once it asks
     for more - whatever the pair's threshold says; asked for half the team's H, nobody
     claims."""
@@ -571,7 +571,12 @@ def test_a_move_must_save_a_share_of_the_teams_H():
 
     domain, P, (i, j) = _drawn_plan(2), PLAN2_SETTLED, (1, 7)
     H0, cells, offer, _, known = _move_into(domain, P, i, j)
-    S = -descent_change(domain, known, 0.0, list(range(1, len(P))), offer.point).increase
+    from coverage_ros.core.strategies.handover.pricing import DESCENT_DRAWS, Prices
+
+    shifts = Prices(domain, "auto", 1, 1, 1)
+    starts = [known, *(shifts.shifted(known, d) for d in range(1, DESCENT_DRAWS))]
+    S = -min(descent_change(domain, k, 0.0, list(range(1, len(P))), offer.point).increase
+             for k in starts)
     assert S > GeodesicParams().escape_gain * (cells[i].cost + offer.base)
     params = {"escape_descent_offers": 1, "escape_descent_rooms": 0}
     assert {(k, t) for k, t, *_ in _claims(

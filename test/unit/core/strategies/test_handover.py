@@ -563,10 +563,10 @@ def test_a_move_no_bound_sees_is_priced_by_the_teams_own_descent():
 
 def test_a_move_must_save_a_share_of_the_teams_H():
     """Robot 1's move into robot 7's cell at the plan-2 positions saves S (where the team's
-    own descent ends, from the best of the priced starts): claimed while ``escape_team_gain`` asks for less than S of the team's
-    H (its descent then goes on past the pair's threshold to that share), not once it asks
-    for more - whatever the pair's threshold says; asked for half the team's H, nobody
-    claims."""
+    own descent ends, from the best of the priced starts): claimed while
+    ``escape_team_gain`` asks for less than S of the team's H (its descent then goes on past
+    the pair's threshold to that share), not once it asks for more - whatever the pair's
+    threshold says; asked for half the team's H, nobody claims."""
     from coverage_ros.core.strategies.handover.bounds import descent_change
 
     domain, P, (i, j) = _drawn_plan(2), PLAN2_SETTLED, (1, 7)

@@ -586,6 +586,52 @@ def test_a_move_must_save_a_share_of_the_teams_H():
         domain, P, params | {"escape_team_gain": 1.1 * S / H0})}
     assert _claims(domain, P, params | {"escape_team_gain": 0.5}) == []
 
+#: [m] a live team of 8 on drawn plan 13 within 5 cm of where it ended 5.4 % above the best
+#: known (start seed 1 of scripts/bench_closets): robot 0's move to PLAN13_POINT, in robot 4's
+#: cell, saves about 62 where robot 7 stays in its room and costs about 95 where it follows
+#: into robot 0's old cell, which of the two depending on starts a few cm apart.
+PLAN13_NEAR_END = np.array([
+    [7.506, 8.041], [18.791, 2.183], [12.375, 8.46], [17.978, 6.099], [2.494, 5.981],
+    [4.27, 2.132], [13.68, 4.461], [7.999, 3.408]])
+PLAN13_POINT = np.array([4.45, 8.15])
+
+
+def test_a_move_the_descent_from_the_configuration_heard_misses_is_priced_from_shifted_starts():
+    """At PLAN13_NEAR_END the team's own descent from robot 0's move ends 95 higher; from a
+    start with every robot shifted by at most half a grid cell it ends 62 lower. A robot
+    pricing the move finds the saving, and the price it returns is that descent's."""
+    from coverage_ros.core.strategies.handover.bounds import descent_change
+    from coverage_ros.core.strategies.handover.pricing import (
+        DESCENT_DRAWS,
+        JITTER,
+        Prices,
+        config_key,
+    )
+    from coverage_ros.core.strategies.handover.published import Offer
+
+    domain, P = _drawn_plan(13), PLAN13_NEAR_END
+    known = known_cells(domain, P)
+    movers = list(range(1, len(P)))
+    single = descent_change(domain, known, 0.0, movers, PLAN13_POINT).increase
+    assert single > 50.0
+    prices = Prices(domain, "auto", 1, 1, 1)
+    shifted = [prices.shifted(known, d) for d in range(1, DESCENT_DRAWS)]
+    for k in shifted:  # each start within JITTER of the configuration heard, same robots
+        assert np.abs(k.generators - P).max() <= JITTER * domain.resolution + 1e-12
+    increases = [descent_change(domain, k, 0.0, movers, PLAN13_POINT).increase
+                 for k in shifted]
+    assert min(increases) < -50.0
+    nbrs = [Neighbour(j, SharedState(position=P[j].copy())) for j in movers]
+    offer = Offer((4, 0), 0.0, PLAN13_POINT, 0.0)
+    key = config_key(P[0], nbrs)
+    price = prices.descent(key, P[0], 0.0, nbrs, offer, 20.0)
+    first = next(v for v in increases if v < -20.0)  # drawn until one pays more than 20
+    assert price == pytest.approx(
+        descent_change(domain, shifted[increases.index(first)], 0.0, movers, PLAN13_POINT,
+                       enough=20.0).increase)
+    assert price < -20.0
+
+
 #: [m] where a team of 8 on drawn plan 12 ended with no offer paying (start seed 1 of
 #: scripts/bench_closets, H 6.5 % above the best known): robot 6 covers from the corridor
 #: a west room, the large east room and the south-east room; robot 4 sits in the south-west

@@ -16,6 +16,10 @@ parent had died when the signal came (the kernel's SIGTERM to a child of a kille
 no second one: its clean-up is cut short :data:`SHUTDOWN_LIMIT` seconds after the signal (a
 container of fifty robots took over 30 s on a loaded host). With its parent alive it is left to
 finish (the launcher gives the rerun bridge 30 s to index its recording, then signals again).
+While the nodes are being built, a process that asked for a signal on its parent's death asks
+for SIGKILL instead (it has nothing to say yet, and a start-up can wait in native code that
+holds the interpreter, e.g. on a shared-memory port a sibling's end left half made, where no
+Python handler runs); once they are built it asks for its own signal again.
 
 The executor is rclpy's ``EventsExecutor`` (``rclpy.experimental``, its dispatch loop in C++:
 0.24-0.30x the CPU per message received in ``scripts/bench_executor``; a process of 16 robots
@@ -28,6 +32,7 @@ Either is spun by ``spin_once`` in a loop that checks for a stop request (the Ev
 
 from __future__ import annotations
 
+import ctypes
 import os
 import signal
 import sys
@@ -45,6 +50,7 @@ from rclpy.signals import SignalHandlerOptions
 
 from coverage_ros.errors import CoverageError
 from coverage_ros.nodes.parameters import ParameterTable, usage_text
+from coverage_ros.nodes.preloaded import PR_SET_PDEATHSIG, prctl
 from coverage_ros.nodes.shm_ports import warn_removed_ports
 
 STARTUP_ERRORS = (CoverageError, ParameterException, OSError)
@@ -145,6 +151,20 @@ class StopRequest:
             signal.signal(sig, handler)
 
 
+PR_GET_PDEATHSIG = 2  # linux/prctl.h
+
+
+def parent_death_signal() -> int:
+    """The signal this process asked for on its parent's death (0: none, or unknown)."""
+    value = ctypes.c_int(0)
+    try:
+        ok = ctypes.CDLL("libc.so.6", use_errno=True).prctl(PR_GET_PDEATHSIG,
+                                                            ctypes.byref(value)) == 0
+    except (OSError, AttributeError):
+        return 0
+    return value.value if ok else 0
+
+
 def _cut_short(signum: int) -> None:
     print(f"parent gone and shutdown still running {SHUTDOWN_LIMIT:g} s after the signal: "
           "ending now",
@@ -195,8 +215,11 @@ def run_nodes(name: str, make_nodes: Callable[[], list[Node]], args=None,
         print(f"{name}: error: {exc}", file=sys.stderr)
         return 2
     warn_removed_ports(name)
+    on_parent_death = parent_death_signal()
     stop = StopRequest()
     try:
+        if on_parent_death:  # (module docstring: the kernel ends a start-up stuck in native code)
+            prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
         rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
         nodes = make_nodes()
         stop.starting = False
@@ -211,6 +234,8 @@ def run_nodes(name: str, make_nodes: Callable[[], list[Node]], args=None,
         rclpy.try_shutdown()
         stop.restore()
         return 2
+    if on_parent_death:  # (had the parent died before this, SIGKILL would have come)
+        prctl(PR_SET_PDEATHSIG, on_parent_death)
     executor = _executor(kind)
     nodes[0].get_logger().info(f"executor: {kind} ({EXECUTOR_ENV}; default {EXECUTORS[0]})")
     for node in nodes:

@@ -1,6 +1,7 @@
 """A node process whose parent has died ends within a bounded time of its SIGTERM, whatever its
 clean-up does: the kernel's signal to the child of a killed launcher is the only one it gets.
-With its parent alive, a slow clean-up is left to finish (the parent may signal again)."""
+With its parent alive, a slow clean-up is left to finish (the parent may signal again). One
+whose parent dies while it builds its nodes ends at once, even when waiting in native code."""
 
 from __future__ import annotations
 
@@ -37,13 +38,37 @@ def cleanup(node):
 sys.exit(runner.run_node("stuck_probe", make, cleanup=cleanup))
 """
 
+#: A node whose start-up waits 30 s in native code that holds the interpreter and that signals
+#: do not end (a mutex locked twice), as a wait on a half-made shared-memory port does.
+_STUCK_START = """
+import ctypes, sys, time
+import rclpy.node
+from coverage_ros.nodes import runner
+
+class Deadline(ctypes.Structure):
+    _fields_ = [("tv_sec", ctypes.c_long), ("tv_nsec", ctypes.c_long)]
+
+def make():
+    node = rclpy.node.Node("stuck_start_probe")
+    print("starting", flush=True)
+    libc, mutex = ctypes.PyDLL(None), ctypes.create_string_buffer(64)
+    libc.pthread_mutex_lock(mutex)
+    libc.pthread_mutex_timedlock(mutex, ctypes.byref(Deadline(int(time.time()) + 30, 0)))
+    print("built", flush=True)
+    return node
+
+sys.exit(runner.run_node("stuck_start_probe", make))
+"""
+
 #: The launcher's part: a subreaper (as the launcher is) starts a middle process, which starts
 #: the node asking for SIGTERM on its parent's death; the middle one is killed once the node
-#: spins. The node's exit code and how long it took after that, as JSON.
+#: has printed the word given (default "spinning"). The node's exit code and how long it took
+#: after that, as JSON.
 _ORPHANING = """
 import json, os, signal, subprocess, sys, time
 from coverage_ros.nodes.preloaded import PR_SET_CHILD_SUBREAPER, prctl
 log, stuck, node = sys.argv[1], sys.argv[2], sys.argv[3]
+ready = sys.argv[4] if len(sys.argv) > 4 else "spinning"
 middle = '''
 import signal, subprocess, sys
 from coverage_ros.nodes.preloaded import PR_SET_PDEATHSIG, prctl
@@ -57,7 +82,7 @@ assert prctl(PR_SET_CHILD_SUBREAPER, 1)
 proc = subprocess.Popen([sys.executable, "-c", middle, log, stuck, node], stdout=subprocess.PIPE)
 pid = int(proc.stdout.readline())
 deadline = time.monotonic() + 60.0
-while "spinning" not in open(log).read():
+while ready not in open(log).read():
     assert time.monotonic() < deadline, open(log).read()
     time.sleep(0.05)
 proc.kill()
@@ -119,3 +144,19 @@ def test_a_clean_up_that_ends_leaves_no_deadline_behind(tmp_path):
     assert out.returncode == 0, out.stderr
     assert json.loads(out.stdout)["code"] == 0, log.read_text()
     assert "still here 0" in log.read_text()
+
+
+def test_an_orphan_whose_start_up_waits_in_native_code_ends_at_once(tmp_path):
+    """The parent dies while the node's start-up waits where no Python signal handler can run:
+    the kernel ends it (SIGKILL, asked for while the nodes are built) instead of the SIGTERM
+    handler 30 s later, when the wait gives up."""
+    log = tmp_path / "node.log"
+    out = subprocess.run([sys.executable, "-c", _ORPHANING, str(log), "native", _STUCK_START,
+                          "starting"],
+                         cwd=REPO, env=ros_env(domain_id(11)), capture_output=True, text=True,
+                         timeout=120)
+    assert out.returncode == 0, out.stderr
+    result = json.loads(out.stdout)
+    assert result["code"] == -signal.SIGKILL, log.read_text()
+    assert result["took"] < 10.0, result
+    assert "built" not in log.read_text()

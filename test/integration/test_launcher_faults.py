@@ -62,6 +62,19 @@ def _described(pids: list[int]) -> list[str]:
     return out
 
 
+def _log_tails(logs, pids: list[int], lines: int = 8) -> str:
+    """The last ``lines`` of each process's log in ``logs``, found by the name ``top`` shows
+    (for a failure's message: where a process left behind was)."""
+    out = []
+    for pid in pids:
+        with contextlib.suppress(psutil.Error, OSError):
+            name = psutil.Process(pid).name()
+            for log in sorted(logs.glob(f"{name}*.log")):
+                tail = log.read_text(errors="replace").splitlines()[-lines:]
+                out.append("\n".join([f"--- {log.name}", *tail]))
+    return "\n".join(out)
+
+
 def _children(pid: int) -> list[psutil.Process]:
     try:
         return psutil.Process(pid).children(recursive=True)
@@ -186,7 +199,8 @@ def test_a_launcher_killed_during_a_big_start_up_leaves_nothing_behind(tmp_path,
         alive = [pid for pid, p in seen.items() if p.is_running() and p.status() != "zombie"]
     try:
         assert len(seen) >= 4, seen  # the world and the robots' processes
-        assert not alive, f"left behind 30 s after the launcher died: {_described(alive)}"
+        assert not alive, (f"left behind 30 s after the launcher died: {_described(alive)}\n"
+                           f"{_log_tails(tmp_path / 'team' / 'logs', alive)}")
     finally:
         for pid in alive:
             with contextlib.suppress(ProcessLookupError):

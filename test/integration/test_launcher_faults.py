@@ -75,6 +75,22 @@ def _log_tails(logs, pids: list[int], lines: int = 8) -> str:
     return "\n".join(out)
 
 
+def _watched_until(launcher: int, when: float) -> dict[int, psutil.Process]:
+    """The launcher's processes by PID, every one seen until ``when`` [s] after its first node
+    process (its own start-up takes seconds; the fork server comes first, the node processes
+    once it has loaded their code)."""
+    seen: dict[int, psutil.Process] = {}
+    started, limit = None, time.monotonic() + 60.0
+    while started is None or time.monotonic() < started + when:
+        assert time.monotonic() < limit, "the launcher started no process within 60 s"
+        for p in _children(launcher):
+            seen.setdefault(p.pid, p)
+        if started is None and any(not _is_fork_server(p) for p in seen.values()):
+            started = time.monotonic()
+        time.sleep(0.2)
+    return seen
+
+
 def _children(pid: int) -> list[psutil.Process]:
     try:
         return psutil.Process(pid).children(recursive=True)
@@ -92,17 +108,7 @@ def test_an_interrupt_at_any_moment_leaves_nothing_behind(tmp_path, when):
                                      "--domain-id", str(domain_id(27 if when < 10 else 28))),
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             env=ros_env(domain_id(27)), start_new_session=True)
-    # ``when`` [s] counts from the launcher's first child: its own start-up takes seconds.
-    seen: dict[int, psutil.Process] = {}
-    started, limit = None, time.monotonic() + 60.0
-    while started is None or time.monotonic() < started + when:
-        assert time.monotonic() < limit, "the launcher started no process within 60 s"
-        for p in _children(team.pid):
-            seen.setdefault(p.pid, p)
-        # (the fork server comes first: the node processes once it has loaded their code)
-        if started is None and any(not _is_fork_server(p) for p in seen.values()):
-            started = time.monotonic()
-        time.sleep(0.2)
+    seen = _watched_until(team.pid, when)
     team.send_signal(signal.SIGINT)
     t0 = time.monotonic()
     _, err = team.communicate(timeout=30)
@@ -180,16 +186,7 @@ def test_a_launcher_killed_during_a_big_start_up_leaves_nothing_behind(tmp_path,
                                      str(domain_id(29))),
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                             env=ros_env(domain_id(29)), start_new_session=True)
-    seen: dict[int, psutil.Process] = {}
-    started, limit = None, time.monotonic() + 60.0
-    while started is None or time.monotonic() < started + when:
-        assert time.monotonic() < limit, "the launcher started no process within 60 s"
-        for p in _children(team.pid):
-            seen.setdefault(p.pid, p)
-        # (the fork server comes first: the node processes once it has loaded their code)
-        if started is None and any(not _is_fork_server(p) for p in seen.values()):
-            started = time.monotonic()
-        time.sleep(0.2)
+    seen = _watched_until(team.pid, when)
     team.kill()
     team.wait()
     deadline = time.monotonic() + 30.0  # (four processes of fifty robots unwinding, loaded)

@@ -42,12 +42,13 @@ from typing import IO
 #: The executables served, by the module whose ``main()`` each one runs.
 MODULES = {"robot_node": "coverage_ros.nodes.robot_node",
            "robot_container": "coverage_ros.nodes.robot_container"}
-PR_SET_PDEATHSIG, PR_SET_NAME, PR_SET_CHILD_SUBREAPER = 1, 15, 36  # linux/prctl.h
+PR_SET_PDEATHSIG, PR_GET_PDEATHSIG, PR_SET_NAME, PR_SET_CHILD_SUBREAPER = 1, 2, 15, 36  # prctl.h
 #: [s] a forked process waits this long at most to be reparented to the launcher
 REPARENT_WAIT = 5.0
 
 
-def prctl(option: int, value: int | bytes) -> bool:
+def prctl(option: int, value: object) -> bool:
+    """Linux ``prctl(option, value)`` (an int, bytes or a ctypes pointer); whether it succeeded."""
     with contextlib.suppress(Exception):
         return ctypes.CDLL("libc.so.6", use_errno=True).prctl(option, value) == 0
     return False

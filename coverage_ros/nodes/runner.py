@@ -50,7 +50,7 @@ from rclpy.signals import SignalHandlerOptions
 
 from coverage_ros.errors import CoverageError
 from coverage_ros.nodes.parameters import ParameterTable, usage_text
-from coverage_ros.nodes.preloaded import PR_SET_PDEATHSIG, prctl
+from coverage_ros.nodes.preloaded import PR_GET_PDEATHSIG, PR_SET_PDEATHSIG, prctl
 from coverage_ros.nodes.shm_ports import warn_removed_ports
 
 STARTUP_ERRORS = (CoverageError, ParameterException, OSError)
@@ -151,18 +151,10 @@ class StopRequest:
             signal.signal(sig, handler)
 
 
-PR_GET_PDEATHSIG = 2  # linux/prctl.h
-
-
 def parent_death_signal() -> int:
     """The signal this process asked for on its parent's death (0: none, or unknown)."""
     value = ctypes.c_int(0)
-    try:
-        ok = ctypes.CDLL("libc.so.6", use_errno=True).prctl(PR_GET_PDEATHSIG,
-                                                            ctypes.byref(value)) == 0
-    except (OSError, AttributeError):
-        return 0
-    return value.value if ok else 0
+    return value.value if prctl(PR_GET_PDEATHSIG, ctypes.byref(value)) else 0
 
 
 def _cut_short(signum: int) -> None:

@@ -168,12 +168,16 @@ def _lloyd_in(domain: CoverageDomain, U: np.ndarray, movers: np.ndarray, fixed: 
         if step == steps:
             break
         last = pos.copy()
+        # each mover's part in index order, as a mask would select it (a stable sort)
+        by_label = np.argsort(lab.astype(np.int32), kind="stable")
+        bounds = np.searchsorted(lab[by_label], np.arange(len(pos) + 1))
         for k in range(len(pos)):
-            part = lab == k
-            m = float(w[part].sum())
+            part = by_label[bounds[k]:bounds[k + 1]]
+            wp, pp = w[part], pts[part]
+            m = float(wp.sum())
             if m > 0:
-                centroid = (pts[part] * w[part, None]).sum(axis=0) / m
-                pos[k] = pts[part][int(np.argmin(np.hypot(*(pts[part] - centroid).T)))]
+                centroid = (pp * wp[:, None]).sum(axis=0) / m
+                pos[k] = pp[int(np.argmin(np.hypot(*(pp - centroid).T)))]
         if np.array_equal(pos, last):
             break  # a fixed point: every further step gives the same cost
     return best, at

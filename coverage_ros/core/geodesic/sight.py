@@ -6,6 +6,7 @@ cells at a time when many are asked). :class:`LineOfSight` is a part of
 from __future__ import annotations
 
 import math
+from collections import OrderedDict
 from collections.abc import Hashable
 from typing import TYPE_CHECKING, Any
 
@@ -29,6 +30,30 @@ TILED_FROM = 2048
 SEGMENT_MARGIN = 2.2
 #: The depth maps a caller keeps, by origin: ``[box, depth map, tile states or None]``.
 DepthMaps = dict[tuple[float, float], list[Any]]
+#: [bytes] depth maps a domain keeps between searches (:meth:`LineOfSight.kept_depth_maps`)
+KEPT_DEPTH_BYTES = 32 << 20
+
+
+class KeptDepthMaps(OrderedDict[tuple[float, float], list[Any]]):
+    """Depth maps by origin, at most ``capacity`` of them, the least recently used dropped
+    first (a :data:`DepthMaps` kept between calls)."""
+
+    def __init__(self, capacity: int) -> None:
+        super().__init__()
+        self.capacity = capacity
+
+    def get(self, key: tuple[float, float], default: Any = None) -> Any:
+        held = super().get(key)
+        if held is None:
+            return default
+        self.move_to_end(key)
+        return held
+
+    def __setitem__(self, key: tuple[float, float], held: list[Any]) -> None:
+        super().__setitem__(key, held)
+        self.move_to_end(key)
+        while len(self) > self.capacity:
+            self.popitem(last=False)
 
 
 class LineOfSight:
@@ -104,6 +129,19 @@ class LineOfSight:
             self._cache[key] = np.stack([cc + 0.5, rr + 0.5], axis=-1).astype(np.float64)
         centers: np.ndarray = self._cache[key]
         return centers
+
+    def kept_depth_maps(self) -> DepthMaps:
+        """The domain's own :data:`DepthMaps`, kept between searches (made on first use; at
+        most :data:`KEPT_DEPTH_BYTES` of maps): a map depends on its origin and the domain
+        alone, and one of a larger box changes no answer (:meth:`_depth_map`), so searches
+        from a generator that stands where one stood before (a descent's start, again for
+        every move it prices) make none anew."""
+        kept = self._cache.get("kept_depth_maps")
+        if kept is None:
+            kept = KeptDepthMaps(max(16, KEPT_DEPTH_BYTES // (8 * self.depth_bins)))
+            self._cache["kept_depth_maps"] = kept
+        maps: DepthMaps = kept
+        return maps
 
     def visible_mask(self, origin: np.ndarray, points: np.ndarray, radius: float,
                      depths: DepthMaps | None = None,

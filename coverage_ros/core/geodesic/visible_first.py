@@ -74,7 +74,7 @@ def visible_first_search(domain: CoverageDomain, local: LocalGraph,
     # in a tile seen (hidden) whole from their winner are settled (not) by the tile's answer,
     # the others one by one (the same answers), each generator's from a depth map of the
     # occluders around its cells (the hidden cells' search widens it where it needs).
-    depths: DepthMaps = {}
+    depths = domain.kept_depth_maps()
     node_tiles = _node_tiles(domain)
     n_tiles = int(node_tiles[-1]) + 1
     states = np.full((k_gens, n_tiles), -1, dtype=np.int8)  # (-1: test each cell)

@@ -76,3 +76,37 @@ def test_fast_tessellation_is_the_centralized_one(world, seed, blocked):
     weighted = [Generator(p, 0.3 * (k % 2)) for k, p in enumerate(P)]
     fast, ref = fast_tessellate(domain, weighted), tessellate(domain, weighted)
     assert np.array_equal(fast.labels, ref.labels) and fast.cost == ref.cost
+
+
+@pytest.mark.parametrize("world, capacity", [("office", None), ("u_shape", 16),
+                                             ("tb3_sandbox", None)])
+def test_depth_maps_kept_between_searches_change_no_cell(world, capacity):
+    """Searches from generators that stand where one stood before (the descent's starts,
+    a move priced again and again) use the depth maps the domain kept; a domain that keeps
+    none gives bit for bit the same cells, distances and goals (also when the kept maps
+    are evicted: ``capacity``)."""
+    from coverage_ros.core.offline.geodesic_team import team_cells
+
+    path = WORLDS / f"{world}.yaml" if (WORLDS / f"{world}.yaml").exists() else shared_map(world)
+    kept, fresh = (world_domain(load_world(path), 0.105) for _ in range(2))
+    if capacity is not None:
+        kept.kept_depth_maps().capacity = capacity
+    rng = np.random.default_rng(3)
+    P = random_points(kept, 8, 0, 11)
+    R = np.zeros(len(P))
+    for step in range(12):
+        Q = P.copy()
+        if step % 3 == 0:  # one robot elsewhere, the others where they stood
+            Q[step % len(P)] = random_points(kept, 1, 0, 100 + step)[0]
+        else:  # some move a little (where a step leaves free space)
+            moved = Q + rng.normal(0.0, 0.2, Q.shape) * (rng.random(len(Q)) < 0.5)[:, None]
+            free = np.array([kept.is_free_point(q) for q in moved])
+            Q[free] = moved[free]
+        fresh._cache.pop("kept_depth_maps", None)
+        a, b = team_cells(kept, Q, R), team_cells(fresh, Q, R)
+        assert np.array_equal(a.cells(), b.cells())
+        assert np.array_equal(a.costs, b.costs) and np.array_equal(a.masses, b.masses)
+        assert np.array_equal(a.covectors, b.covectors) and np.array_equal(a.goals, b.goals)
+        if step % 2 == 0:
+            P = Q
+    assert len(kept.kept_depth_maps()) > len(P)  # (maps of earlier positions are kept)

@@ -38,7 +38,7 @@ class KeptDepthMaps(OrderedDict[tuple[float, float], list[Any]]):
     """Depth maps by origin, at most ``capacity`` of them, the least recently used dropped
     first (a :data:`DepthMaps` kept between calls)."""
 
-    def __init__(self, capacity: int) -> None:
+    def __init__(self, capacity: int = 16) -> None:  # (a default: copies are made empty)
         super().__init__()
         self.capacity = capacity
 

@@ -110,3 +110,20 @@ def test_depth_maps_kept_between_searches_change_no_cell(world, capacity):
         if step % 2 == 0:
             P = Q
     assert len(kept.kept_depth_maps()) > len(P)  # (maps of earlier positions are kept)
+
+
+def test_a_domain_with_kept_depth_maps_copies_and_pickles():
+    import copy
+    import pickle
+
+    domain = world_domain(load_world(WORLDS / "office.yaml"), 0.105)
+    gens = [Generator(p) for p in random_points(domain, 4, 0, 5)]
+    fast_tessellate(domain, gens)
+    kept = domain.kept_depth_maps()
+    kept.capacity = 40
+    assert len(kept) > 0
+    for other in (copy.deepcopy(domain), pickle.loads(pickle.dumps(domain))):
+        again = other.kept_depth_maps()
+        assert again.capacity == 40 and list(again) == list(kept)
+        assert np.array_equal(fast_tessellate(other, gens).labels,
+                              fast_tessellate(domain, gens).labels)

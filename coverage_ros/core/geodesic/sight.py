@@ -31,7 +31,7 @@ SEGMENT_MARGIN = 2.2
 #: The depth maps a caller keeps, by origin: ``[box, depth map, tile states or None]``.
 DepthMaps = dict[tuple[float, float], list[Any]]
 #: [bytes] depth maps a domain keeps between searches (:meth:`LineOfSight.kept_depth_maps`)
-KEPT_DEPTH_BYTES = 32 << 20
+KEPT_DEPTH_BYTES = 8 << 20
 
 
 class KeptDepthMaps(OrderedDict[tuple[float, float], list[Any]]):

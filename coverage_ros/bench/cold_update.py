@@ -58,11 +58,19 @@ def bench_cold_update(rounds: int, say, world_path: Path = DEPOT) -> list[dict]:
 def _cold(domain: CoverageDomain, gens: list[Generator], k: int) -> tuple[float, CellResult]:
     """One cold update of robot ``k``: [s] and its result. A whole-map search is memoized per
     generator set (robots of one process that see the same team share it); a robot's next
-    update has moved, so it is forgotten first."""
-    domain._cache.pop("shared_search", None)
+    update has moved, so it is forgotten first (and the depth maps its searches keep by
+    generator position)."""
+    _forget(domain)
     t = time.perf_counter()
     cell = geodesic_cell(domain, gens[k], gens[:k] + gens[k + 1:], cache=SearchCache())
     return time.perf_counter() - t, cell
+
+
+def _forget(domain: CoverageDomain) -> None:
+    """Drop what the last update memoized for the next: the whole-map search of the same
+    generators, and the depth maps kept by position."""
+    domain._cache.pop("shared_search", None)
+    domain._cache.pop("kept_depth_maps", None)
 
 
 def _row(domain: CoverageDomain, name: str, P: np.ndarray, rounds: int, say,
@@ -77,7 +85,7 @@ def _row(domain: CoverageDomain, name: str, P: np.ndarray, rounds: int, say,
         cold.append(dt)
         cache = SearchCache()
         geodesic_cell(domain, own, others, cache=cache)
-        domain._cache.pop("shared_search", None)
+        _forget(domain)
         t = time.perf_counter()
         geodesic_cell(domain, own, others, cache=cache)
         warm.append(time.perf_counter() - t)

@@ -66,3 +66,18 @@ class HeardMove:
         return bool(np.hypot(*(np.asarray(position) - self.start)) <= near
                     and np.hypot(*(np.asarray(point) - self.end)) <= near
                     and here.same(self.places, near))
+
+    @staticmethod
+    def descent_terms(back: Sequence[HeardMove], neighbours: Sequence[Neighbour], near: float
+                      ) -> tuple[float, bool]:
+        """What moves heard from the places a team stands at again (``back``) ask of a move
+        priced by the descent: the saving it must beat, the largest claim of those whose mover
+        and the robot it displaced traded places; and whether it must pay from every start it
+        is priced from (:meth:`.pricing.Prices.descent`), not from the most favourable: a
+        mover is back within ``near`` [m] of where it left from (live, neighbours hold its cell
+        while it drives, and it was pulled back), and a descent through a doorway that goes
+        one way from some starts and the other way from the rest is what sends a mover so."""
+        pulled = [m.pulled_back(neighbours, near) for m in back]
+        failed = max((m.saving for m, p in zip(back, pulled, strict=True) if not p),
+                     default=0.0)
+        return failed, any(pulled)

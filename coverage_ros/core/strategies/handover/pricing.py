@@ -35,7 +35,8 @@ WEIGHT_MATCH = 1e-9
 DESCENT_DRAWS = 5
 #: Largest shift [grid cells] of each generator, per axis, in the other starts of a descent.
 JITTER = 0.5
-#: A price's key: (target robot id, its point x, y [m], rings: -1 H heard, 0 the descent,
+#: A price's key: (target robot id, its point x, y [m], rings: -1 H heard, 0 the descent
+#: (the least of its starts), -2 the descent paying from every start,
 #: >= 1 the joint bound, the saving [units of H] past which the descent stops)
 Memo = tuple[int, float, float, int, float]
 
@@ -128,25 +129,29 @@ class Prices:
 
     def descent(self, key: np.ndarray, position: np.ndarray, weight: float,
                 neighbours: Sequence[Neighbour], target: Offer,
-                enough: float) -> float:
+                enough: float, every: bool = False) -> float:
         """:func:`.bounds.descent_change` of a move to ``target``'s offered point, every
         generator it hears descending, stopped once H is lower by more than ``enough``: the
         least over the configuration heard and up to ``DESCENT_DRAWS - 1`` others shifted by
-        at most :data:`JITTER`, drawn until one pays more than ``enough``."""
+        at most :data:`JITTER`, drawn until one pays more than ``enough``; with ``every``, the
+        largest over all ``DESCENT_DRAWS`` starts, drawn until one does not pay (a move that
+        pays from each of them, not only from the most favourable)."""
         if any(abs(n.state.weight - weight) >= WEIGHT_MATCH for n in neighbours):
             return math.inf  # the descent prices equal power weights
         known, values = self.known(key, position, neighbours)
         point = target.point
-        # (rings 0: the descent, with where it stops)
-        memo = (target.robot_id, float(point[0]), float(point[1]), 0, float(enough))
+        # (rings 0 / -2: the descent, with where it stops)
+        memo = (target.robot_id, float(point[0]), float(point[1]), -2 if every else 0,
+                float(enough))
         if memo not in values:
             movers = list(range(1, len(known.generators)))
-            found = math.inf
+            found = -math.inf if every else math.inf
             for draw in range(DESCENT_DRAWS):
                 start = known if draw == 0 else self.shifted(known, draw)
-                found = min(found, descent_change(self.domain, start, weight, movers, point,
-                                                  self.method, enough=enough).increase)
-                if found < -enough:
+                increase = descent_change(self.domain, start, weight, movers, point,
+                                          self.method, enough=enough).increase
+                found = max(found, increase) if every else min(found, increase)
+                if (found < -enough) != every:
                     break
             values[memo] = found
         return values[memo]

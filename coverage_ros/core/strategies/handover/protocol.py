@@ -70,10 +70,9 @@ not make one of them again from the same places - each robot within
 :data:`.places.SAME_PLACE_SHARE` of its cell's radius of one of them, whichever robot stands
 where, itself where the mover left from and the offered point where the mover went. Other
 moves from there stay open (a team may need several moves from one configuration), but a
-team back where a move left from shows the descent wrong there: with the mover back where it
-left from (live, neighbours hold its cell while it drives, and it was pulled back) none is
-priced by the descent; else (it and the robot it displaced traded places) one priced by the
-descent must save more than the heard move's claim.
+team back where a move left from shows the descent wrong there: a move priced by it must then
+pay from every start, or save more than the heard move's claim
+(:meth:`.places.HeardMove.descent_terms`).
 What a robot uses is its own cell, the generators and published values of the robots it
 hears (its bordering neighbours' cells, and for the joint bound the target's and those that
 touch either, are tessellated from them), nothing else; the protocol is deterministic.
@@ -342,11 +341,10 @@ class Handover:
                 for o in offers})
             rings += 1
         back = [m for m in self._moves if here.same(m.places, near)]  # (module docstring)
-        if best is None and stopped and self.settings.descent_offers > 0 and not any(
-                m.pulled_back(neighbours, near) for m in back):
+        if best is None and stopped and self.settings.descent_offers > 0:
             # no bound sees it: where the whole team's own descent goes from the largest offers
-            # (past a heard move's saving), by one robot per update, the least costly first
-            failed = max((m.saving for m in back), default=0.0)
+            # (what the moves heard from here ask), by one robot per update, the least costly
+            failed, every = HeardMove.descent_terms(back, neighbours, near)
 
             def beyond(o: Offer) -> float:
                 return max(need(o), failed)
@@ -360,7 +358,8 @@ class Handover:
             largest = sorted(offers, key=lambda o: (-o.gain, o.key))[
                 :self.settings.descent_offers]
             best, saving = self._best(largest, beyond, {
-                o.key: -self.prices.descent(key, position, weight, neighbours, o, beyond(o))
+                o.key: -self.prices.descent(key, position, weight, neighbours, o, beyond(o),
+                                            every)
                 for o in largest})
             if best is None and self.settings.descent_rooms > 1:
                 # none of them pays: a point in every other room of the cells they split
@@ -370,7 +369,7 @@ class Handover:
                 if rooms:
                     best, saving = self._best(rooms, beyond, {
                         o.key: -self.prices.descent(key, position, weight, neighbours, o,
-                                                    beyond(o))
+                                                    beyond(o), every)
                         for o in rooms})
         if best is None:
             return

@@ -30,14 +30,10 @@ NEAR_TIE = 2.0 * TIE_BIAS
 
 
 def straight_winner(grids: np.ndarray, biases: np.ndarray, shape: tuple[int, int],
-                    resolution: float, tile: int
-                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``(best, winner, tiles)``: ``(H * W,)`` row-major, for every cell centre the least of
+                    resolution: float) -> tuple[np.ndarray, np.ndarray]:
+    """``(best, winner)``: ``(H * W,)`` row-major, for every cell centre the least of
     ``|q - g_k| * resolution + biases[k]`` over the generators at grid points ``grids (n, 2)``
-    [cells] and the first ``k`` that attains it (module docstring); the square tiles of
-    ``tile`` x ``tile`` cells (row-major flat ids ``t``) that hold cells of each generator, as
-    sorted keys ``k * n_tiles + t`` (every tile holding one of its cells, and a few more: a
-    Voronoi cell's runs of each band of ``tile`` rows, from its least to its largest column)."""
+    [cells] and the first ``k`` that attains it (module docstring)."""
     H, W = shape
     n = len(grids)
     gx = np.ascontiguousarray(grids[:, 0], dtype=np.float64)
@@ -70,38 +66,11 @@ def straight_winner(grids: np.ndarray, biases: np.ndarray, shape: tuple[int, int
         best = np.full(H * W, np.inf)
         mine = np.flatnonzero(winner >= 0)
         best[mine] = _measure(mine // W, mine % W, winner[mine], gx, gy, biases, resolution)
-    tiles = _run_tiles(runs, shape, tile)
     if n > 1:
         changed = _settle_near_ties(winner, runs, gx, gy, biases, shape, resolution)
         best[changed] = _measure(changed // W, changed % W, winner[changed], gx, gy, biases,
                                  resolution)
-        if len(changed):
-            nx = -(-W // tile)
-            n_tiles = -(-H // tile) * nx
-            own = (changed // W // tile * nx + changed % W // tile) + winner[changed] * n_tiles
-            tiles = np.union1d(tiles, own)
-    return best, winner, tiles
-
-
-def _run_tiles(runs: RowRuns, shape: tuple[int, int], tile: int) -> np.ndarray:
-    """The keys ``k * n_tiles + t`` (sorted) of the tiles ``t`` that the runs of generator
-    ``k`` touch, per band of ``tile`` rows from the least start to the largest stop."""
-    H, W = shape
-    n = runs.start.shape[0]
-    ny, nx = -(-H // tile), -(-W // tile)
-    has = runs.stop > runs.start
-    pad = ((0, 0), (0, ny * tile - H))
-    first = np.pad(np.where(has, runs.start, W), pad, constant_values=W)
-    last = np.pad(np.where(has, runs.stop, 0), pad, constant_values=0)
-    first = first.reshape(n, ny, tile).min(axis=2)
-    last = last.reshape(n, ny, tile).max(axis=2)
-    k, band = np.nonzero(last > first)
-    c0, c1 = first[k, band] // tile, (last[k, band] - 1) // tile
-    counts = c1 - c0 + 1
-    ends = np.cumsum(counts)
-    keys: np.ndarray = np.repeat((k * ny + band) * nx + c0 - (ends - counts), counts) \
-        + np.arange(ends[-1] if len(ends) else 0)
-    return keys
+    return best, winner
 
 
 def _measure(rows: np.ndarray, cols: np.ndarray, k: np.ndarray, gx: np.ndarray,

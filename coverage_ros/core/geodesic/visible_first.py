@@ -24,7 +24,7 @@ from scipy.sparse.csgraph import dijkstra
 
 from coverage_ros.core.geodesic.domain import CoverageDomain, Snap
 from coverage_ros.core.geodesic.local_search import LocalGraph
-from coverage_ros.core.geodesic.sight import TILED_FROM, DepthMaps
+from coverage_ros.core.geodesic.sight import DepthMaps
 from coverage_ros.core.geodesic.straight_winner import straight_winner
 from coverage_ros.core.geodesic.tangents import SIGHT_TILE
 
@@ -46,7 +46,7 @@ def visible_first_search(domain: CoverageDomain, local: LocalGraph,
     grids = np.array([s[2] for s in snaps])
     biases = np.array([domain.bias(g) for g in grids])
     H, W = domain.shape  # the whole-domain graph's local ids are node ids + 1 (row-major)
-    best, winner, tiles = straight_winner(grids, biases, (H, W), res, SIGHT_TILE)
+    best, winner = straight_winner(grids, biases, (H, W), res)
     best[~free] = np.inf
     winner[~free] = -1
     snap_best: list[tuple[np.ndarray, np.ndarray]] = []
@@ -72,20 +72,14 @@ def visible_first_search(domain: CoverageDomain, local: LocalGraph,
         return dist, pred, label
     # Settled: in line of sight of the winner (snap seeds of the winner count as seen). Cells
     # in a tile seen (hidden) whole from their winner are settled (not) by the tile's answer,
-    # the others one by one (the same answers), each generator's from a depth map of the
-    # occluders around its cells (the hidden cells' search widens it where it needs).
+    # the others one by one (the same answers), each generator's from one depth map of every
+    # occluder (kept in the domain; the hidden cells' search reads the same map and tiles).
     depths = domain.kept_depth_maps()
     node_tiles = _node_tiles(domain)
-    n_tiles = int(node_tiles[-1]) + 1
-    states = np.full((k_gens, n_tiles), -1, dtype=np.int8)  # (-1: test each cell)
-    per_gen = np.searchsorted(tiles, np.arange(k_gens + 1) * n_tiles)
-    for g in range(k_gens):
-        ids = tiles[per_gen[g]:per_gen[g + 1]] - g * n_tiles
-        if len(ids):
-            states[g, ids] = domain.sight_tiles_in(grids[g], depths, ids)
+    states = _whole_tiles(domain, grids, depths)
     mine = winner >= 0
     # (winner -1, nobody's: a negative index into the last row, masked out by mine)
-    state = np.take(states.ravel(), winner * n_tiles + node_tiles)
+    state = np.take(states.ravel(), winner * states.shape[1] + node_tiles)
     settled = mine & (state == 1)
     mixed = np.flatnonzero(mine & (state < 0))
     by_gen = mixed[np.argsort(winner[mixed], kind="stable")]
@@ -102,8 +96,17 @@ def visible_first_search(domain: CoverageDomain, local: LocalGraph,
     hidden = np.flatnonzero(free & ~settled)
     if len(hidden):
         _search_hidden(domain, local, hidden, settled, dist, pred, label, grids, biases,
-                       snap_best, (depths, node_tiles[hidden], winner[hidden]))
+                       snap_best, (depths, states, node_tiles[hidden], winner[hidden]))
     return dist, pred, label
+
+
+def _whole_tiles(domain: CoverageDomain, grids: np.ndarray, depths: DepthMaps) -> np.ndarray:
+    """``(k, tiles) int8``: :meth:`~coverage_ros.core.geodesic.sight.LineOfSight.sight_tiles`
+    of every tile of the domain from each generator at ``grids (k, 2)``, each from a depth map
+    of every occluder (kept in ``depths``: the point tests read it too)."""
+    H, W = domain.shape
+    whole = float(np.hypot(H, W))  # [cells] (a radius whose box holds the grid)
+    return np.stack([domain.sight_tiles(g, whole, depths) for g in grids])
 
 
 def _node_tiles(domain: CoverageDomain) -> np.ndarray:
@@ -124,11 +127,12 @@ def _search_hidden(domain: CoverageDomain, local: LocalGraph, hidden: np.ndarray
                    settled: np.ndarray, dist: np.ndarray, pred: np.ndarray, label: np.ndarray,
                    grids: np.ndarray, biases: np.ndarray,
                    snap_best: list[tuple[np.ndarray, np.ndarray]],
-                   sight: tuple[DepthMaps, np.ndarray, np.ndarray]) -> None:
+                   sight: tuple[DepthMaps, np.ndarray, np.ndarray, np.ndarray]) -> None:
     """Dijkstra over the hidden cells from their settled neighbours and from every generator's
     own seeds among them (in line of sight, or snap edges); fills the arrays in place.
-    ``sight``: the depth maps made so far, the hidden cells' line-of-sight tiles and their
-    straight-line winners (each hidden from its own: no line from it is tested)."""
+    ``sight``: the depth maps made so far, every generator's tile states (:func:`_whole_tiles`),
+    the hidden cells' line-of-sight tiles and their straight-line winners (each hidden from its
+    own: no line from it is tested)."""
     n = local.n
     first = n + 1
     res = domain.resolution
@@ -178,7 +182,7 @@ def _search_hidden(domain: CoverageDomain, local: LocalGraph, hidden: np.ndarray
                          indices=sources, min_only=True, return_predecessors=True)
     upper = d[:len(hidden)]
     hc = local.centers[hidden]
-    depths, tiles, winners = sight
+    depths, states, tiles, winners = sight
     # The hidden cells by line-of-sight tile, and per tile the longest path found into it: a
     # tile whose nearest point is farther from a generator in a straight line than every path
     # found into the tile cannot give that generator a shorter line (nor need its test).
@@ -198,11 +202,8 @@ def _search_hidden(domain: CoverageDomain, local: LocalGraph, hidden: np.ndarray
         may = may[alone[may] != k]
         if len(may) == 0:
             continue
-        if per_tile[may].sum() >= TILED_FROM:  # (a few cells: no tile answers needed)
-            state = domain.sight_tiles_in(grids[k], depths, present[may])
-            may, state = may[state != 0], state[state != 0]
-        else:
-            state = np.full(len(may), -1, dtype=np.int8)
+        state = states[k, present[may]]
+        may, state = may[state != 0], state[state != 0]
         if len(may) == 0:
             continue
         near = by_tile[_ranges(starts[may], per_tile[may])]

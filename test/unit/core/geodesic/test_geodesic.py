@@ -507,6 +507,40 @@ def test_vectorized_snap_equals_snap_point_by_point():
         np.testing.assert_array_equal(g, g1)
 
 
+def _depth_bin_by_bin(origin: np.ndarray, blocked_xy: np.ndarray, bins: int) -> np.ndarray:
+    """The polar depth map written the obvious way: every bin of every disc's run, one disc
+    at a time."""
+    depth = np.full(bins, np.inf)
+    step = 2.0 * math.pi / bins
+    d = blocked_xy - origin  # (each disc's distance and bearing as numpy rounds them)
+    dist = np.hypot(d[:, 0], d[:, 1])
+    theta = np.arctan2(d[:, 1], d[:, 0])
+    half = np.arcsin(np.minimum(1.0, math.sqrt(0.5) / np.maximum(dist, 1e-9)))
+    for r, t, h in zip(dist, theta, half, strict=True):
+        for b in range(math.floor((t - h + math.pi) / step),
+                       math.floor((t + h + math.pi) / step) + 1):
+            depth[b % bins] = min(depth[b % bins], max(r - math.sqrt(0.5), 0.0))
+    return depth
+
+
+def test_the_polar_depth_map_is_the_least_over_every_disc_bin_by_bin():
+    """Runs written as power-of-two blocks give the minima of writing every bin: discs near
+    and far (runs from one bin to half a turn), runs across the angle -pi, origins on cell
+    centres and corners."""
+    rng = np.random.default_rng(5)
+    for trial in range(40):
+        bins = (256, 1024, 2048)[trial % 3]
+        occ = rng.integers(0, 60, (int(rng.integers(1, 300)), 2)) + 0.5
+        origin = rng.uniform(0, 60, 2)
+        if trial % 4 == 0:
+            origin = np.floor(origin) + (0.5 if trial % 8 else 0.0)
+        occ[0] = np.floor(origin) + [-0.5, 0.5]  # (one disc over the origin: half a turn)
+        occ = occ.astype(float)
+        expected = _depth_bin_by_bin(origin, occ, bins)
+        np.testing.assert_array_equal(polar_depth(origin, occ, bins), expected)
+    assert np.isinf(polar_depth(np.zeros(2), np.zeros((0, 2)), 64)).all()
+
+
 def test_a_depth_map_kept_for_a_larger_radius_answers_a_smaller_one_alike():
     domain = world_domain(load_world(WORLDS / "office.yaml"), 0.105)
     rng = np.random.default_rng(3)
@@ -566,7 +600,7 @@ def test_line_of_sight_decided_by_tiles_equals_the_test_point_by_point():
 def test_the_whole_domain_search_gives_each_robots_cell_with_tiles_as_without(monkeypatch):
     """The visible-first search with line of sight decided by tiles settles the same cells as
     with every point tested alone (the tiles switched off)."""
-    from coverage_ros.core.geodesic import sight, visible_first
+    from coverage_ros.core.geodesic import sight
     world = load_world(WORLDS / "office.yaml")
     starts = cluster_starts(world.grid, 6, 0.105, np.random.default_rng(1))
     gens = [Generator(p) for p in starts[:, :2]]
@@ -585,7 +619,6 @@ def test_the_whole_domain_search_gives_each_robots_cell_with_tiles_as_without(mo
     tiled = cells(world_domain(world, 0.105))
     assert calls  # the whole-domain search ran and used the tiles
     monkeypatch.setattr(sight, "TILED_FROM", 10**12)
-    monkeypatch.setattr(visible_first, "TILED_FROM", 10**12)  # (its own imported copy)
     monkeypatch.setattr(sight.LineOfSight, "sight_tiles",  # every tile to be tested
                         lambda self, *a: np.full(len(plain(self, *a)), -1, dtype=np.int8))
     monkeypatch.setattr(sight.LineOfSight, "sight_tiles_in",

@@ -11,8 +11,8 @@ GeodesicTeam`): every robot's geodesic power Voronoi cell and generalized Lloyd 
 2. Every cell's tangent anchor (the point its chord at the robot aims at,
    ``cell._tangent_anchors``): the nearest ancestor-or-self on its path that is joined to the
    source (``visibility``, ``paper``) or within the look-ahead (``lookahead``). Cells in line
-   of sight are their own anchors; the others are resolved together by pointer doubling over
-   the parent links (``log2`` of the deepest path passes).
+   of sight are their own anchors; the others take the anchor at the root of their tree of
+   parent links (``scipy.sparse.csgraph.connected_components``: one pass, however deep).
 3. Masses, costs and control covectors of every robot at once: sums over the owner labels
    (``np.bincount``).
 4. Per robot only the 2 x 2 solve and the reachable goal (:func:`.descent.reachable_goal`).
@@ -25,7 +25,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.sparse.csgraph import dijkstra
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import connected_components, dijkstra
 
 from coverage_ros.core.geodesic.cell import LOOKAHEAD_CELLS
 from coverage_ros.core.geodesic.descent import reachable_goal
@@ -245,18 +246,20 @@ def _deep_anchors(domain: CoverageDomain, forest: _Forest, method: str,
     m = len(candidates)
     if m == 0:
         return candidates, candidates
-    # over the candidates: the index of the parent among them, or -1 (the parent is its own
-    # anchor, or the root: no anchor)
+    # Each candidate is linked to its parent when that is a candidate too: the links make
+    # trees, each with one root (a candidate whose parent is its own anchor, or none), and
+    # every candidate of a tree takes its root's anchor (-1: no anchor).
     pos = np.full(N, -1, dtype=np.int64)
     pos[candidates] = np.arange(m)
     jump = np.where(inside, pos[np.where(inside, up, 0)], -1)
-    anchor = np.where(inside, up, -1)  # (-1: no anchor)
-    active = np.flatnonzero(jump >= 0)
-    while len(active):  # pointer doubling: ~log2 of the deepest path passes
-        j = jump[active]
-        done = jump[j] < 0
-        anchor[active[done]] = anchor[j[done]]
-        jump[active] = np.where(done, -1, jump[j])
-        active = active[~done]
+    link = jump >= 0
+    indptr = np.zeros(m + 1, dtype=np.int32)
+    np.cumsum(link, out=indptr[1:])
+    trees = csr_matrix((np.ones(int(indptr[-1]), dtype=np.int8), jump[link].astype(np.int32),
+                        indptr), shape=(m, m))
+    count, tree = connected_components(trees, directed=True, connection="weak")
+    root_anchor = np.empty(count, dtype=np.int64)
+    root_anchor[tree[~link]] = np.where(inside, up, -1)[~link]
+    anchor = root_anchor[tree]
     keep = anchor >= 0
     return candidates[keep], anchor[keep]

@@ -25,6 +25,10 @@ import numpy as np
 CELL_HALF_DIAGONAL = math.sqrt(0.5)
 #: [cells] side of the square tiles whose line of sight :func:`sight_tiles` decides whole.
 SIGHT_TILE = 16
+#: Runs of depth bins are written bin by bin while they hold fewer bins than the span times
+#: its power-of-two levels over this, as blocks beyond (measured at 2048-8192 bins: the two
+#: ways take about as long there).
+BLOCKS_FROM = 5
 #: sight tiles spanning more than 2**10 depth bins (close to the origin) are not decided whole
 _WIDEST_LEVEL = 10
 
@@ -67,10 +71,9 @@ def polar_depth(origin: np.ndarray, blocked_xy: np.ndarray, bins: int) -> np.nda
     direction, modelling each blocked cell (centre ``blocked_xy (M, 2)``, grid coordinates) as a
     disc of radius :data:`CELL_HALF_DIAGONAL` (conservative: a cell never looks see-through).
 
-    A disc sets the least of its nearest distance over the run of bins it spans. Each run is
-    written as the two power-of-two blocks that cover it (a sparse table read backwards), and
-    the blocks are pushed down level by level to single bins: the same minima as writing every
-    bin of every run, in work linear in the bins and discs."""
+    A disc sets the least of its nearest distance over the run of bins it spans: written bin
+    by bin when the runs are short in all (:func:`_least_bin_by_bin`), else as power-of-two
+    blocks (:func:`_least_by_blocks`); the same minima either way."""
     depth = np.full(bins, np.inf)
     if len(blocked_xy) == 0:
         return depth
@@ -86,18 +89,45 @@ def polar_depth(origin: np.ndarray, blocked_xy: np.ndarray, bins: int) -> np.nda
     lo -= base
     hi -= base
     span = int(hi.max()) + 1
+    counts = hi - lo + 1
+    # (blocks cost about two passes over the span per level; bins one write each)
+    if int(counts.sum()) * BLOCKS_FROM < span * int(counts.max()).bit_length():
+        least = _least_bin_by_bin(lo, counts, near, span)
+    else:
+        least = _least_by_blocks(lo, hi, near, span)
+    np.minimum.at(depth, (np.arange(span) + base) % bins, least)
+    return depth
+
+
+def _least_bin_by_bin(lo: np.ndarray, counts: np.ndarray, values: np.ndarray,
+                      span: int) -> np.ndarray:
+    """``(span,)``: the least of ``values[i]`` over the runs of bins ``lo[i] ..
+    lo[i] + counts[i] - 1`` that hold each bin (inf where none), every bin of every run
+    written."""
+    least = np.full(span, np.inf)
+    rep = np.repeat(np.arange(len(lo)), counts)
+    offs = np.arange(rep.size) - np.repeat(np.cumsum(counts) - counts, counts)
+    np.minimum.at(least, lo[rep] + offs, values[rep])
+    return least
+
+
+def _least_by_blocks(lo: np.ndarray, hi: np.ndarray, values: np.ndarray,
+                     span: int) -> np.ndarray:
+    """:func:`_least_bin_by_bin` of the runs ``lo[i] .. hi[i]``, each written as the two
+    power-of-two blocks that cover it (a sparse table read backwards) and the blocks pushed
+    down level by level to single bins: work linear in the bins and runs, however long."""
     level = np.floor(np.log2(hi - lo + 1)).astype(np.int64)
     levels = int(level.max()) + 1
     table = np.full((levels, span), np.inf)  # [k, i]: least over bins i .. i + 2**k - 1
     at = level * span
     np.minimum.at(table.ravel(), np.concatenate([at + lo, at + hi - (1 << level) + 1]),
-                  np.concatenate([near, near]))
+                  np.concatenate([values, values]))
     for k in range(levels - 1, 0, -1):
         h = 1 << (k - 1)
         np.minimum(table[k - 1], table[k], out=table[k - 1])
         np.minimum(table[k - 1][h:], table[k][:-h], out=table[k - 1][h:])
-    np.minimum.at(depth, (np.arange(span) + base) % bins, table[0])
-    return depth
+    least: np.ndarray = table[0]
+    return least
 
 
 def visible_from(origin: np.ndarray, points: np.ndarray, depth: np.ndarray,

@@ -523,10 +523,11 @@ def _depth_bin_by_bin(origin: np.ndarray, blocked_xy: np.ndarray, bins: int) -> 
     return depth
 
 
-def test_the_polar_depth_map_is_the_least_over_every_disc_bin_by_bin():
+def test_the_polar_depth_map_is_the_least_over_every_disc_bin_by_bin(monkeypatch):
     """Runs written as power-of-two blocks give the minima of writing every bin: discs near
     and far (runs from one bin to half a turn), runs across the angle -pi, origins on cell
-    centres and corners."""
+    centres and corners; runs written bin by bin or as blocks."""
+    from coverage_ros.core.geodesic import tangents
     rng = np.random.default_rng(5)
     for trial in range(40):
         bins = (256, 1024, 2048)[trial % 3]
@@ -537,7 +538,9 @@ def test_the_polar_depth_map_is_the_least_over_every_disc_bin_by_bin():
         occ[0] = np.floor(origin) + [-0.5, 0.5]  # (one disc over the origin: half a turn)
         occ = occ.astype(float)
         expected = _depth_bin_by_bin(origin, occ, bins)
-        np.testing.assert_array_equal(polar_depth(origin, occ, bins), expected)
+        for blocks_from in (0, 5, 10**9):  # (every run by blocks, either way, bin by bin)
+            monkeypatch.setattr(tangents, "BLOCKS_FROM", blocks_from)
+            np.testing.assert_array_equal(polar_depth(origin, occ, bins), expected)
     assert np.isinf(polar_depth(np.zeros(2), np.zeros((0, 2)), 64)).all()
 
 

@@ -253,10 +253,10 @@ def _improve(domain: CoverageDomain, hidden: np.ndarray, hc: np.ndarray,
     path found - and so is every node before it on the path: one search from the new seeds
     over those cells alone, each cell then taking the shorter of its two distances, is the
     search with every seed at once. A path from a seed ``s`` (cost ``e_s``) to a cell ``q``
-    is no shorter than ``e_s + |q - s|``, nor is it anywhere on the way: only the tiles where
-    that bound, least over blocks of seeds (box to box), is no longer than the longest path
-    found into the tile are searched (on depot about a third of the cells the straight lines
-    alone leave)."""
+    is no shorter than ``e_s + |q - s|``, nor is it anywhere on the way: only the cells whose
+    path found is no shorter than that bound, least over blocks of seeds and taken box to
+    box for the cell's tile, are searched (on depot about a third of the cells the straight
+    lines alone leave)."""
     d, p, src = found
     n_hidden = len(hidden)
     m = len(d) - len(grids)  # the sub-graph's nodes; its sources follow
@@ -268,9 +268,12 @@ def _improve(domain: CoverageDomain, hidden: np.ndarray, hc: np.ndarray,
                         boxes[None, :, 2]),
                    _gap(ty0[:, None], ty0[:, None] + SIGHT_TILE, boxes[None, :, 1],
                         boxes[None, :, 3]))
-    may = np.flatnonzero((least[None, :] + gap * scale).min(axis=1) <= longest + 1e-9)
-    cells = np.sort(by_tile[_ranges(starts[may], per_tile[may])])  # (hidden indices: the
-    # sub-graph's first nodes, in order)
+    bound = (least[None, :] + gap * scale).min(axis=1)  # [m] per tile
+    may = np.flatnonzero(bound <= longest + 1e-9)
+    cells = by_tile[_ranges(starts[may], per_tile[may])]
+    # (then cell by cell against its own path found; hidden indices, the sub-graph's first
+    # nodes, in order)
+    cells = np.sort(cells[np.repeat(bound[may], per_tile[may]) <= d[cells] + 1e-9])
     m2 = len(cells)
     at = np.full(n_hidden + 1, -1, dtype=np.int32)  # hidden index -> index among cells
     at[cells] = np.arange(m2, dtype=np.int32)

@@ -23,13 +23,17 @@ the target's 10 ms on scenarios nobody chose, per kind.
 
 A new search every step: the positions drift by a tenth of a millimetre between steps, as
 robots do between updates. ``geodesic_ms`` is wall time (the target's measure); ``cpu_ms``,
-the process's CPU time over the same steps, shows what a busy host adds.
+the process's CPU time over the same steps, shows what a busy host adds; ``dijkstra_ms``, the
+wall time of the step's calls to scipy's Dijkstra (the graph searches themselves; the rest is
+numpy over the grid: distances, line of sight, the search graphs, sums).
 """
 
 from __future__ import annotations
 
 import statistics
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -114,14 +118,16 @@ def bench_geodesic_sweep(count: int, rounds: int, say) -> dict[str, Any]:
         domain, starts, about = scenario(seed, i, robots=SWEEP_ROBOTS)
         team = GeodesicTeam(domain)
         path = solve_lloyd(team, starts, tolerance=0.05, max_steps=30).positions
-        times, cpu = _timed_steps(team, path, rounds)
+        times, cpu, searches = _timed_steps(team, path, rounds)
         ms = round(statistics.median(times) * 1e3, 2)
         H, W = domain.shape
         rows.append({"seed": seed, "kind": about["kind"], "grid": [W, H], "geodesic_ms": ms,
                      "cpu_ms": round(statistics.median(cpu) * 1e3, 2),
+                     "dijkstra_ms": round(statistics.median(searches) * 1e3, 2),
                      "worst_ms": round(max(times) * 1e3, 2), "met": ms <= SWEEP_TARGET_MS})
-        say(f"  scenario {i + 1}/{count} (seed {seed}, {about['kind']}): {ms} ms "
-            f"(worst of {rounds} steps {rows[-1]['worst_ms']} ms)")
+        say(f"  scenario {i + 1}/{count} (seed {seed}, {about['kind']}): {ms} ms, of which "
+            f"Dijkstra {rows[-1]['dijkstra_ms']} ms (worst of {rounds} steps "
+            f"{rows[-1]['worst_ms']} ms)")
     kinds = by_kind(rows, SWEEP_TARGET_MS)
     for kind, k in kinds.items():
         say(f"  {kind}: {k['met']} of {k['scenarios']} within {SWEEP_TARGET_MS:g} ms "
@@ -142,34 +148,69 @@ def by_kind(rows: list[dict], target_ms: float) -> dict[str, dict]:
 
 
 def _timed_steps(team: GeodesicTeam, path: np.ndarray,
-                 rounds: int) -> tuple[list[float], list[float]]:
+                 rounds: int) -> tuple[list[float], list[float], list[float]]:
     """Wall and CPU times [s] of ``team``'s step at ``rounds`` positions along ``path``, each
-    moved by a drift of its own (a new search every step)."""
+    moved by a drift of its own (a new search every step), and the wall time of each step's
+    Dijkstra calls [s]."""
     team.step(path[0] + DRIFT)  # the domain's own tables (graph, tiles, occluders)
-    times, cpu = [], []
-    for k in range(rounds):
-        P = path[min(k * len(path) // rounds, len(path) - 1)] + DRIFT * (k + 2)
-        t, c = time.perf_counter(), time.process_time()
-        team.step(P)
-        times.append(time.perf_counter() - t)
-        cpu.append(time.process_time() - c)
-    return times, cpu
+    times, cpu, searches = [], [], []
+    with _dijkstra_timed() as spent:
+        for k in range(rounds):
+            P = path[min(k * len(path) // rounds, len(path) - 1)] + DRIFT * (k + 2)
+            spent.clear()
+            t, c = time.perf_counter(), time.process_time()
+            team.step(P)
+            times.append(time.perf_counter() - t)
+            cpu.append(time.process_time() - c)
+            searches.append(sum(spent))
+    return times, cpu, searches
+
+
+@contextmanager
+def _dijkstra_timed() -> Iterator[list[float]]:
+    """While open, every call to scipy's Dijkstra from the team step's modules appends its wall
+    time [s] to the list it yields (the modules' own name for it swapped, then put back)."""
+    from scipy.sparse.csgraph import dijkstra
+
+    from coverage_ros.core.geodesic import descent, shared_search, visible_first
+    from coverage_ros.core.offline import geodesic_team
+
+    modules = (descent, shared_search, visible_first, geodesic_team)
+    plain = [m.dijkstra for m in modules]
+    spent: list[float] = []
+
+    def timed(*args: Any, **kwargs: Any) -> Any:
+        t = time.perf_counter()
+        try:
+            return dijkstra(*args, **kwargs)
+        finally:
+            spent.append(time.perf_counter() - t)
+
+    for m in modules:
+        m.dijkstra = timed  # type: ignore[attr-defined]
+    try:
+        yield spent
+    finally:
+        for m, f in zip(modules, plain, strict=True):
+            m.dijkstra = f  # type: ignore[attr-defined]
 
 
 def _row(name: str, domain: CoverageDomain, path: np.ndarray, rounds: int,
          target_ms: float, say) -> dict[str, Any]:
     team = GeodesicTeam(domain)
-    times, cpu = _timed_steps(team, path, rounds)
+    times, cpu, searches = _timed_steps(team, path, rounds)
     t = time.perf_counter()
     team.reference_step(path[0])
     reference = time.perf_counter() - t
     ms = round(statistics.median(times) * 1e3, 2)
     H, W = domain.shape
     row = {"name": name, "robots": len(path[0]), "grid": [W, H], "geodesic_ms": ms,
-           "cpu_ms": round(statistics.median(cpu) * 1e3, 2), "target_ms": target_ms,
+           "cpu_ms": round(statistics.median(cpu) * 1e3, 2),
+           "dijkstra_ms": round(statistics.median(searches) * 1e3, 2), "target_ms": target_ms,
            "met": ms <= target_ms,
            "robots_ms": round(reference * 1e3, 1), "steps_timed": rounds}
-    say(f"  geodesic team step, {name} ({W} x {H} cells): {ms} ms, CPU {row['cpu_ms']} ms "
+    say(f"  geodesic team step, {name} ({W} x {H} cells): {ms} ms, CPU {row['cpu_ms']} ms, "
+        f"Dijkstra {row['dijkstra_ms']} ms "
         f"({'met' if row['met'] else 'not met'}: <= {target_ms:g} ms); every robot's own "
         f"update {row['robots_ms']} ms")
     return row

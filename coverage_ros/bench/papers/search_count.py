@@ -17,7 +17,6 @@ from coverage_ros.core.geodesic import shared_search as shared_search_module
 from coverage_ros.core.geodesic import tessellation as tessellation_module
 from coverage_ros.core.geodesic import visible_first as visible_first_module
 from coverage_ros.core.geodesic.domain import CoverageDomain
-from coverage_ros.core.geodesic.tangents import SIGHT_TILE
 from coverage_ros.errors import ConfigError
 
 
@@ -42,17 +41,17 @@ def counting_searches() -> Iterator[SearchCount]:
     pushed), so each call adds its finite distances less its virtual sources; and every cell a
     line-of-sight test looks at, one by one or a tile at a time. The robots' own code runs
     unchanged: the counting wrappers are put in place of ``dijkstra`` and
-    ``CoverageDomain.visible_mask``, ``visible_each`` and ``sight_tiles_in`` for the block only
+    ``CoverageDomain.visible_mask``, ``visible_each`` and ``sight_tiles_whole`` for the block only
     (this process only; not thread-safe)."""
     count = SearchCount()
     scipy_dijkstra = csgraph.dijkstra
     plain_mask = CoverageDomain.visible_mask
     plain_each = CoverageDomain.visible_each
-    plain_tiles = CoverageDomain.sight_tiles_in
+    plain_tiles = CoverageDomain.sight_tiles_whole
     # What the class itself holds (the methods come from its base, LineOfSight): put back as
     # it was, so that nothing is left shadowing the base's methods after the block.
     own = {name: CoverageDomain.__dict__.get(name)
-           for name in ("visible_mask", "visible_each", "sight_tiles_in")}
+           for name in ("visible_mask", "visible_each", "sight_tiles_whole")}
 
     def dijkstra(graph, *args, **kwargs):
         if "indices" not in kwargs:
@@ -72,9 +71,9 @@ def counting_searches() -> Iterator[SearchCount]:
         count.sighted += len(points)
         return plain_each(self, origin, points, depths)
 
-    def sight_tiles_in(self, origin, depths, ids):
-        count.sighted += int(_free_per_tile(self)[ids].sum())
-        return plain_tiles(self, origin, depths, ids)
+    def sight_tiles_whole(self, origin, depths):
+        count.sighted += int(np.count_nonzero(self.free))  # (every tile decided or not)
+        return plain_tiles(self, origin, depths)
 
     for module in _SEARCH_MODULES:
         if module.dijkstra is not scipy_dijkstra:
@@ -85,7 +84,7 @@ def counting_searches() -> Iterator[SearchCount]:
             module.dijkstra = dijkstra  # type: ignore[attr-defined]
         CoverageDomain.visible_mask = visible_mask  # type: ignore[method-assign]
         CoverageDomain.visible_each = visible_each  # type: ignore[method-assign]
-        CoverageDomain.sight_tiles_in = sight_tiles_in  # type: ignore[method-assign]
+        CoverageDomain.sight_tiles_whole = sight_tiles_whole  # type: ignore[method-assign]
         yield count
     finally:
         for module in _SEARCH_MODULES:
@@ -95,13 +94,3 @@ def counting_searches() -> Iterator[SearchCount]:
                 delattr(CoverageDomain, name)
             else:
                 setattr(CoverageDomain, name, method)
-
-
-def _free_per_tile(domain: CoverageDomain) -> np.ndarray:
-    """``(tiles,)`` the free cells of every line-of-sight tile (row-major)."""
-    H, W = domain.shape
-    ny, nx = -(-H // SIGHT_TILE), -(-W // SIGHT_TILE)
-    padded = np.zeros((ny * SIGHT_TILE, nx * SIGHT_TILE), dtype=np.int64)
-    padded[:H, :W] = domain.free
-    counts: np.ndarray = padded.reshape(ny, SIGHT_TILE, nx, SIGHT_TILE).sum(axis=(1, 3)).ravel()
-    return counts

@@ -191,21 +191,12 @@ class LineOfSight:
         tiles: np.ndarray = held[2]
         return tiles
 
-    def sight_tiles_in(self, origin: np.ndarray, depths: DepthMaps,
-                       ids: np.ndarray) -> np.ndarray:
-        """:meth:`sight_tiles` of the tiles ``ids`` (flat row-major indices) from a depth map
-        of the occluders around the segments from ``origin`` to them only (kept in
-        ``depths``; the tile answers are not)."""
-        if len(ids) == 0:
-            return np.zeros(0, dtype=np.int8)
-        nx = -(-self.shape[1] // SIGHT_TILE)
-        x0, y0 = (ids % nx) * float(SIGHT_TILE), (ids // nx) * float(SIGHT_TILE)
-        corners = np.stack([np.concatenate([x0, x0 + SIGHT_TILE]),
-                            np.concatenate([y0, y0 + SIGHT_TILE])], axis=1)
-        held = self._depth_map(origin, self._spanning(origin, corners), depths)
-        if held is None:
-            return np.ones(len(ids), dtype=np.int8)
-        return sight_tiles(origin, held[1], self.shape, ids=ids)
+    def sight_tiles_whole(self, origin: np.ndarray, depths: DepthMaps) -> np.ndarray:
+        """:meth:`sight_tiles` of every tile of the domain from ``origin``, from one depth map
+        of every occluder (kept in ``depths``, with the answers): what a whole-map search
+        reads for each generator."""
+        H, W = self.shape
+        return self.sight_tiles(origin, math.hypot(H, W), depths)
 
     def _around(self, origin: np.ndarray, radius: float) -> tuple[float, ...]:
         """The box ``(x0, y0, x1, y1)`` [cells] of occluders that can hide a point within

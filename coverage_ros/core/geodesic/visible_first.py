@@ -101,12 +101,10 @@ def visible_first_search(domain: CoverageDomain, local: LocalGraph,
 
 
 def _whole_tiles(domain: CoverageDomain, grids: np.ndarray, depths: DepthMaps) -> np.ndarray:
-    """``(k, tiles) int8``: :meth:`~coverage_ros.core.geodesic.sight.LineOfSight.sight_tiles`
-    of every tile of the domain from each generator at ``grids (k, 2)``, each from a depth map
-    of every occluder (kept in ``depths``: the point tests read it too)."""
-    H, W = domain.shape
-    whole = float(np.hypot(H, W))  # [cells] (a radius whose box holds the grid)
-    return np.stack([domain.sight_tiles(g, whole, depths) for g in grids])
+    """``(k, tiles) int8``: :meth:`~coverage_ros.core.geodesic.sight.LineOfSight.
+    sight_tiles_whole` from each generator at ``grids (k, 2)`` (its depth map, kept in
+    ``depths``, serves the point tests too)."""
+    return np.stack([domain.sight_tiles_whole(g, depths) for g in grids])
 
 
 def _node_tiles(domain: CoverageDomain) -> np.ndarray:

@@ -43,7 +43,7 @@ def test_the_counter_counts_every_vertex_a_search_settles_and_then_steps_aside()
     assert CoverageDomain.visible_mask is plain_mask
     # the class is as it was: its line-of-sight methods are still its base's, so a change to
     # the base (a test's monkeypatch) reaches every domain
-    assert not {"visible_mask", "visible_each", "sight_tiles_in"} & set(CoverageDomain.__dict__)
+    assert not {"visible_mask", "visible_each", "sight_tiles_whole"} & set(CoverageDomain.__dict__)
     with counting_searches(), pytest.raises(ConfigError, match="nested"), \
             counting_searches():
         pass

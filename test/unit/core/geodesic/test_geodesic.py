@@ -609,11 +609,8 @@ def test_the_whole_domain_search_gives_each_robots_cell_with_tiles_as_without(mo
     gens = [Generator(p) for p in starts[:, :2]]
     calls = []
     plain = sight.LineOfSight.sight_tiles
-    plain_in = sight.LineOfSight.sight_tiles_in
     monkeypatch.setattr(sight.LineOfSight, "sight_tiles",
                         lambda self, *a: calls.append(1) or plain(self, *a))
-    monkeypatch.setattr(sight.LineOfSight, "sight_tiles_in",
-                        lambda self, *a: calls.append(1) or plain_in(self, *a))
 
     def cells(domain):
         return [np.sort(geodesic_cell(domain, g, [h for h in gens if h is not g]).nodes)
@@ -624,7 +621,5 @@ def test_the_whole_domain_search_gives_each_robots_cell_with_tiles_as_without(mo
     monkeypatch.setattr(sight, "TILED_FROM", 10**12)
     monkeypatch.setattr(sight.LineOfSight, "sight_tiles",  # every tile to be tested
                         lambda self, *a: np.full(len(plain(self, *a)), -1, dtype=np.int8))
-    monkeypatch.setattr(sight.LineOfSight, "sight_tiles_in",
-                        lambda self, *a: np.full(len(plain_in(self, *a)), -1, dtype=np.int8))
     for a, b in zip(tiled, cells(world_domain(world, 0.105)), strict=True):
         np.testing.assert_array_equal(a, b)

@@ -1,6 +1,6 @@
 """Depth maps of the occluders in a box around the segments asked about (LineOfSight.
-visible_each, sight_tiles_in) answer as the whole domain's map does, also once a kept map has
-grown to another box."""
+visible_each), and the tiles of a kept map grown from such boxes to the whole domain
+(sight_tiles_whole), answer as the whole domain's map does."""
 
 from __future__ import annotations
 
@@ -37,7 +37,7 @@ def test_box_maps_answer_as_the_whole_domains_map(share):
             assert np.array_equal(domain.visible_each(origin, points, depths), expected)
         nx, ny = -(-W // SIGHT_TILE), -(-H // SIGHT_TILE)
         ids = rng.choice(nx * ny, 12, replace=False)
-        states = domain.sight_tiles_in(origin, depths, ids)
+        states = domain.sight_tiles_whole(origin, depths)[ids]
         for tile, state in zip(ids, states, strict=True):
             x0, y0 = (tile % nx) * SIGHT_TILE, (tile // nx) * SIGHT_TILE
             yy, xx = np.mgrid[y0:y0 + SIGHT_TILE, x0:x0 + SIGHT_TILE]

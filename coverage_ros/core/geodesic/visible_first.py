@@ -253,8 +253,7 @@ def _improve(domain: CoverageDomain, hidden: np.ndarray, hc: np.ndarray,
     search with every seed at once. A path from a seed ``s`` (cost ``e_s``) to a cell ``q``
     is no shorter than ``e_s + |q - s|``, nor is it anywhere on the way: only the cells whose
     path found is no shorter than that bound, least over blocks of seeds and taken box to
-    box for the cell's tile, are searched (on depot about a third of the cells the straight
-    lines alone leave)."""
+    box for the cell's tile, are searched (on depot about a fifth of the hidden cells)."""
     d, p, src = found
     n_hidden = len(hidden)
     m = len(d) - len(grids)  # the sub-graph's nodes; its sources follow

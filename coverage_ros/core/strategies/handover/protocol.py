@@ -136,6 +136,8 @@ class Departure:
     ids: tuple[int, ...]  # the robots it heard, sorted
     cost: float  # H over their cells and its own (units of H)
     saving: float  # what the move had to save (units of H)
+    at: tuple[float, float] = (math.nan, math.nan)  # [m] where the robot stood
+    back: bool = False  # the move takes back an earlier one (not judged itself)
 
 
 @dataclass
@@ -162,6 +164,8 @@ class Handover:
     #: (ids heard, their H, the saving to beat) where the claim was made / moves were made
     _claimed_from: Departure | None = field(default=None, repr=False)
     _departures: list[Departure] = field(default_factory=list, repr=False)
+    #: the latest own move, until the team has settled after it and it is judged
+    _judging: Departure | None = field(default=None, repr=False)
     #: claims heard, by claimer id: (where the claimer stood [m], its target, the team's
     #: places then, the claim's saving), kept in ``_moves`` once it is heard relocating
     _heard_claims: dict[int, tuple[np.ndarray, int, Places, float]] = field(
@@ -212,8 +216,11 @@ class Handover:
         elif (settled and self.cooldown == 0 and not claimants
               and all(value(n, "settled") > 0 for n in neighbours)):
             if self._team_still.still(settle):
-                self._consider(key, position, weight, cell, neighbours, bordering,
-                               stopped=stood.moved < convergence_tolerance or dithers)
+                if self._judging is not None:
+                    self._judge(key, position, weight, neighbours)
+                if self.claim < 0 and self._judging is None:
+                    self._consider(key, position, weight, cell, neighbours, bordering,
+                                   stopped=stood.moved < convergence_tolerance or dithers)
             else:  # (the team still creeps: busy, it may claim once it stands)
                 self._awaits_still = True
         grant = NONE if self.claim >= 0 or not claimants else float(-claimants[0][1])
@@ -237,7 +244,7 @@ class Handover:
         # most of a team may be cooling down together)
         # (nor while it waits for its turn to price by the descent, or for the team to stand)
         busy = (self.claim >= 0 or grant != NONE or waiting or self.cooldown > 0
-                or self._awaits_turn or self._awaits_still)
+                or self._awaits_turn or self._awaits_still or self._judging is not None)
         return HandoverStep(self.target.copy() if self.relocating else None, extra, busy)
 
     def _transit(self, position: np.ndarray, by_id: dict[int, Neighbour],
@@ -251,7 +258,10 @@ class Handover:
                      ARRIVAL_CELLS * self.domain.resolution)
         near = float(np.hypot(*(target - position))) < arrive
         if near or self.claim_age > self.settings.transit or self.claim not in by_id:
+            moved = self._claimed_from
             self._drop()
+            if moved is not None and not moved.back:
+                self._judging = moved  # judged once the team has settled after it
             return HandoverStep(None, idle(), busy=True)
         extra = idle()
         extra.update(claim=float(self.claim), claim_gain=self.claim_gain, **self._heading())
@@ -296,7 +306,9 @@ class Handover:
                         and (value(n, "claim_gain"), -n.robot_id) > mine for n in by_id.values())
         if j is not None and grant == self.robot_id:
             self.relocating, self.claim_age = True, 0
-            if self._claimed_from is not None:
+            if self._claimed_from is not None and self._claimed_from.back:
+                self._judging = None  # taking its move back: nothing left to judge
+            elif self._claimed_from is not None:
                 self._departures = [*self._departures, self._claimed_from][-DEPARTURES:]
         elif j is None or grant != NONE or outranked or self.claim_age > self.settings.wait:
             self._drop()
@@ -379,7 +391,37 @@ class Handover:
             return  # no better than where a move of its own left from (module docstring)
         self.claim, self.claim_gain, self.claim_age = best.robot_id, saving, 0
         self.target = best.point.copy()
-        self._claimed_from = Departure(ids, H, need(best))
+        self._claimed_from = Departure(ids, H, need(best), (float(position[0]),
+                                                            float(position[1])))
+
+    def _judge(self, key: np.ndarray, position: np.ndarray, weight: float,
+               neighbours: Sequence[Neighbour]) -> None:
+        """The team has settled after the own latest move: if it stands higher than where
+        the move left from by more than the move had to save, claim the cell that now holds
+        that place, to go back there (a move priced from the most favourable of its starts
+        can end above where it left from); else the move stands. A claim dropped (another
+        move outranked it) is judged again at the next settled update."""
+        moved = self._judging
+        assert moved is not None  # (called only while a move is being judged)
+        if any(value(n, "claim", NONE) >= 0 for n in neighbours):
+            return  # one move at a time (module docstring)
+        ids = tuple(sorted(n.robot_id for n in neighbours))
+        H = self.prices.heard_cost(key, position, neighbours, weight)
+        if ids != moved.ids or not H > moved.cost + moved.saving:
+            self._judging = None  # the move stands (or the team heard is another)
+            return
+        known, _ = self.prices.known(key, position, neighbours)
+        at = np.array(moved.at, dtype=np.float64)
+        free = self.domain.is_free_point(at)
+        holder = int(known.labels[self.domain.snap(at)[0][0]]) - 1 if free else -1
+        if holder < 0:
+            self._judging = None  # the place is its own cell's again (or not free)
+            return
+        self.claim, self.claim_age = neighbours[holder].robot_id, 0
+        self.claim_gain = H - moved.cost  # (what going back should save)
+        self.target = at
+        self._claimed_from = Departure(ids, H, 0.0, (float(position[0]), float(position[1])),
+                                       back=True)
 
     @staticmethod
     def _best(offers: Sequence[Offer], need: Callable[[Offer], float],

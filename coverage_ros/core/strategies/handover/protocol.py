@@ -73,6 +73,15 @@ moves from there stay open (a team may need several moves from one configuration
 team back where a move left from shows the descent wrong there: a move priced by it must then
 pay from every start, or save more than the heard move's claim
 (:meth:`.places.HeardMove.descent_terms`).
+A move can still end above where it left from (it is priced from the most favourable of its
+starts, and the team's own steps need not reach the configuration priced): the mover judges
+its latest move once the team has settled after it (as for a claim: every robot it hears
+settled, none claiming, the team still), busy until then. If the H it hears, of the same
+robots, stands above what it left from by more than the move had to save, it claims the cell
+that now holds the place it left, at what going back saves, and drives back there - a move it
+does not judge in turn (the moves heard from the places it left stay kept, so the team, back
+there, prices a move by the descent from every start). A take-back outranked by another
+claim is judged again at the next settled update.
 What a robot uses is its own cell, the generators and published values of the robots it
 hears (its bordering neighbours' cells, and for the joint bound the target's and those that
 touch either, are tessellated from them), nothing else; the protocol is deterministic.

@@ -39,7 +39,7 @@ from coverage_ros.core.strategies.handover import (
     split_offers,
 )
 from coverage_ros.core.strategies.handover.places import HeardMove, Places
-from coverage_ros.core.strategies.handover.protocol import STILL_UPDATES, Handover
+from coverage_ros.core.strategies.handover.protocol import STILL_UPDATES, Departure, Handover
 from coverage_ros.core.strategies.handover.published import held
 from coverage_ros.core.strategies.handover.split import split_parts
 from coverage_ros.core.strategies.handover.stillness import TeamStillness
@@ -804,6 +804,49 @@ def test_a_robot_claims_no_more_where_the_team_came_back_after_its_move():
     assert max(claims(team[0], P[swapped], 0, swapped)) == 7
     team[1].handover._departures = [dataclasses.replace(left, cost=H_near + 2 * left.saving)]
     assert max(claims(team[1], near)) == 7
+
+
+def test_a_robot_goes_back_once_the_team_settles_above_where_its_move_left_from():
+    """Robot 1 of the settled plan-2 team has just moved, from a place in robot 7's cell, out
+    of a configuration of H ``cost`` that its move had to lower by ``saving``. Settled again
+    above ``cost + saving``, the move did not pay: robot 1 claims robot 7's cell for that
+    place, at what going back should save, and once granted drives there - a move it does
+    not judge in turn, nor keeps as a departure. Settled within ``cost + saving``, the move
+    stands: it claims nothing (no bound sees a move there and the descent is off)."""
+    domain, P = _drawn_plan(2), PLAN2_SETTLED
+    H = fast_tessellate(domain, [Generator(p) for p in P]).cost
+    ids = tuple(k for k in range(len(P)) if k != 1)
+    back = next(P[7] + np.array(d) for d in ([0.3, 0.0], [-0.3, 0.0], [0.0, 0.3], [0.0, -0.3])
+                if domain.is_free_point(P[7] + np.array(d)))
+    saving = 0.01 * H
+
+    def rounds(cost: float):
+        team = [make_strategy(strategy_choice("geodesic", {"escape_descent_offers": 0}),
+                              StrategyContext(domain=domain, robot_id=k,
+                                              convergence_tolerance=TOLERANCE))
+                for k in range(len(P))]
+        team[1].handover._judging = Departure(ids, cost, saving, (back[0], back[1]))
+        published = [s.shared_state(Observation(k, np.array([*P[k], 0.0]), 0.0))
+                     for k, s in enumerate(team)]
+        seen = []
+        for _ in range(STILL_UPDATES + 4):
+            decisions = _round(team, P, published)
+            d = decisions[1]
+            seen.append((int(d.shared.extra["claim"]), d.shared.extra["claim_gain"], d.mode,
+                         None if d.goal is None else np.asarray(d.goal)[:2].copy()))
+            published = [d.shared for d in decisions]
+        return team[1].handover, seen
+
+    mover, seen = rounds(H - 2 * saving)
+    claims = [(c, g) for c, g, *_ in seen if c >= 0]
+    assert claims and {c for c, _ in claims} == {7}
+    assert claims[0][1] == pytest.approx(2 * saving, rel=1e-6)
+    going = [goal for *_, mode, goal in seen if mode == "relocate"]
+    assert going and np.allclose(going[-1], back)
+    assert mover._judging is None and mover._departures == []
+    mover, seen = rounds(H - 0.5 * saving)
+    assert [c for c, *_ in seen] == [-1] * len(seen)
+    assert mover._judging is None
 
 
 def test_a_move_priced_by_the_descent_where_a_move_heard_left_from_must_save_more():

@@ -421,7 +421,7 @@ class Handover:
             return
         known, _ = self.prices.known(key, position, neighbours)
         at = np.array(moved.at, dtype=np.float64)
-        free = self.domain.is_free_point(at)
+        free = bool(np.all(np.isfinite(at))) and self.domain.is_free_point(at)
         holder = int(known.labels[self.domain.snap(at)[0][0]]) - 1 if free else -1
         if holder < 0:
             self._judging = None  # the place is its own cell's again (or not free)

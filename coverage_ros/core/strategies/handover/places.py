@@ -1,5 +1,18 @@
 """Where the robots of a team stood, compared whichever robot stands where: the closet escape's
-memory of the moves a robot heard and the configurations they left from (:mod:`.protocol`)."""
+memory of the moves a robot heard and the configurations they left from (:mod:`.protocol`).
+
+A team may come back to where a move left from with other robots in the places (live robots
+descend along their own paths, not the steps that priced a move), and the robot now where the
+mover stood would make the same move: so every robot keeps the moves it heard
+(:class:`HeardMove`: where the team stood when the claim was heard, where the claimer left from
+and where it went) and does not make one of them again from the same places - each robot within
+:data:`SAME_PLACE_SHARE` of its cell's radius of one of them, whichever robot stands
+where, itself where the mover left from and the offered point where the mover went. Other
+moves from there stay open (a team may need several moves from one configuration), but a
+team back where a move left from shows the descent wrong there: a move priced by it must then
+pay from every start, or save more than the heard move's claim
+(:meth:`HeardMove.descent_terms`).
+"""
 
 from __future__ import annotations
 

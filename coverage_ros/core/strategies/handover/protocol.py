@@ -43,11 +43,8 @@ once the team re-spreads. The robots price so one per update of a settled config
 the one whose cell costs least first (its leaving costs least), each descent stopping as
 soon as the move pays; the first move found is claimed and the others need not price.
 Robot j grants the claim of the highest priority (saving, then lower id) among those on it
-unless it claims itself.
-With ``escape_still`` > 0 a robot also claims only once it and every robot it hears have stood
-within its settle step over that many updates (:class:`.stillness.TeamStillness`): a live team
-re-spreading after a move creeps a few cm per update, each robot settled by its own test, while
-its H still falls by several % in 10 s, and a move priced meanwhile is priced from a passing state.
+unless it claims itself. With ``escape_still`` > 0 a robot claims only once the team stands
+(:class:`.stillness.TeamStillness`).
 Granted, i drives to j's offered point (mode ``relocate``), keeping its claim, so that j lets
 nobody else in and i's neighbours do not leave meanwhile; there it drops the claim and waits
 ``escape_cooldown`` updates before it may claim again (hysteresis), busy meanwhile (not
@@ -55,33 +52,10 @@ converged: it may still move). A claim not granted within ``escape_wait`` update
 target grants another, is dropped the same way.
 
 Each move is backed by a configuration next to it with H lower by at least ``escape_gain`` of
-a pair's cost (:mod:`.bounds`), and the cooldown keeps a robot from moving back and forth.
-The team's own steps need not reach that configuration (live robots less still: where they
-stop is not exactly where Lloyd's steps end), so a robot keeps what its moves left: the
-robots it heard, their H over the cells of those robots (:meth:`.pricing.Prices.heard_cost`)
-and the saving the move had to beat. It claims again, hearing the same robots, only from a
-configuration whose H is below each of those by that saving: a team that came back to where
-a robot left from, or to no better, does not send it again, and each robot's moves end. A
-team may also come back with other robots in the places (live robots descend along their own
-paths, not the steps that priced a move), and the robot now where the mover stood would make
-the same move: so every robot keeps the moves it heard (:class:`.places.HeardMove`: where the
-team stood when the claim was heard, where the claimer left from and where it went) and does
-not make one of them again from the same places - each robot within
-:data:`.places.SAME_PLACE_SHARE` of its cell's radius of one of them, whichever robot stands
-where, itself where the mover left from and the offered point where the mover went. Other
-moves from there stay open (a team may need several moves from one configuration), but a
-team back where a move left from shows the descent wrong there: a move priced by it must then
-pay from every start, or save more than the heard move's claim
-(:meth:`.places.HeardMove.descent_terms`).
-A move can still end above where it left from (it is priced from the most favourable of its
-starts, and the team's own steps need not reach the configuration priced): the mover judges
-its latest move once the team has settled after it (as for a claim: every robot it hears
-settled, none claiming, the team still), busy until then. If the H it hears, of the same
-robots, stands above what it left from by more than the move had to save, it claims the cell
-that now holds the place it left, at what going back saves, and drives back there - a move it
-does not judge in turn (the moves heard from the places it left stay kept, so the team, back
-there, prices a move by the descent from every start). A take-back outranked by another
-claim is judged again at the next settled update.
+a pair's cost (:mod:`.bounds`), and the cooldown keeps a robot from moving back and forth; a
+robot claims again, hearing the robots it heard where a move of its own left from, only from a
+lower H, and a move that ends above where it left from is taken back (:mod:`.departures`);
+every robot keeps the moves it heard, making none again from the same places (:mod:`.places`).
 What a robot uses is its own cell, the generators and published values of the robots it
 hears (its bordering neighbours' cells, and for the joint bound the target's and those that
 touch either, are tessellated from them), nothing else; the protocol is deterministic.
@@ -98,6 +72,7 @@ import numpy as np
 from coverage_ros.core.geodesic.cell import CellResult
 from coverage_ros.core.geodesic.domain import CoverageDomain
 from coverage_ros.core.strategies.base import Neighbour
+from coverage_ros.core.strategies.handover.departures import Departure, blocked, judge
 from coverage_ros.core.strategies.handover.places import SAME_PLACE_SHARE, HeardMove, Places
 from coverage_ros.core.strategies.handover.pricing import (
     WEIGHT_MATCH,
@@ -116,11 +91,7 @@ from coverage_ros.core.strategies.handover.published import (
 )
 from coverage_ros.core.strategies.handover.settings import HandoverSettings
 from coverage_ros.core.strategies.handover.split import SplitOffer
-from coverage_ros.core.strategies.handover.stillness import (
-    STILL_UPDATES,
-    Stillness,
-    TeamStillness,
-)
+from coverage_ros.core.strategies.handover.stillness import STILL_UPDATES, Stillness, TeamStillness
 
 #: A relocating robot has arrived within this many convergence tolerances of its point, or
 #: this many grid cells, whichever is more (a goal is a cell centre).
@@ -136,17 +107,6 @@ class HandoverStep:
     goal: np.ndarray | None  # (2,) [m] the relocation point, None: the Lloyd goal stands
     extra: dict[str, float]  # what to publish
     busy: bool  # a claim, grant or relocation is under way (the team has not settled)
-
-
-@dataclass(frozen=True)
-class Departure:
-    """Where a robot's move left from."""
-
-    ids: tuple[int, ...]  # the robots it heard, sorted
-    cost: float  # H over their cells and its own (units of H)
-    saving: float  # what the move had to save (units of H)
-    at: tuple[float, float] = (math.nan, math.nan)  # [m] where the robot stood
-    back: bool = False  # the move takes back an earlier one (not judged itself)
 
 
 @dataclass
@@ -396,8 +356,8 @@ class Handover:
             return
         ids = tuple(sorted(n.robot_id for n in neighbours))
         H = self.prices.heard_cost(key, position, neighbours, weight)
-        if any(d.ids == ids and not H < d.cost - d.saving for d in self._departures):
-            return  # no better than where a move of its own left from (module docstring)
+        if blocked(self._departures, ids, H):
+            return  # no better than where a move of its own left from
         self.claim, self.claim_gain, self.claim_age = best.robot_id, saving, 0
         self.target = best.point.copy()
         self._claimed_from = Departure(ids, H, need(best), (float(position[0]),
@@ -405,32 +365,22 @@ class Handover:
 
     def _judge(self, key: np.ndarray, position: np.ndarray, weight: float,
                neighbours: Sequence[Neighbour]) -> None:
-        """The team has settled after the own latest move: if it stands higher than where
-        the move left from by more than the move had to save, claim the cell that now holds
-        that place, to go back there (a move priced from the most favourable of its starts
-        can end above where it left from); else the move stands. A claim dropped (another
-        move outranked it) is judged again at the next settled update."""
-        moved = self._judging
-        assert moved is not None  # (called only while a move is being judged)
+        """The own latest move, the team settled after it: taken back (a claim on the cell
+        holding the place it left) or kept (:mod:`.departures`)."""
+        assert self._judging is not None  # (called only while a move is being judged)
         if any(value(n, "claim", NONE) >= 0 for n in neighbours):
             return  # one move at a time (module docstring)
         ids = tuple(sorted(n.robot_id for n in neighbours))
         H = self.prices.heard_cost(key, position, neighbours, weight)
-        if ids != moved.ids or not H > moved.cost + moved.saving:
-            self._judging = None  # the move stands (or the team heard is another)
-            return
         known, _ = self.prices.known(key, position, neighbours)
-        at = np.array(moved.at, dtype=np.float64)
-        free = bool(np.all(np.isfinite(at))) and self.domain.is_free_point(at)
-        holder = int(known.labels[self.domain.snap(at)[0][0]]) - 1 if free else -1
-        if holder < 0:
-            self._judging = None  # the place is its own cell's again (or not free)
+        back = judge(self._judging, ids, H, known.labels, self.domain)
+        if back is None:
+            self._judging = None  # the move stands
             return
-        self.claim, self.claim_age = neighbours[holder].robot_id, 0
-        self.claim_gain = H - moved.cost  # (what going back should save)
-        self.target = at
-        self._claimed_from = Departure(ids, H, 0.0, (float(position[0]), float(position[1])),
-                                       back=True)
+        self.claim, self.claim_gain, self.claim_age = \
+            neighbours[back.holder - 1].robot_id, back.gain, 0
+        self.target = back.point
+        self._claimed_from = Departure(ids, H, 0.0, back=True)
 
     @staticmethod
     def _best(offers: Sequence[Offer], need: Callable[[Offer], float],

@@ -41,6 +41,9 @@ TWIN_STREAM = 2
 TWIN_LENGTH = (18.0, 26.0)
 RESOLUTION = 0.1  # [m] benchmark raster: a restart on warehouse (30 x 50 m) in seconds
 TARGET = 1.05  # H_final / H_best at most
+ROBOTS = 8  # the benchmark's team; a map run with another size is an entry of its own
+#: a map's entry for a team of another size than ROBOTS (:func:`entry`)
+SIZED = re.compile(r"(.+), (\d+) robots")
 Wall = tuple[tuple[float, float], tuple[float, float]]  # [m] a wall's two ends
 
 
@@ -184,6 +187,19 @@ def known_map(name: str) -> bool:
     """Whether ``name`` is a benchmark map: one of :data:`MAPS` or a drawn ``plan-<seed>`` or
     ``twin-<seed>``."""
     return name in MAPS or DRAWN.fullmatch(name) is not None or TWIN.fullmatch(name) is not None
+
+
+def entry(name: str, robots: int) -> str:
+    """The results file's key for map ``name`` with a team of ``robots``: the name for the
+    benchmark's own team (:data:`ROBOTS`), else ``"<name>, <robots> robots"`` (each size has
+    its own restarts, best known H and rows)."""
+    return name if robots == ROBOTS else f"{name}, {robots} robots"
+
+
+def entry_map(key: str) -> tuple[str, int]:
+    """The map and team size of a results file's key (:func:`entry`)."""
+    sized = SIZED.fullmatch(key)
+    return (sized.group(1), int(sized.group(2))) if sized else (key, ROBOTS)
 
 
 def coarse_world(world: WorldSpec, resolution: float) -> WorldSpec:

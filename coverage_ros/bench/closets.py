@@ -48,8 +48,10 @@ import numpy as np
 from coverage_ros.bench.closet_maps import (
     MAPS,
     RESOLUTION,
+    ROBOTS,
     TWIN,
     coarse_world,
+    entry,
     floor_plan,
     known_map,
     score,
@@ -72,7 +74,6 @@ from coverage_ros.core.world.placement import largest_free_region, team_starts
 from coverage_ros.errors import ConfigError
 from coverage_ros.worlds import resolve_world_path
 
-ROBOTS = 8
 TOLERANCE = 0.02  # [m] converged when no robot moves more than this (coverage-plan's default)
 MAX_ITERATIONS = 300  # coverage-plan's default
 #: [s] the longest simulated time of a live run (--live): a relocation across a plan takes a
@@ -140,7 +141,8 @@ def bench_map(name: str, args, stored: dict, say) -> dict:
         f"{args.robots} robots")
     settings = {"robots": args.robots, "resolution": domain.resolution,
                 "max_iterations": args.max_iterations, "restart_seed": args.restart_seed}
-    restarts = stored.get(name) if stored.get(name, {}).get("settings") == settings else None
+    key = entry(name, args.robots)
+    restarts = stored.get(key) if stored.get(key, {}).get("settings") == settings else None
     kept = [] if restarts is None else restarts.get("escape_H", [])
     escape_provenance = None if restarts is None else restarts.get("escape_provenance")
     if restarts is None or len(restarts["H"]) < args.restarts:
@@ -208,7 +210,9 @@ def _main(argv: list[str] | None) -> int:
                     help="random restarts per map of the strategy with its default escape "
                          "too (M; kept and reused like the plain ones)")
     ap.add_argument("--restart-seed", type=int, default=1000)
-    ap.add_argument("--robots", type=int, default=ROBOTS)
+    ap.add_argument("--robots", type=int, default=ROBOTS,
+                    help=f"team size (default {ROBOTS}); another size makes rows, restarts and "
+                         f"a best known H of its own, under '<map>, <robots> robots'")
     ap.add_argument("--resolution", type=float, default=RESOLUTION, help="[m] benchmark raster")
     ap.add_argument("--max-iterations", type=int, default=MAX_ITERATIONS)
     ap.add_argument("--strategy-params", default="",
@@ -247,6 +251,8 @@ def _main(argv: list[str] | None) -> int:
     if args.escape_restarts and args.live:
         raise ConfigError.at("--escape-restarts", "applies to offline runs only",
                              expected="no --live")
+    if args.robots < 1:
+        raise ConfigError.at("--robots", "must be >= 1", args.robots)
     if args.jobs < 1:
         raise ConfigError.at("--jobs", "must be >= 1", args.jobs)
     if args.duration is not None and args.duration <= 0:
@@ -278,7 +284,7 @@ def _main(argv: list[str] | None) -> int:
         from coverage_ros.bench.closets_live import bench_live, check_maps
 
         best_and_ratios(data)
-        check_maps(maps, data)
+        check_maps([entry(m, args.robots) for m in maps], data)
         label["settings"].update(live=True)  # (each map's own settings give its duration)
         label["settings"].pop("restarts")
         label["settings"].pop("escape_restarts")
@@ -286,14 +292,16 @@ def _main(argv: list[str] | None) -> int:
         for name in maps:
             duration = args.duration or live_duration(name)
             result = bench_live(args, [name], data, say, duration)[name]
-            label["maps"][name] = {**result, "provenance": label["provenance"]}
+            label["maps"][entry(name, args.robots)] = {**result,
+                                                       "provenance": label["provenance"]}
             write(data, args.json, args.label)
     for name in [] if args.live else maps:
         result = bench_map(name, args, stored, say)
-        stored[name] = result["restarts"]
+        key = entry(name, args.robots)  # (a team of another size: an entry of its own)
+        stored[key] = result["restarts"]
         # a label's maps may come from runs of different commits: each keeps its own
-        label["maps"][name] = {"settings": result["settings"], "cases": result["cases"],
-                               "provenance": label["provenance"]}
+        label["maps"][key] = {"settings": result["settings"], "cases": result["cases"],
+                              "provenance": label["provenance"]}
         write(data, args.json, args.label)
     print(table(data))
     say(f"wrote {args.json}")

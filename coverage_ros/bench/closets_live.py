@@ -38,7 +38,14 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from coverage_ros.bench.closet_maps import MAPS, TARGET, coarse_world, floor_plan, score
+from coverage_ros.bench.closet_maps import (
+    MAPS,
+    TARGET,
+    coarse_world,
+    entry,
+    floor_plan,
+    score,
+)
 from coverage_ros.core.geodesic.world_domain import world_domain
 from coverage_ros.core.world import WorldSpec, load_world, parse_world
 from coverage_ros.core.world.map_server import write_map_yaml
@@ -149,7 +156,7 @@ def bench_live(args, maps: list[str], data: dict, say, duration: float) -> dict[
                                     duration) for seed in range(args.seeds)]
                 done = [run.result() for run in runs]
             for seed, case in enumerate(done):
-                H_best = best.get(name, {}).get("H")
+                H_best = best.get(entry(name, args.robots), {}).get("H")
                 series = case.pop("H_series")
                 case["within_at"] = None if H_best is None else within_at(series, H_best)
                 cases.append(case)

@@ -8,7 +8,7 @@ import json
 import math
 from pathlib import Path
 
-from coverage_ros.bench.closet_maps import MAPS, TARGET, known_map
+from coverage_ros.bench.closet_maps import DRAWN, MAPS, ROBOTS, TARGET, TWIN, entry_map, known_map
 from coverage_ros.bench.environment import REPO
 
 RESULTS = REPO / "docs" / "results" / "closets.json"
@@ -164,9 +164,19 @@ def live_ends(run: dict) -> str:
 
 def map_names(data: dict) -> list[str]:
     """The maps of the results file in table order: :data:`MAPS`, then the drawn plans by
-    kind (``plan``, then ``twin``) and seed."""
-    drawn = [m for m in data.get("best", {}) if m not in MAPS and known_map(m)]
-    return [*MAPS, *sorted(drawn, key=lambda m: (m.startswith("twin"), int(m.split("-")[1])))]
+    kind (``plan``, then ``twin``) and seed; then the same for teams of other sizes than
+    :data:`ROBOTS`, by size (:func:`~coverage_ros.bench.closet_maps.entry`)."""
+    order = list(MAPS)
+
+    def place(key: str) -> tuple[int, int, int, int]:
+        name, robots = entry_map(key)
+        drawn = DRAWN.fullmatch(name) or TWIN.fullmatch(name)
+        kind, at = (0, order.index(name)) if drawn is None else (
+            1 + (TWIN.fullmatch(name) is not None), int(drawn.group(1)))
+        return (robots != ROBOTS, robots, kind, at)
+
+    keys = set(MAPS) | {k for k in data.get("best", {}) if known_map(entry_map(k)[0])}
+    return sorted(keys, key=place)
 
 
 def update_readme(data: dict, path: Path) -> bool:

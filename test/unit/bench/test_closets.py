@@ -16,9 +16,13 @@ import yaml
 from coverage_ros.bench.closet_maps import (
     HOSTEL_ABOVE,
     HOSTEL_BELOW,
+    MAPS,
     RESOLUTION,
+    ROBOTS,
     coarse_world,
     drawn_plan,
+    entry,
+    entry_map,
     floor_plan,
     hostel,
     hostel_plan,
@@ -127,15 +131,19 @@ def test_restarts_on_record_are_kept_and_extended_not_run_again(monkeypatch):
 
     monkeypatch.setattr(closets, "run_team", run_team)
 
+    key = entry("plan-1", 3)  # (a team of 3: its own restarts, beside the 8 robots' ones)
+
     def bench(restarts: int, escape: int, stored: dict) -> dict:
         args = SimpleNamespace(robots=3, resolution=0.1, max_iterations=5, restart_seed=7,
                                restarts=restarts, escape_restarts=escape, seeds=0, params={})
         result = closets.bench_map("plan-1", args, stored, lambda msg: None)
-        stored["plan-1"] = result["restarts"]
+        stored[key] = result["restarts"]
         return result["restarts"]
 
-    stored: dict = {}
+    eight = {"settings": {"robots": 8}, "H": [1.0]}
+    stored: dict = {"plan-1": eight}
     first = bench(1, 3, stored)
+    assert stored["plan-1"] is eight and key == "plan-1, 3 robots"
     assert len(first["H"]) == 1 and len(first["escape_H"]) == 3
     assert first["escape_provenance"]["commit"] == provenance()["commit"]  # (the code run)
     scratch = [c for c in calls if c[1] == {}]
@@ -145,7 +153,7 @@ def test_restarts_on_record_are_kept_and_extended_not_run_again(monkeypatch):
     assert again["escape_provenance"] == first["escape_provenance"]
     assert all(c[1] != {} for c in calls)
     calls.clear()
-    stored["plan-1"]["escape_H"] = first["escape_H"][:2]
+    stored[key]["escape_H"] = first["escape_H"][:2]
     more = bench(2, 3, stored)  # (one more with escape: the third of the stream)
     assert len(calls) == 1 and np.array_equal(calls[0][0], scratch[2][0])
     assert more["escape_H"] == first["escape_H"]
@@ -255,6 +263,21 @@ def test_floor_plans_and_map_names():
     assert map_names(data)[-4:] == ["plan-2", "plan-10", "twin-4", "twin-12"]
 
 
+def test_a_team_of_another_size_is_an_entry_of_its_own():
+    """The benchmark's own team keeps the map's name; another size gets its own key, parsed
+    back, and its rows follow every row of the 8 robots, by size, each in map order."""
+    assert entry("office", ROBOTS) == "office" and entry_map("office") == ("office", ROBOTS)
+    for name, robots in (("office", 12), ("plan-7", 4), ("twin-2", 16)):
+        assert entry_map(entry(name, robots)) == (name, robots)
+    data = {"best": {entry("plan-3", 12): {}, "plan-3": {}, entry("office", 4): {},
+                     entry("office", 12): {}, "ward": {}, entry("twin-1", 12): {},
+                     entry("nowhere", 12): {}}}
+    names = map_names(data)
+    assert names[:len(MAPS)] == list(MAPS) and names[len(MAPS):] == [
+        "plan-3", "office, 4 robots", "office, 12 robots", "plan-3, 12 robots",
+        "twin-1, 12 robots"]
+
+
 def _spans(rooms):
     x = 0.0
     for width, _ in rooms:
@@ -321,6 +344,8 @@ def test_a_wrong_option_is_refused_in_one_line_before_anything_runs(tmp_path, ca
     assert "--escape-restarts" in capsys.readouterr().err
     assert main(["--label", "x", "--live", "--escape-restarts", "2", "--json", str(out)]) == 2
     assert "--escape-restarts" in capsys.readouterr().err
+    assert main(["--label", "x", "--robots", "0", "--json", str(out)]) == 2
+    assert "--robots" in capsys.readouterr().err
     assert not out.exists()
 
 

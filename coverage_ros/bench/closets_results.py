@@ -102,14 +102,15 @@ def best_and_ratios(data: dict) -> None:
 def table(data: dict) -> str:
     """Every label's ratio per map and seed, with the best known H and N."""
     wide = max([10, *(len(label) for label in data["runs"])])
-    rows = [f"{'label':{wide}s} {'map':12s} {'N':>3s} {'H_best':>10s}  ratio per start seed"
-            f"{'':6s} worst  met (<= {TARGET:g})"]
+    maps = max([12, *(len(name) for run in data["runs"].values() for name in run["maps"])])
+    rows = [f"{'label':{wide}s} {'map':{maps}s} {'N':>3s} {'H_best':>10s}  ratio per start "
+            f"seed{'':6s} worst  met (<= {TARGET:g})"]
     for label, run in data["runs"].items():
         for name, m in run["maps"].items():
             best = data["best"].get(name, {})
             ratios = " ".join(f"{c['ratio']:.3f}" for c in m["cases"])
             worst = "-" if m["worst_ratio"] is None else f"{m['worst_ratio']:.3f}"
-            rows.append(f"{label:{wide}s} {name:12s} {best.get('restarts', 0):3d} "
+            rows.append(f"{label:{wide}s} {name:{maps}s} {best.get('restarts', 0):3d} "
                         f"{best.get('H', math.nan):10.4g}  {ratios:26s} "
                         f"{worst:5s}  {'met' if m['met'] else 'not met'}")
     return "\n".join(rows)

@@ -79,6 +79,12 @@ class GeodesicParams:
     #: starts over the cells of the robots that made those offers, for a point in each room of
     #: such a cell, priced the same way when none of the offers pays (0 or 1: off)
     escape_descent_rooms: int = 6
+    #: [m] longest step of a robot along the descents that price a move (0: whole generalized
+    #: Lloyd steps, as the offline team takes them; > 0: a joint bound's move too is priced by
+    #: such a descent). A live robot moves at most v_max / control_rate between coverage
+    #: updates (0.11 m for the default robot at 2 Hz) and so follows the gradient closely: it
+    #: may stay in a room that a whole step leaves
+    escape_descent_step: float = 0.0
     #: [updates] a robot claims only once it and every robot it hears have stood within its
     #: settle step (escape_settle, escape_settle_share) for this many updates; each robot's
     #: own settled test passes a robot creeping a few cm per update, as a team re-spreading
@@ -91,7 +97,7 @@ class GeodesicParams:
         if not isinstance(self.escape, bool):
             raise ConfigError.at("escape", "must be true or false", self.escape)
         for name in ("escape_gain", "escape_team_gain", "escape_settle",
-                     "escape_settle_share"):
+                     "escape_settle_share", "escape_descent_step"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int | float) or not (
                     math.isfinite(v) and v >= 0):
@@ -117,6 +123,7 @@ class GeodesicParams:
                                 joint_rings=self.escape_joint_rings,
                                 descent_offers=self.escape_descent_offers,
                                 descent_rooms=self.escape_descent_rooms,
+                                descent_step=float(self.escape_descent_step),
                                 still=self.escape_still)
 
 

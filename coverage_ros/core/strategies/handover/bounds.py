@@ -207,7 +207,7 @@ def known_cells(domain: CoverageDomain, generators: np.ndarray, method: str = "a
 
 def joint_change(domain: CoverageDomain, known: Known, weight: float, target: int,
                  point: np.ndarray, steps: int, method: str = "auto",
-                 rings: int = 1) -> Removal:
+                 rings: int = 1, max_step: float = 0.0) -> Removal:
     """How much lower H gets at least if generator 0 of ``known`` (the own) moved to
     ``point`` [m] in the cell of generator ``target``, the neighbours re-spreading, than if it
     stayed: negative for a move that pays.
@@ -223,9 +223,11 @@ def joint_change(domain: CoverageDomain, known: Known, weight: float, target: in
     own generator among the movers, none at ``point``) give what staying reaches; the change is
     the one bound minus the other (inf if a node of U is out of reach), returned with the
     movers (indices into ``known.generators``; the last, -1, the one at ``point``, which is the
-    own generator moved) and where they stand. A wider ring's move that pays so is priced
-    again by the team's own descent from it (:func:`descent_change`), which is returned
-    instead."""
+    own generator moved) and where they stand. A wider ring's move that pays so, and with
+    ``max_step`` > 0 [m] any move that pays so, is priced again by the team's own descent from
+    it (:func:`descent_change`, its steps at most ``max_step`` long), which is returned
+    instead: the bound's Euclidean centroid steps may carry a robot through a doorway that a
+    live robot's short steps do not pass."""
     W = domain.shape[1]
     labels = known.labels.reshape(-1, W)
     members = {0, target}
@@ -252,14 +254,16 @@ def joint_change(domain: CoverageDomain, known: Known, weight: float, target: in
                           stand=stand)
     if rings > 1 and not _shifts_within(domain, known.labels, movers, at[:-1]):
         return Removal(math.inf, (), np.zeros((0, 2)))
-    if rings > 1 and moved < stay:
-        return descent_change(domain, known, weight, movers, point, method)
+    if (rings > 1 or max_step > 0) and moved < stay:
+        return descent_change(domain, known, weight, movers, point, method,
+                              max_step=max_step)
     return Removal(moved - stay, (*movers, -1), at)
 
 
 def descent_change(domain: CoverageDomain, known: Known, weight: float,
                    movers: Sequence[int], point: np.ndarray, method: str = "auto",
-                   steps: int = DESCENT_STEPS, enough: float = math.inf) -> Removal:
+                   steps: int = DESCENT_STEPS, enough: float = math.inf,
+                   max_step: float = 0.0) -> Removal:
     """How much lower H gets at least if generator 0 of ``known`` moved to ``point`` [m] and
     ``movers`` (indices into ``known.generators``) then followed the team's own generalized
     Lloyd descent for ``steps`` steps (:func:`_descent`), every other generator staying, than
@@ -276,27 +280,38 @@ def descent_change(domain: CoverageDomain, known: Known, weight: float,
     With a finite ``enough`` (units of H) the descent from the move stops once its change is
     below ``-enough``: a move that pays that much (further steps only lower H), known in a
     fraction of the steps. (A descent that does not pay runs on: it may creep for steps, then
-    drop as a robot passes a doorway.)"""
+    drop as a robot passes a doorway.)
+
+    With ``max_step`` > 0 [m] every step of either descent is at most that long per robot, and
+    ``steps`` more are allowed by how many such steps cross the map: live robots move that far
+    between coverage updates (v_max / control_rate), and their descent then follows the
+    gradient closely; whole steps may carry a robot through a doorway that the live robot,
+    re-tessellated every few cm, does not pass (``known``'s cache of the descent without a move
+    is for one ``max_step``)."""
     group = [0, *movers]
+    if max_step > 0:
+        span = float(np.hypot(*domain.shape)) * domain.resolution  # [m] the map's diagonal
+        steps += math.ceil(span / max_step)
     if tuple(group) not in known.descended:
         known.descended[tuple(group)] = _descent(domain, known.generators, group, weight,
-                                                 steps, method)[1]
+                                                 steps, method, max_step=max_step)[1]
     stay = known.descended[tuple(group)]
     start = known.generators.copy()
     start[0] = np.asarray(point, dtype=np.float64)
-    at, moved = _descent(domain, start, group, weight, steps, method, stay - enough)
+    at, moved = _descent(domain, start, group, weight, steps, method, stay - enough, max_step)
     return Removal(moved - stay, (*movers, -1), np.vstack([at[list(movers)], at[0][None]]))
 
 
 def _descent(domain: CoverageDomain, generators: np.ndarray, group: Sequence[int],
-             weight: float, steps: int, method: str, target: float = -math.inf
-             ) -> tuple[np.ndarray, float]:
+             weight: float, steps: int, method: str, target: float = -math.inf,
+             max_step: float = 0.0) -> tuple[np.ndarray, float]:
     """Where ``group`` (indices of ``generators (m, 2)`` [m]) ends after ``steps`` steps of
     generalized Lloyd (every robot's reachable goal, :func:`~coverage_ros.core.offline.
     geodesic_team.team_cells`), the others staying, and H there. A step that would raise H is
     halved (a generalized Lloyd step may overshoot) up to :data:`DESCENT_HALVINGS` times, else
     the descent stops; it stops too once no robot's step is longer than half a grid cell, or
-    once H is below ``target``."""
+    once H is below ``target``. With ``max_step`` > 0 [m] each robot's step is cut to at most
+    that long."""
     P = np.array(generators, dtype=np.float64).reshape(-1, 2)
     R = np.full(len(P), float(weight))
     g = np.asarray(group, dtype=np.int64)
@@ -306,8 +321,11 @@ def _descent(domain: CoverageDomain, generators: np.ndarray, group: Sequence[int
         if H < target:
             break
         step = cells.goals[g] - P[g]
-        if float(np.hypot(*step.T).max(initial=0.0)) < 0.5 * domain.resolution:
+        length = np.hypot(*step.T)
+        if float(length.max(initial=0.0)) < 0.5 * domain.resolution:
             break
+        if max_step > 0:
+            step = step * np.minimum(1.0, max_step / np.maximum(length, 1e-12))[:, None]
         for _ in range(DESCENT_HALVINGS + 1):
             Q = P.copy()
             Q[g] = P[g] + step

@@ -23,6 +23,7 @@ from coverage_ros.core.strategies.handover.bounds import (
     removal_increase,
 )
 from coverage_ros.core.strategies.handover.published import Offer
+from coverage_ros.core.strategies.handover.settings import HandoverSettings
 from coverage_ros.core.strategies.handover.split import SplitOffer, room_offers, split_offers
 
 #: Power weights closer than this [m] count as equal (the bounds assume equal weights).
@@ -50,6 +51,9 @@ class Prices:
     steps: int  # Lloyd steps of the split and of the removal
     joint_steps: int  # Lloyd steps of the joint bound
     room_starts: int  # starts of :func:`.split.room_offers` over a neighbour's cell
+    #: [m] longest step of a robot along the descents (0: whole Lloyd steps;
+    #: :func:`.bounds.descent_change`)
+    descent_step: float = 0.0
     _offer: tuple[np.ndarray, list[SplitOffer]] | None = field(default=None, repr=False)
     _removal: tuple[np.ndarray, dict[int, float], Tessellations] | None = field(
         default=None, repr=False)
@@ -59,6 +63,12 @@ class Prices:
     _rooms: dict[int, list[Offer]] = field(default_factory=dict, repr=False)
     #: the cells of the shifted starts of the descents (:data:`DESCENT_DRAWS`), by draw
     _shifted: dict[int, Known] = field(default_factory=dict, repr=False)
+
+    @classmethod
+    def of(cls, domain: CoverageDomain, method: str, settings: HandoverSettings) -> Prices:
+        """A robot's prices under the handover's ``settings``."""
+        s = settings
+        return cls(domain, method, s.steps, s.joint_steps, s.descent_rooms, s.descent_step)
 
     def offers(self, key: np.ndarray, cell: CellResult, weight: float
                ) -> list[SplitOffer]:
@@ -123,8 +133,8 @@ class Prices:
         if memo not in values:
             t = 1 + [n.robot_id for n in neighbours].index(target.robot_id)
             values[memo] = joint_change(self.domain, known, weight, t, point,
-                                        self.joint_steps, self.method,
-                                        rings).increase
+                                        self.joint_steps, self.method, rings,
+                                        self.descent_step).increase
         return values[memo]
 
     def descent(self, key: np.ndarray, position: np.ndarray, weight: float,
@@ -149,7 +159,8 @@ class Prices:
             for draw in range(DESCENT_DRAWS):
                 start = known if draw == 0 else self.shifted(known, draw)
                 increase = descent_change(self.domain, start, weight, movers, point,
-                                          self.method, enough=enough).increase
+                                          self.method, enough=enough,
+                                          max_step=self.descent_step).increase
                 found = max(found, increase) if every else min(found, increase)
                 if (found < -enough) != every:
                     break

@@ -144,7 +144,7 @@ class Handover:
 
     def __post_init__(self) -> None:
         s = self.settings
-        self.prices = Prices(self.domain, self.method, s.steps, s.joint_steps, s.descent_rooms)
+        self.prices = Prices.of(self.domain, self.method, s)
         self._team_still = TeamStillness(s.still)
 
     def step(self, position: np.ndarray, weight: float, cell: CellResult,

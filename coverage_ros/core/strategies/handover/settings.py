@@ -25,6 +25,8 @@ class HandoverSettings:
     #: starts over the cell of each robot offering one of those, for one point per room of it
     #: (:func:`.split.room_offers`) priced by the descent too when none of the offers pays
     descent_rooms: int = 0
+    #: [m] longest step of a robot along the descents that price a move (0: whole Lloyd steps)
+    descent_step: float = 0.0
     settle_share: float = math.inf  # ... and shorter than this share of its cell's radius
     #: [updates] claims wait until the robot and all it hears have stood within its settle
     #: step for this many updates (0: no wait; :class:`.stillness.TeamStillness`)

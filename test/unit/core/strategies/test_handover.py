@@ -1168,12 +1168,48 @@ def test_update_takes_only_the_observation_and_the_neighbours():
     ("escape_joint_steps", 0), ("escape_joint_rings", 0), ("escape_joint_rings", 1.5),
     ("escape_descent_offers", -1), ("escape_descent_offers", True),
     ("escape_descent_rooms", -1), ("escape_descent_rooms", 2.0),
-    ("escape_still", -1), ("escape_still", 2.5)])
+    ("escape_still", -1), ("escape_still", 2.5),
+    ("escape_descent_step", -0.1), ("escape_descent_step", math.inf)])
 def test_settings_are_checked_by_name(name, value):
     with pytest.raises(ConfigError, match=name):
         GeodesicParams(**{name: value})
     with pytest.raises(ConfigError, match=name):
         strategy_choice("geodesic", {name: value})
+
+
+def test_a_descent_of_short_steps_keeps_a_robot_in_the_room_a_whole_step_leaves():
+    """Drawn plan 24, four robots: three along the corridor, one in the bottom middle room
+    (where a live team settles from start seed 1). Robot 0 moving from the corridor's west end
+    into the room north of robot 1 pays by whole Lloyd steps: the team re-spreads with robot 0
+    back in the corridor. By steps of at most 0.11 m (a live robot's reach between updates) it
+    stays in the room and H rises, as the live team's did; robot 0 moving into the room south
+    of where it stands pays either way."""
+    from coverage_ros.core.strategies.handover.bounds import descent_change
+
+    domain = _drawn_plan(24)
+    P = np.array([[2.0, 5.06], [6.59, 5.02], [13.51, 4.9], [9.3, 2.17]])
+    north, south = np.array([6.05, 8.25]), np.array([2.0, 0.5])
+    whole = descent_change(domain, known_cells(domain, P), 0.0, [1, 2, 3], north)
+    assert whole.increase < -100.0 and whole.positions[-1][1] < 5.5  # back in the corridor
+    short = descent_change(domain, known_cells(domain, P), 0.0, [1, 2, 3], north, max_step=0.11)
+    assert short.increase > 50.0 and short.positions[-1][1] > 7.0  # still in the room
+    assert descent_change(domain, known_cells(domain, P), 0.0, [1, 2, 3], south,
+                          max_step=0.11).increase < -100.0
+
+
+def test_with_short_descent_steps_a_joint_bound_is_priced_by_the_descent():
+    """Drawn plan 24, four robots: robot 0 in the room south of the corridor's west part, the
+    others along the corridor (where a live team with short descent steps but bounds taken at
+    their word settles from start seed 2). Its move into the room north of the corridor pays by
+    the joint bound of one ring (its Euclidean centroid steps take a robot through a doorway);
+    the team's descent from it ends higher, by whole steps as by short ones, and with short
+    steps the joint bound returns that descent's price."""
+    domain = _drawn_plan(24)
+    P = np.array([[5.38, 2.42], [14.02, 4.91], [2.03, 5.05], [9.26, 4.88]])
+    north = np.array([6.15, 7.65])
+    assert joint_change(domain, known_cells(domain, P), 0.0, 3, north, 10).increase < -100.0
+    short = joint_change(domain, known_cells(domain, P), 0.0, 3, north, 10, max_step=0.11)
+    assert short.increase > 100.0 and short.positions[-1][1] > 7.0  # in the room, H up
 
 
 def test_without_escape_nothing_extra_is_published():
